@@ -1,0 +1,60 @@
+//! The nonlinear element as the truth simulators and the model simulators see it.
+//!
+//! The force splits into a single-valued part `smooth_force(x, v, z)` (z: internal states such
+//! as Bouc-Wen's) and an optional set-valued Coulomb-type friction: while the relative velocity
+//! is zero the friction is whatever keeps it zero, up to `breakaway_n`; while slipping it is
+//! `sgn(v) * slip_force_n(|v|)`. Simulators treat the stick phase exactly, with no
+//! regularisation.
+
+/// Coulomb-type friction law with a stick phase.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Friction {
+    /// Largest friction force the element can hold while stuck [N].
+    pub breakaway_n: f64,
+    /// Kinetic (Coulomb) level at high speed [N].
+    pub kinetic_n: f64,
+    /// Stribeck: extra force at low speed decays as exp(-(|v|/stribeck_velocity)^2); with
+    /// `breakaway_n == kinetic_n` this is plain Coulomb friction.
+    pub stribeck_velocity_mps: f64,
+    /// Asymmetry: the kinetic level for v > 0 is `kinetic_n * (1 + asymmetry)`, for v < 0
+    /// `kinetic_n * (1 - asymmetry)`.
+    pub asymmetry: f64,
+}
+
+impl Friction {
+    pub fn coulomb(level_n: f64) -> Friction {
+        Friction { breakaway_n: level_n, kinetic_n: level_n, stribeck_velocity_mps: 1.0, asymmetry: 0.0 }
+    }
+
+    /// Friction force while slipping at relative velocity `v` (v != 0) [N].
+    pub fn slip_force_n(&self, v: f64) -> f64 {
+        let s = v.signum();
+        let level = self.kinetic_n * (1.0 + s * self.asymmetry);
+        let stribeck = if self.breakaway_n > self.kinetic_n {
+            (self.breakaway_n - self.kinetic_n) * (-(v / self.stribeck_velocity_mps).powi(2)).exp()
+        } else {
+            0.0
+        };
+        s * (level + stribeck)
+    }
+}
+
+/// A nonlinear element: truth models and identified models implement this.
+pub trait Element: Send + Sync {
+    /// Single-valued part of the element force [N] at relative displacement `x` [m], relative
+    /// velocity `v` [m/s] and internal states `z`.
+    fn smooth_force(&self, x: f64, v: f64, z: &[f64]) -> f64;
+
+    /// Set-valued friction, if any.
+    fn friction(&self) -> Option<Friction> {
+        None
+    }
+
+    /// Number of internal states (e.g. 1 for Bouc-Wen hysteresis).
+    fn internal_states(&self) -> usize {
+        0
+    }
+
+    /// Time derivatives of the internal states.
+    fn internal_rates(&self, _x: f64, _v: f64, _z: &[f64], _dz: &mut [f64]) {}
+}

@@ -1,0 +1,1 @@
+//! Harmonic analysis (helper is writing this module).

@@ -1,0 +1,1 @@
+//! Truth simulators (helper is writing this module).

@@ -1,0 +1,2 @@
+//! forcemap_nodes: the `forcemap` command and (later) the ROS 2 nodes, thin adapters around
+//! `forcemap_math`.
