@@ -1,0 +1,241 @@
+//! Basis functions h_i(x, x') of the element force (eq. 4): g(x, x') = sum_i theta_i h_i(x, x').
+//!
+//! Each term is a `Term`; a model (see `model`) is a named list of terms. To add a term,
+//! implement `Term` (a symbol, an evaluation, and whether it jumps where the velocity changes
+//! sign) and use it in a `Model`.
+
+use std::f64::consts::FRAC_2_PI;
+use std::fmt::Debug;
+
+/// One basis function of the element force.
+pub trait Term: Debug + Send + Sync {
+    /// The parameter symbol of this term's coefficient, in the paper's lower-case names
+    /// (k, c, fd, s, ...).
+    fn symbol(&self) -> String;
+    /// A readable formula, e.g. "sgn(x')".
+    fn formula(&self) -> String;
+    /// h(x, v) at relative displacement `x` [m] and velocity `v` [m/s].
+    fn eval(&self, x: f64, v: f64) -> f64;
+    /// True when h jumps where v changes sign (sgn-like). Such a term stands for Coulomb
+    /// friction: the truth force is set-valued while the element sticks, so equations taken
+    /// near v = 0 cannot be trusted and the model simulator treats the stick phase exactly.
+    fn jumps_at_zero_velocity(&self) -> bool {
+        false
+    }
+}
+
+/// x: linear stiffness, coefficient k [N/m].
+#[derive(Debug, Clone, Copy)]
+pub struct Displacement;
+/// x': viscous damping, coefficient c [N s/m].
+#[derive(Debug, Clone, Copy)]
+pub struct Velocity;
+/// sgn(x'): Coulomb friction, coefficient fd [N].
+#[derive(Debug, Clone, Copy)]
+pub struct SignVelocity;
+/// (2/pi) atan(M x'): smoothed Coulomb friction of slope M [s/m] at x' = 0, coefficient fd [N].
+#[derive(Debug, Clone, Copy)]
+pub struct AtanVelocity {
+    pub slope_s_per_m: f64,
+}
+/// x^3: cubic stiffness, coefficient s [N/m^3].
+#[derive(Debug, Clone, Copy)]
+pub struct Cubic;
+/// x^i x'^j: the generic polynomial family of eq. 2, coefficient p{i}{j}.
+#[derive(Debug, Clone, Copy)]
+pub struct Polynomial {
+    pub i: u32,
+    pub j: u32,
+}
+/// 1: a constant force offset [N].
+#[derive(Debug, Clone, Copy)]
+pub struct Constant;
+/// x|x|: asymmetric (quadratic) stiffness, coefficient k2 [N/m^2].
+#[derive(Debug, Clone, Copy)]
+pub struct SignedSquareDisplacement;
+/// x'|x'|: quadratic damping, coefficient c2 [N s^2/m^2].
+#[derive(Debug, Clone, Copy)]
+pub struct SignedSquareVelocity;
+/// |x'|: asymmetric damping with c x' (rebound and compression coefficients c +/- ca),
+/// coefficient ca [N s/m].
+#[derive(Debug, Clone, Copy)]
+pub struct AbsVelocity;
+
+impl Term for Displacement {
+    fn symbol(&self) -> String {
+        "k".into()
+    }
+    fn formula(&self) -> String {
+        "x".into()
+    }
+    fn eval(&self, x: f64, _v: f64) -> f64 {
+        x
+    }
+}
+
+impl Term for Velocity {
+    fn symbol(&self) -> String {
+        "c".into()
+    }
+    fn formula(&self) -> String {
+        "x'".into()
+    }
+    fn eval(&self, _x: f64, v: f64) -> f64 {
+        v
+    }
+}
+
+impl Term for SignVelocity {
+    fn symbol(&self) -> String {
+        "fd".into()
+    }
+    fn formula(&self) -> String {
+        "sgn(x')".into()
+    }
+    fn eval(&self, _x: f64, v: f64) -> f64 {
+        if v > 0.0 {
+            1.0
+        } else if v < 0.0 {
+            -1.0
+        } else {
+            0.0
+        }
+    }
+    fn jumps_at_zero_velocity(&self) -> bool {
+        true
+    }
+}
+
+impl Term for AtanVelocity {
+    fn symbol(&self) -> String {
+        "fd".into()
+    }
+    fn formula(&self) -> String {
+        format!("(2/pi) atan({} x')", self.slope_s_per_m)
+    }
+    fn eval(&self, _x: f64, v: f64) -> f64 {
+        FRAC_2_PI * (self.slope_s_per_m * v).atan()
+    }
+}
+
+impl Term for Cubic {
+    fn symbol(&self) -> String {
+        "s".into()
+    }
+    fn formula(&self) -> String {
+        "x^3".into()
+    }
+    fn eval(&self, x: f64, _v: f64) -> f64 {
+        x * x * x
+    }
+}
+
+impl Term for Polynomial {
+    fn symbol(&self) -> String {
+        format!("p{}{}", self.i, self.j)
+    }
+    fn formula(&self) -> String {
+        format!("x^{} x'^{}", self.i, self.j)
+    }
+    fn eval(&self, x: f64, v: f64) -> f64 {
+        x.powi(self.i as i32) * v.powi(self.j as i32)
+    }
+}
+
+impl Term for Constant {
+    fn symbol(&self) -> String {
+        "offset".into()
+    }
+    fn formula(&self) -> String {
+        "1".into()
+    }
+    fn eval(&self, _x: f64, _v: f64) -> f64 {
+        1.0
+    }
+}
+
+impl Term for SignedSquareDisplacement {
+    fn symbol(&self) -> String {
+        "k2".into()
+    }
+    fn formula(&self) -> String {
+        "x|x|".into()
+    }
+    fn eval(&self, x: f64, _v: f64) -> f64 {
+        x * x.abs()
+    }
+}
+
+impl Term for SignedSquareVelocity {
+    fn symbol(&self) -> String {
+        "c2".into()
+    }
+    fn formula(&self) -> String {
+        "x'|x'|".into()
+    }
+    fn eval(&self, _x: f64, v: f64) -> f64 {
+        v * v.abs()
+    }
+}
+
+impl Term for AbsVelocity {
+    fn symbol(&self) -> String {
+        "ca".into()
+    }
+    fn formula(&self) -> String {
+        "|x'|".into()
+    }
+    fn eval(&self, _x: f64, v: f64) -> f64 {
+        v.abs()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn atan_tends_to_sgn_for_steep_slope() {
+        let a = AtanVelocity { slope_s_per_m: 1e9 };
+        for v in [-0.3, -1e-3, 1e-3, 0.2] {
+            assert!(
+                (a.eval(0.0, v) - SignVelocity.eval(0.0, v)).abs() < 1e-5,
+                "v = {v}"
+            );
+        }
+        // slope at the origin is (2/pi) M
+        let m = 500.0;
+        let a = AtanVelocity { slope_s_per_m: m };
+        let d = 1e-9;
+        assert!(((a.eval(0.0, d) - a.eval(0.0, -d)) / (2.0 * d) - FRAC_2_PI * m).abs() < 1e-3);
+    }
+
+    #[test]
+    fn polynomial_matches_named_terms() {
+        let (x, v) = (0.013, -0.21);
+        assert_eq!(
+            Polynomial { i: 1, j: 0 }.eval(x, v),
+            Displacement.eval(x, v)
+        );
+        assert_eq!(Polynomial { i: 0, j: 1 }.eval(x, v), Velocity.eval(x, v));
+        assert!((Polynomial { i: 3, j: 0 }.eval(x, v) - Cubic.eval(x, v)).abs() < 1e-20);
+        assert!((Polynomial { i: 2, j: 1 }.eval(x, v) - x * x * v).abs() < 1e-18);
+        assert_eq!(Polynomial { i: 2, j: 1 }.symbol(), "p21");
+    }
+
+    #[test]
+    fn odd_and_even_terms() {
+        let (x, v) = (0.02, 0.1);
+        assert_eq!(
+            SignedSquareDisplacement.eval(-x, v),
+            -SignedSquareDisplacement.eval(x, v)
+        );
+        assert_eq!(
+            SignedSquareVelocity.eval(x, -v),
+            -SignedSquareVelocity.eval(x, v)
+        );
+        assert_eq!(AbsVelocity.eval(x, -v), AbsVelocity.eval(x, v));
+        assert!(SignVelocity.jumps_at_zero_velocity());
+        assert!(!AtanVelocity { slope_s_per_m: 1e5 }.jumps_at_zero_velocity());
+    }
+}

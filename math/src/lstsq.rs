@@ -1,0 +1,257 @@
+//! Least squares A theta = b by SVD of the column-scaled matrix (eq. 17 without forming the
+//! normal equations), with the diagnostics an engineer needs to trust the answer.
+
+use nalgebra::{DMatrix, DVector};
+use thiserror::Error;
+
+/// Above this condition number (of the column-scaled matrix) the system is refused.
+pub const MAX_CONDITION_NUMBER: f64 = 1e10;
+/// Above this condition number the solution is returned with a warning.
+pub const WARN_CONDITION_NUMBER: f64 = 1e6;
+
+#[derive(Debug, Error, PartialEq)]
+pub enum LstsqError {
+    #[error(
+        "{equations} real equations for {parameters} parameters ({names}): need at least as many equations as parameters; add steps (frequencies or amplitudes)"
+    )]
+    Underdetermined {
+        equations: usize,
+        parameters: usize,
+        names: String,
+    },
+    #[error(
+        "the equations cannot identify {names}: condition number {condition:.3e} (limit {limit:.0e}); these data do not excite them independently of the other terms"
+    )]
+    IllConditioned {
+        condition: f64,
+        limit: f64,
+        names: String,
+    },
+    #[error(
+        "non-finite value in the equations (row {row}): the measurements or phasors hold NaN or infinity"
+    )]
+    NonFinite { row: usize },
+}
+
+/// The least-squares solution and its statistics.
+#[derive(Debug, Clone)]
+pub struct Solution {
+    pub theta: Vec<f64>,
+    /// Covariance of theta: s^2 (A^T A)^-1 with s^2 the residual variance, times `variance_scale`.
+    pub covariance: DMatrix<f64>,
+    /// Condition number of A after scaling its columns to unit norm: the conditioning of the
+    /// parameters themselves, independent of their units.
+    pub condition_number: f64,
+    pub equations: usize,
+    /// RMS of the (weighted) residual A theta - b.
+    pub residual_rms: f64,
+    pub warnings: Vec<String>,
+}
+
+impl Solution {
+    pub fn std(&self) -> Vec<f64> {
+        (0..self.theta.len())
+            .map(|i| self.covariance[(i, i)].max(0.0).sqrt())
+            .collect()
+    }
+}
+
+/// Solves min |A theta - b| by SVD. `names` label the columns in errors. `variance_scale`
+/// corrects the covariance when rows are not independent equations (1 when they are).
+pub fn solve(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    names: &[String],
+    variance_scale: f64,
+) -> Result<Solution, LstsqError> {
+    let (rows, cols) = a.shape();
+    assert_eq!(cols, names.len(), "one name per column");
+    assert_eq!(rows, b.len(), "one right-hand side per row");
+    if let Some(row) =
+        (0..rows).find(|&r| !b[r].is_finite() || a.row(r).iter().any(|v| !v.is_finite()))
+    {
+        return Err(LstsqError::NonFinite { row });
+    }
+    if rows < cols {
+        return Err(LstsqError::Underdetermined {
+            equations: rows,
+            parameters: cols,
+            names: names.join(", "),
+        });
+    }
+    // Scale columns to unit norm so that k [N/m] and s [N/m^3] are comparable.
+    let scale: Vec<f64> = (0..cols)
+        .map(|j| {
+            let n = a.column(j).norm();
+            if n > 0.0 { n } else { 1.0 }
+        })
+        .collect();
+    let mut scaled = a.clone();
+    for (j, s) in scale.iter().enumerate() {
+        scaled.column_mut(j).unscale_mut(*s);
+    }
+    let svd = scaled.clone().svd(true, true);
+    let sv = &svd.singular_values;
+    let s_max = sv.max();
+    let s_min = sv.min();
+    let condition = if s_min > 0.0 {
+        s_max / s_min
+    } else {
+        f64::INFINITY
+    };
+    if condition > MAX_CONDITION_NUMBER || a.column_iter().any(|c| c.norm() == 0.0) {
+        return Err(LstsqError::IllConditioned {
+            condition,
+            limit: MAX_CONDITION_NUMBER,
+            names: unidentifiable(&svd.v_t.clone().expect("v_t requested"), sv, names, s_max),
+        });
+    }
+    let u = svd.u.as_ref().expect("u requested");
+    let v_t = svd.v_t.as_ref().expect("v_t requested");
+    // theta_scaled = V diag(1/s) U^T b
+    let utb = u.transpose() * b;
+    let mut y = DVector::zeros(cols);
+    for i in 0..cols {
+        y[i] = utb[i] / sv[i];
+    }
+    let theta_scaled = v_t.transpose() * y;
+    let theta: Vec<f64> = (0..cols).map(|j| theta_scaled[j] / scale[j]).collect();
+
+    let residual = a * DVector::from_column_slice(&theta) - b;
+    let rss = residual.norm_squared();
+    let dof = rows.saturating_sub(cols).max(1) as f64;
+    let s2 = rss / dof * variance_scale;
+    // (A^T A)^-1 = D^-1 V diag(1/s^2) V^T D^-1
+    let mut cov = DMatrix::zeros(cols, cols);
+    for i in 0..cols {
+        for j in 0..cols {
+            let mut acc = 0.0;
+            for m in 0..cols {
+                acc += v_t[(m, i)] * v_t[(m, j)] / (sv[m] * sv[m]);
+            }
+            cov[(i, j)] = s2 * acc / (scale[i] * scale[j]);
+        }
+    }
+    let mut warnings = Vec::new();
+    if condition > WARN_CONDITION_NUMBER {
+        warnings.push(format!(
+            "badly conditioned: condition number {condition:.3e}; weakly determined: {}",
+            unidentifiable(v_t, sv, names, s_max)
+        ));
+    }
+    Ok(Solution {
+        theta,
+        covariance: cov,
+        condition_number: condition,
+        equations: rows,
+        residual_rms: (rss / rows as f64).sqrt(),
+        warnings,
+    })
+}
+
+/// Names the parameters that dominate the weakest singular directions.
+fn unidentifiable(v_t: &DMatrix<f64>, sv: &DVector<f64>, names: &[String], s_max: f64) -> String {
+    let mut out: Vec<String> = Vec::new();
+    for (m, s) in sv.iter().enumerate() {
+        if *s <= s_max / WARN_CONDITION_NUMBER || *s == 0.0 {
+            for (j, name) in names.iter().enumerate() {
+                if v_t[(m, j)].abs() > 0.3 && !out.contains(name) {
+                    out.push(name.clone());
+                }
+            }
+        }
+    }
+    if out.is_empty() {
+        // Fall back on the weakest direction.
+        let m = sv.imin();
+        let j = (0..names.len())
+            .max_by(|&x, &y| v_t[(m, x)].abs().total_cmp(&v_t[(m, y)].abs()))
+            .unwrap_or(0);
+        out.push(names[j].clone());
+    }
+    out.join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(n: &[&str]) -> Vec<String> {
+        n.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn consistent_system_is_solved_exactly_whatever_the_units() {
+        // Columns of wildly different scale, as k x and s x^3 are.
+        let x: Vec<f64> = (0..20).map(|i| 0.001 * (i as f64 + 1.0)).collect();
+        let a = DMatrix::from_fn(20, 3, |r, c| match c {
+            0 => x[r],
+            1 => x[r].powi(3),
+            _ => (r as f64 * 0.7).sin(),
+        });
+        let truth = [8000.0, 3e8, 5.0];
+        let b = &a * DVector::from_column_slice(&truth);
+        let s = solve(&a, &b, &names(&["k", "s", "fd"]), 1.0).unwrap();
+        for (got, want) in s.theta.iter().zip(truth) {
+            assert!((got / want - 1.0).abs() < 1e-9, "{got} vs {want}");
+        }
+        assert!(s.residual_rms < 1e-9);
+        assert!(s.std().iter().all(|v| *v < 1e-6 * 3e8));
+    }
+
+    #[test]
+    fn covariance_matches_monte_carlo_for_noisy_rows() {
+        // y = 2 + 3 t + noise; OLS std of the slope is sigma / sqrt(sum (t - mean)^2).
+        let n = 200;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
+        let a = DMatrix::from_fn(n, 2, |r, c| if c == 0 { 1.0 } else { t[r] });
+        let sigma = 0.1;
+        // deterministic pseudo-noise with zero mean and known variance
+        let noise: Vec<f64> = (0..n)
+            .map(|i| sigma * 3f64.sqrt() * (2.0 * ((i * 7919 % 1000) as f64 / 1000.0) - 1.0))
+            .collect();
+        let b = DVector::from_fn(n, |r, _| 2.0 + 3.0 * t[r] + noise[r]);
+        let s = solve(&a, &b, &names(&["a", "b"]), 1.0).unwrap();
+        let mean = t.iter().sum::<f64>() / n as f64;
+        let sxx: f64 = t.iter().map(|v| (v - mean).powi(2)).sum();
+        let expect = sigma / sxx.sqrt();
+        assert!(
+            (s.std()[1] / expect - 1.0).abs() < 0.15,
+            "{} vs {}",
+            s.std()[1],
+            expect
+        );
+    }
+
+    #[test]
+    fn refuses_and_names_what_cannot_be_identified() {
+        let a = DMatrix::from_fn(10, 3, |r, c| match c {
+            0 => r as f64,
+            1 => 2.0 * r as f64, // collinear with column 0
+            _ => 1.0,
+        });
+        let b = DVector::from_element(10, 1.0);
+        let e = solve(&a, &b, &names(&["k", "k2", "offset"]), 1.0).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains("k, k2") && !msg.contains("offset"), "{msg}");
+        let e = solve(
+            &DMatrix::zeros(1, 2),
+            &DVector::zeros(1),
+            &names(&["k", "c"]),
+            1.0,
+        )
+        .unwrap_err();
+        assert!(matches!(
+            e,
+            LstsqError::Underdetermined {
+                equations: 1,
+                parameters: 2,
+                ..
+            }
+        ));
+        let mut a = DMatrix::identity(3, 2);
+        a[(2, 1)] = f64::NAN;
+        let e = solve(&a, &DVector::zeros(3), &names(&["k", "c"]), 1.0).unwrap_err();
+        assert_eq!(e, LstsqError::NonFinite { row: 2 });
+    }
+}

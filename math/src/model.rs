@@ -1,0 +1,247 @@
+//! Models: named sets of basis functions, and identified models that simulate.
+
+use std::sync::Arc;
+
+use thiserror::Error;
+
+use crate::basis::{AtanVelocity, Cubic, Displacement, Polynomial, SignVelocity, Term, Velocity};
+use crate::element::{Element, Friction};
+
+/// The names `Model::by_name` understands, with what they hold.
+pub const MODEL_NAMES: &[(&str, &str)] = &[
+    ("linear", "k x + c x'  (eq. 24)"),
+    ("coulomb", "k x + c x' + fd sgn(x')  (eq. 25)"),
+    (
+        "coulomb-atan",
+        "k x + c x' + fd (2/pi) atan(M x')  (eq. 26; M from --atan-m)",
+    ),
+    ("coulomb-cubic", "k x + c x' + fd sgn(x') + s x^3  (eq. 18)"),
+    (
+        "coulomb-atan-cubic",
+        "k x + c x' + fd (2/pi) atan(M x') + s x^3  (eq. 19)",
+    ),
+    ("cubic", "k x + c x' + s x^3"),
+    (
+        "polynomial",
+        "sum of x^i x'^j for i <= P, j <= Q, i + j >= 1  (eq. 2; P, Q from --poly-order)",
+    ),
+];
+
+#[derive(Debug, Error, PartialEq)]
+pub enum ModelError {
+    #[error("unknown model '{name}'; known models: {known}")]
+    Unknown { name: String, known: String },
+    #[error("model '{name}' needs the atan slope M (e.g. --atan-m 1000), a positive number")]
+    MissingAtanSlope { name: String },
+}
+
+/// Options that some named models need.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ModelOptions {
+    /// Slope M [s/m] of the atan friction term.
+    pub atan_slope_s_per_m: Option<f64>,
+    /// Orders (P, Q) of the polynomial model.
+    pub polynomial_order: Option<(u32, u32)>,
+}
+
+/// A named set of basis functions.
+#[derive(Debug, Clone)]
+pub struct Model {
+    pub name: String,
+    pub terms: Vec<Arc<dyn Term>>,
+}
+
+impl Model {
+    pub fn new(name: impl Into<String>, terms: Vec<Arc<dyn Term>>) -> Model {
+        Model {
+            name: name.into(),
+            terms,
+        }
+    }
+
+    pub fn by_name(name: &str, options: &ModelOptions) -> Result<Model, ModelError> {
+        let atan = || -> Result<Arc<dyn Term>, ModelError> {
+            match options.atan_slope_s_per_m {
+                Some(m) if m > 0.0 && m.is_finite() => {
+                    Ok(Arc::new(AtanVelocity { slope_s_per_m: m }))
+                }
+                _ => Err(ModelError::MissingAtanSlope { name: name.into() }),
+            }
+        };
+        let terms: Vec<Arc<dyn Term>> = match name {
+            "linear" => vec![Arc::new(Displacement), Arc::new(Velocity)],
+            "coulomb" => vec![
+                Arc::new(Displacement),
+                Arc::new(Velocity),
+                Arc::new(SignVelocity),
+            ],
+            "coulomb-atan" => vec![Arc::new(Displacement), Arc::new(Velocity), atan()?],
+            "coulomb-cubic" => vec![
+                Arc::new(Displacement),
+                Arc::new(Velocity),
+                Arc::new(SignVelocity),
+                Arc::new(Cubic),
+            ],
+            "coulomb-atan-cubic" => {
+                vec![
+                    Arc::new(Displacement),
+                    Arc::new(Velocity),
+                    atan()?,
+                    Arc::new(Cubic),
+                ]
+            }
+            "cubic" => vec![Arc::new(Displacement), Arc::new(Velocity), Arc::new(Cubic)],
+            "polynomial" => {
+                let (p, q) = options.polynomial_order.unwrap_or((3, 1));
+                let mut terms: Vec<Arc<dyn Term>> = Vec::new();
+                for j in 0..=q {
+                    for i in 0..=p {
+                        if i + j >= 1 {
+                            terms.push(Arc::new(Polynomial { i, j }));
+                        }
+                    }
+                }
+                terms
+            }
+            _ => {
+                return Err(ModelError::Unknown {
+                    name: name.into(),
+                    known: MODEL_NAMES
+                        .iter()
+                        .map(|(n, _)| *n)
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                });
+            }
+        };
+        Ok(Model::new(name, terms))
+    }
+
+    /// Adds terms (e.g. a candidate effect) and returns the extended model.
+    pub fn with_terms(&self, name: impl Into<String>, extra: &[Arc<dyn Term>]) -> Model {
+        let mut terms = self.terms.clone();
+        terms.extend(extra.iter().cloned());
+        Model::new(name, terms)
+    }
+
+    pub fn symbols(&self) -> Vec<String> {
+        self.terms.iter().map(|t| t.symbol()).collect()
+    }
+
+    pub fn has_velocity_jump(&self) -> bool {
+        self.terms.iter().any(|t| t.jumps_at_zero_velocity())
+    }
+
+    /// The element force with parameters `theta`.
+    pub fn force(&self, theta: &[f64], x: f64, v: f64) -> f64 {
+        self.terms
+            .iter()
+            .zip(theta)
+            .map(|(t, th)| th * t.eval(x, v))
+            .sum()
+    }
+}
+
+/// A model with its parameter values: an `Element` the simulators can run. A sgn-like term
+/// becomes set-valued Coulomb friction (exact stick phase); every other term is smooth.
+#[derive(Debug, Clone)]
+pub struct IdentifiedModel {
+    pub model: Model,
+    pub theta: Vec<f64>,
+}
+
+impl IdentifiedModel {
+    pub fn new(model: Model, theta: Vec<f64>) -> IdentifiedModel {
+        assert_eq!(model.terms.len(), theta.len(), "one value per term");
+        IdentifiedModel { model, theta }
+    }
+
+    pub fn parameter(&self, symbol: &str) -> Option<f64> {
+        self.model
+            .terms
+            .iter()
+            .zip(&self.theta)
+            .find(|(t, _)| t.symbol() == symbol)
+            .map(|(_, v)| *v)
+    }
+}
+
+impl Element for IdentifiedModel {
+    fn smooth_force(&self, x: f64, v: f64, _z: &[f64]) -> f64 {
+        self.model
+            .terms
+            .iter()
+            .zip(&self.theta)
+            .filter(|(t, _)| !t.jumps_at_zero_velocity())
+            .map(|(t, th)| th * t.eval(x, v))
+            .sum()
+    }
+
+    fn friction(&self) -> Option<Friction> {
+        // A negative friction coefficient is not a friction: keep it as a (signed) smooth sgn
+        // force while slipping and let the stick level be zero.
+        let level: f64 = self
+            .model
+            .terms
+            .iter()
+            .zip(&self.theta)
+            .filter(|(t, _)| t.jumps_at_zero_velocity())
+            .map(|(_, th)| *th)
+            .sum();
+        let has = self.model.has_velocity_jump();
+        has.then(|| Friction::coulomb(level.max(0.0)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn named_models_have_the_papers_symbols() {
+        let o = ModelOptions {
+            atan_slope_s_per_m: Some(500.0),
+            polynomial_order: None,
+        };
+        assert_eq!(Model::by_name("linear", &o).unwrap().symbols(), ["k", "c"]);
+        assert_eq!(
+            Model::by_name("coulomb", &o).unwrap().symbols(),
+            ["k", "c", "fd"]
+        );
+        assert_eq!(
+            Model::by_name("coulomb-atan", &o).unwrap().symbols(),
+            ["k", "c", "fd"]
+        );
+        assert_eq!(
+            Model::by_name("coulomb-cubic", &o).unwrap().symbols(),
+            ["k", "c", "fd", "s"]
+        );
+        let poly = Model::by_name(
+            "polynomial",
+            &ModelOptions {
+                polynomial_order: Some((2, 1)),
+                ..o
+            },
+        )
+        .unwrap();
+        assert_eq!(poly.symbols(), ["p10", "p20", "p01", "p11", "p21"]);
+    }
+
+    #[test]
+    fn errors_name_the_problem() {
+        let e = Model::by_name("coulomb-atan", &ModelOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("--atan-m"), "{e}");
+        let e = Model::by_name("friction", &ModelOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("coulomb-cubic"), "{e}");
+    }
+
+    #[test]
+    fn identified_model_splits_friction_from_smooth_force() {
+        let m = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
+        let im = IdentifiedModel::new(m, vec![6380.0, 184.0, 12.3]);
+        assert_eq!(im.friction().unwrap().breakaway_n, 12.3);
+        assert!((im.smooth_force(0.01, 0.1, &[]) - (63.8 + 18.4)).abs() < 1e-12);
+        assert!((im.model.force(&im.theta, 0.01, 0.1) - (63.8 + 18.4 + 12.3)).abs() < 1e-12);
+        assert_eq!(im.parameter("fd"), Some(12.3));
+    }
+}
