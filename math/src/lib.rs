@@ -11,7 +11,15 @@
 //! - A phasor `C_n` of a real periodic signal is one-sided: `s(t) = Re(sum_{n>=0} C_n e^{j n w (t - t_ref)})`,
 //!   so `|C_1|` is the amplitude of the fundamental and `C_0` is the mean.
 
-pub mod record;
+pub mod basis;
 pub mod element;
-pub mod sim;
+pub mod frf;
+pub mod lstsq;
+pub mod model;
 pub mod phasor;
+pub mod record;
+pub mod sim;
+pub mod identify;
+pub mod paper;
+pub mod pipeline;
+pub mod reproduce;

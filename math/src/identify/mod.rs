@@ -1,0 +1,237 @@
+//! Identification of the element parameters theta from stepped-sine data.
+//!
+//! - `Method::Fd`: the paper's FD-FSM, first harmonic only (eqs. 12-17, 22, 23).
+//! - `Method::FdMulti`: forcemap's improved FD-FSM: every harmonic n = 0..N of the measured
+//!   response rebuilds one period of the element force and the state (eq. 11); the fit uses only
+//!   the slip part of the cycle when the model has a Coulomb (sgn) term, because while the element
+//!   sticks its force is set-valued and no function of (x, x') can represent it. Steps are weighted
+//!   by their measured phasor noise.
+//! - `Method::Td`: classical time-domain force-state mapping (paper section 4.3), the baseline.
+//!
+//! Each step gives a block of equations (`StepEquations`); blocks are stacked and solved by
+//! `lstsq::solve`. The live identifier node accumulates the same blocks.
+
+mod fd;
+mod td;
+
+pub use fd::{step_equations, ElementHarmonics, element_harmonics};
+pub use td::td_step_equations;
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::frf::LinearSubstructure;
+use crate::lstsq::{self, LstsqError};
+use crate::model::Model;
+use crate::phasor::HarmonicAnalysis;
+use crate::record::{Channel, Record};
+
+/// How the element force is known from the measurements.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Setup {
+    /// Base-excited rig (eq. 23): m x_o'' = -g(x, x'), x = x_o - x_i.
+    BaseExcited { mass_kg: f64 },
+    /// Force-driven structure with the element at the drive point of a known linear
+    /// substructure (eqs. 21-22): X_d = alpha_dd (F - G).
+    DrivePoint { substructure: LinearSubstructure },
+}
+
+impl Setup {
+    /// Channels a step must hold for this setup (beyond the relative displacement).
+    pub fn required_channels(&self) -> &'static [Channel] {
+        match self {
+            Setup::BaseExcited { .. } => &[Channel::RelativeDisplacementM],
+            Setup::DrivePoint { .. } => {
+                &[Channel::RelativeDisplacementM, Channel::DrivePointDisplacementM, Channel::ForceN]
+            }
+        }
+    }
+}
+
+/// Identification method.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// The paper's first-harmonic FD-FSM.
+    Fd,
+    /// All harmonics, slip-phase aware.
+    FdMulti,
+    /// Time-domain FSM; `points_per_step` None = every settled sample.
+    Td { points_per_step: Option<usize> },
+}
+
+impl Method {
+    pub fn name(&self) -> String {
+        match self {
+            Method::Fd => "fd".into(),
+            Method::FdMulti => "fd-multi".into(),
+            Method::Td { points_per_step: Some(n) } => format!("td-{n}"),
+            Method::Td { points_per_step: None } => "td-all".into(),
+        }
+    }
+}
+
+/// Tuning of the improved method.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FdMultiOptions {
+    /// Grid points per period at which the rebuilt waveforms are evaluated (rounded up to a
+    /// power of two, at least 16 per harmonic).
+    pub grid_points: usize,
+    /// Samples with |x'| below this fraction of the step's peak |x'| are taken as stuck (or at
+    /// a velocity reversal) and left out for models with a sgn term.
+    pub stick_velocity_fraction: f64,
+    /// Margin around the left-out intervals, in periods of the highest harmonic: the rebuilt
+    /// force rings there (Gibbs) because the true force jumps when the element sticks.
+    pub guard_harmonic_periods: f64,
+}
+
+impl Default for FdMultiOptions {
+    fn default() -> Self {
+        FdMultiOptions { grid_points: 1024, stick_velocity_fraction: 0.03, guard_harmonic_periods: 0.25 }
+    }
+}
+
+/// One block of real equations A theta = b from one step.
+#[derive(Debug, Clone)]
+pub struct StepEquations {
+    pub step: usize,
+    pub a: DMatrix<f64>,
+    pub b: DVector<f64>,
+    /// How many statistically independent real equations the rows stand for (rows of a
+    /// rebuilt waveform are not independent: 2N+1 numbers made them).
+    pub independent_equations: f64,
+    /// Per-term RMS of h_i over the step's whole cycle (for the r contributions).
+    pub term_rms: Vec<f64>,
+    /// What a user should know about this step (e.g. left out because it never slipped).
+    pub notes: Vec<String>,
+}
+
+#[derive(Debug, Error)]
+pub enum IdentifyError {
+    #[error("step {step}: {problem}")]
+    Step { step: usize, problem: String },
+    #[error("no usable stepped-sine steps in the data (need at least one settled sine step)")]
+    NoSteps,
+    #[error(transparent)]
+    Lstsq(#[from] LstsqError),
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Parameter {
+    pub name: String,
+    pub value: f64,
+    pub std: f64,
+}
+
+/// The result of an identification.
+#[derive(Debug, Clone, Serialize)]
+pub struct Identification {
+    pub model: String,
+    pub method: String,
+    pub parameters: Vec<Parameter>,
+    pub covariance: Vec<Vec<f64>>,
+    pub condition_number: f64,
+    pub equations: usize,
+    /// Share [%] of each term in the RMS transmitted force (the paper's r values).
+    pub r: Vec<(String, f64)>,
+    pub residual_rms: f64,
+    /// Steps that contributed equations.
+    pub steps_used: Vec<usize>,
+    pub warnings: Vec<String>,
+}
+
+impl Identification {
+    pub fn value(&self, name: &str) -> Option<f64> {
+        self.parameters.iter().find(|p| p.name == name).map(|p| p.value)
+    }
+    pub fn theta(&self) -> Vec<f64> {
+        self.parameters.iter().map(|p| p.value).collect()
+    }
+}
+
+/// Stacks step blocks and solves. Blocks may be weighted already.
+pub fn solve_blocks(model: &Model, method: Method, blocks: &[StepEquations]) -> Result<Identification, IdentifyError> {
+    if blocks.is_empty() {
+        return Err(IdentifyError::NoSteps);
+    }
+    let p = model.terms.len();
+    let rows: usize = blocks.iter().map(|b| b.a.nrows()).sum();
+    let mut a = DMatrix::zeros(rows, p);
+    let mut b = DVector::zeros(rows);
+    let mut r0 = 0;
+    for blk in blocks {
+        let n = blk.a.nrows();
+        a.rows_mut(r0, n).copy_from(&blk.a);
+        b.rows_mut(r0, n).copy_from(&blk.b);
+        r0 += n;
+    }
+    let independent: f64 = blocks.iter().map(|b| b.independent_equations).sum();
+    let names = model.symbols();
+    let variance_scale = if independent > p as f64 {
+        ((rows - p) as f64 / (independent - p as f64)).max(1.0)
+    } else {
+        1.0
+    };
+    let sol = lstsq::solve(&a, &b, &names, variance_scale)?;
+    let std = sol.std();
+    // r: each term's share of the RMS transmitted force over the fitting data.
+    let contrib: Vec<f64> = (0..p)
+        .map(|i| {
+            let ms: f64 = blocks.iter().map(|blk| blk.term_rms[i].powi(2)).sum::<f64>() / blocks.len() as f64;
+            (sol.theta[i] * ms.sqrt()).abs()
+        })
+        .collect();
+    let total: f64 = contrib.iter().sum();
+    let mut warnings: Vec<String> = blocks.iter().flat_map(|b| b.notes.iter().cloned()).collect();
+    warnings.extend(sol.warnings.iter().cloned());
+    if (independent as usize) < 2 * p {
+        warnings.push(format!(
+            "few equations: {independent:.0} independent real equations for {p} parameters"
+        ));
+    }
+    Ok(Identification {
+        model: model.name.clone(),
+        method: method.name(),
+        parameters: names
+            .iter()
+            .zip(&sol.theta)
+            .zip(&std)
+            .map(|((n, v), s)| Parameter { name: n.clone(), value: *v, std: *s })
+            .collect(),
+        covariance: (0..p).map(|i| (0..p).map(|j| sol.covariance[(i, j)]).collect()).collect(),
+        condition_number: sol.condition_number,
+        equations: sol.equations,
+        r: names.iter().zip(&contrib).map(|(n, c)| (n.clone(), 100.0 * c / total.max(f64::MIN_POSITIVE))).collect(),
+        residual_rms: sol.residual_rms,
+        steps_used: blocks.iter().filter(|b| b.a.nrows() > 0).map(|b| b.step).collect(),
+        warnings,
+    })
+}
+
+/// Identifies `model` from stepped-sine steps. FD methods use the harmonic analyses; TD uses the
+/// records (and the analyses for the settled part).
+pub fn identify(
+    model: &Model,
+    setup: &Setup,
+    method: Method,
+    records: &[Record],
+    analyses: &[HarmonicAnalysis],
+    options: &FdMultiOptions,
+) -> Result<Identification, IdentifyError> {
+    let mut blocks = Vec::with_capacity(analyses.len());
+    for an in analyses {
+        let blk = match method {
+            Method::Fd | Method::FdMulti => step_equations(model, setup, method, an, options)?,
+            Method::Td { points_per_step } => {
+                let rec = records.iter().find(|r| r.step == an.step).ok_or_else(|| IdentifyError::Step {
+                    step: an.step,
+                    problem: "no samples for this step (time-domain FSM needs the samples)".into(),
+                })?;
+                td_step_equations(model, setup, rec, an, points_per_step)?
+            }
+        };
+        blocks.push(blk);
+    }
+    solve_blocks(model, method, &blocks)
+}
