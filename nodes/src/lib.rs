@@ -1,2 +1,4 @@
 //! forcemap_nodes: the `forcemap` command and (later) the ROS 2 nodes, thin adapters around
 //! `forcemap_math`.
+pub mod csv_export;
+pub mod params;
