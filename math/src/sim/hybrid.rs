@@ -1,0 +1,322 @@
+//! Event-driven fixed-step RK4 for systems with one set-valued (Coulomb-type) friction.
+//!
+//! Three modes: `Free` (no friction), `Slip(dir)` and `Stick`. In `Slip(dir)` the friction is
+//! the slip law with its direction frozen to `dir` (a smooth continuation across v = 0, so a
+//! single RK4 step is a smooth function of its length and the zero crossing of the relative
+//! velocity can be located by re-integrating the sub-step with bisection). In `Stick` the
+//! system supplies dynamics that keep the relative velocity exactly zero (it is a state set to
+//! 0.0 and its rate is 0.0), and the friction needed for that; the stick ends when the needed
+//! friction leaves `[-B_-, B_+]`, again located by bisection on the sub-step length.
+//! Events are located to `event_tolerance_s` (default 1e-12 s).
+
+use serde::{Deserialize, Serialize};
+
+use super::SimError;
+use crate::element::Friction;
+
+/// Integration settings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SolverOptions {
+    /// Largest RK4 sub-step [s]; each sample interval is split into equal sub-steps no
+    /// longer than this.
+    pub max_substep_s: f64,
+    /// Width of the bracket that locates a stick/slip event [s].
+    pub event_tolerance_s: f64,
+    /// Safety limit on events inside one sub-step (chattering guard).
+    pub max_events_per_substep: usize,
+}
+
+impl Default for SolverOptions {
+    fn default() -> Self {
+        SolverOptions {
+            max_substep_s: 1e-4,
+            event_tolerance_s: 1e-12,
+            max_events_per_substep: 64,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Mode {
+    Free,
+    Slip(f64),
+    Stick,
+}
+
+/// Slip friction with its direction frozen to `dir` (equal to `Friction::slip_force_n(v)`
+/// whenever `sgn(v) == dir`).
+pub(crate) fn slip_force_dir(fr: &Friction, v: f64, dir: f64) -> f64 {
+    let level = fr.kinetic_n * (1.0 + dir * fr.asymmetry);
+    let stribeck = if fr.breakaway_n > fr.kinetic_n {
+        (fr.breakaway_n - fr.kinetic_n) * (-(v / fr.stribeck_velocity_mps).powi(2)).exp()
+    } else {
+        0.0
+    };
+    dir * (level + stribeck)
+}
+
+/// Largest needed friction the stick holds in direction `dir`: `breakaway_n`, or the slip
+/// level at zero speed if that is larger (asymmetric friction), so that a slip never starts
+/// against its own friction.
+pub(crate) fn stick_limit(fr: &Friction, dir: f64) -> f64 {
+    fr.breakaway_n.max(slip_force_dir(fr, 0.0, dir).abs())
+}
+
+pub(crate) trait Hybrid {
+    fn dim(&self) -> usize;
+    fn friction(&self) -> Option<Friction>;
+    /// Index of the relative velocity across the friction element in the state.
+    fn vel_index(&self) -> usize;
+    /// State rates at `t`, inputs from the piece that holds at `t_ref`.
+    fn rhs(&self, t: f64, t_ref: f64, y: &[f64], mode: Mode, dy: &mut [f64]);
+    /// Friction force needed to keep the relative velocity zero (y has v = 0).
+    fn needed_friction(&self, t: f64, t_ref: f64, y: &[f64]) -> f64;
+    /// Jump conditions at an input breakpoint `t` (left limit to right limit).
+    fn jump(&self, _t: f64, _y: &mut [f64]) {}
+}
+
+/// Per-run statistics of the event-driven integration.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct RunStats {
+    /// Time spent stuck inside each sample interval `[t_i, t_i+1)`.
+    pub stick_time_s: Vec<f64>,
+    pub events: Vec<usize>,
+}
+
+pub(crate) struct Integrator<'a, H: Hybrid> {
+    sys: &'a H,
+    opts: SolverOptions,
+    k: [Vec<f64>; 4],
+    tmp: Vec<f64>,
+    trial: Vec<f64>,
+}
+
+impl<'a, H: Hybrid> Integrator<'a, H> {
+    pub fn new(sys: &'a H, opts: SolverOptions) -> Self {
+        let n = sys.dim();
+        Integrator {
+            sys,
+            opts,
+            k: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
+            tmp: vec![0.0; n],
+            trial: vec![0.0; n],
+        }
+    }
+
+    /// One classic RK4 step of length `dt` from `y` into `out`.
+    fn rk4(&mut self, t: f64, t_ref: f64, y: &[f64], dt: f64, mode: Mode, out: &mut [f64]) {
+        let n = y.len();
+        let [k1, k2, k3, k4] = &mut self.k;
+        self.sys.rhs(t, t_ref, y, mode, k1);
+        for i in 0..n {
+            self.tmp[i] = y[i] + 0.5 * dt * k1[i];
+        }
+        self.sys.rhs(t + 0.5 * dt, t_ref, &self.tmp, mode, k2);
+        for i in 0..n {
+            self.tmp[i] = y[i] + 0.5 * dt * k2[i];
+        }
+        self.sys.rhs(t + 0.5 * dt, t_ref, &self.tmp, mode, k3);
+        for i in 0..n {
+            self.tmp[i] = y[i] + dt * k3[i];
+        }
+        self.sys.rhs(t + dt, t_ref, &self.tmp, mode, k4);
+        for i in 0..n {
+            out[i] = y[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+    }
+
+    /// Mode at zero relative velocity: stick if the needed friction is within the limits,
+    /// otherwise slip in the direction of the needed friction.
+    pub fn decide_at_rest(&self, t: f64, t_ref: f64, y: &[f64]) -> Mode {
+        let Some(fr) = self.sys.friction() else {
+            return Mode::Free;
+        };
+        let f = self.sys.needed_friction(t, t_ref, y);
+        if f > stick_limit(&fr, 1.0) {
+            Mode::Slip(1.0)
+        } else if f < -stick_limit(&fr, -1.0) {
+            Mode::Slip(-1.0)
+        } else {
+            Mode::Stick
+        }
+    }
+
+    /// The mode consistent with the state (at the start and after input breakpoints).
+    pub fn consistent(&self, t: f64, t_ref: f64, y: &[f64], mode: Mode) -> Mode {
+        if self.sys.friction().is_none() {
+            return Mode::Free;
+        }
+        let v = y[self.sys.vel_index()];
+        match mode {
+            Mode::Slip(d) if v * d > 0.0 => Mode::Slip(d),
+            _ if v != 0.0 => Mode::Slip(v.signum()),
+            _ => self.decide_at_rest(t, t_ref, y),
+        }
+    }
+
+    fn stick_violated(&self, t: f64, t_ref: f64, y: &[f64], fr: &Friction) -> Option<f64> {
+        let f = self.sys.needed_friction(t, t_ref, y);
+        if f > stick_limit(fr, 1.0) {
+            Some(1.0)
+        } else if f < -stick_limit(fr, -1.0) {
+            Some(-1.0)
+        } else {
+            None
+        }
+    }
+
+    /// Advances `y` from `t0` to `t1` (no input breakpoint inside) handling stick/slip
+    /// events. Returns (time spent stuck, number of events).
+    pub fn advance(
+        &mut self,
+        t0: f64,
+        t1: f64,
+        t_ref: f64,
+        y: &mut [f64],
+        mode: &mut Mode,
+    ) -> Result<(f64, usize), SimError> {
+        let vi = self.sys.vel_index();
+        let mut t = t0;
+        let mut stuck = 0.0;
+        let mut events = 0;
+        let mut trial = std::mem::take(&mut self.trial);
+        let result = loop {
+            let dt = t1 - t;
+            if dt <= 0.0 {
+                break Ok(());
+            }
+            if events > self.opts.max_events_per_substep {
+                break Err(SimError::Chattering { time_s: t });
+            }
+            match *mode {
+                Mode::Free => {
+                    self.rk4(t, t_ref, y, dt, *mode, &mut trial);
+                    y.copy_from_slice(&trial);
+                    break Ok(());
+                }
+                Mode::Slip(dir) => {
+                    self.rk4(t, t_ref, y, dt, *mode, &mut trial);
+                    if dir * trial[vi] > 0.0 {
+                        y.copy_from_slice(&trial);
+                        break Ok(());
+                    }
+                    // The relative velocity reaches zero inside: bisect on the step length.
+                    let (mut lo, mut hi) = (0.0, dt);
+                    while hi - lo > self.opts.event_tolerance_s {
+                        let mid = 0.5 * (lo + hi);
+                        self.rk4(t, t_ref, y, mid, *mode, &mut trial);
+                        if dir * trial[vi] > 0.0 {
+                            lo = mid;
+                        } else {
+                            hi = mid;
+                        }
+                    }
+                    self.rk4(t, t_ref, y, hi, *mode, &mut trial);
+                    y.copy_from_slice(&trial);
+                    y[vi] = 0.0;
+                    t += hi;
+                    events += 1;
+                    *mode = self.decide_at_rest(t, t_ref, y);
+                }
+                Mode::Stick => {
+                    let fr = self.sys.friction().expect("stick mode needs friction");
+                    self.rk4(t, t_ref, y, dt, *mode, &mut trial);
+                    if self.stick_violated(t1, t_ref, &trial, &fr).is_none() {
+                        y.copy_from_slice(&trial);
+                        stuck += dt;
+                        break Ok(());
+                    }
+                    let (mut lo, mut hi) = (0.0, dt);
+                    while hi - lo > self.opts.event_tolerance_s {
+                        let mid = 0.5 * (lo + hi);
+                        self.rk4(t, t_ref, y, mid, *mode, &mut trial);
+                        if self.stick_violated(t + mid, t_ref, &trial, &fr).is_none() {
+                            lo = mid;
+                        } else {
+                            hi = mid;
+                        }
+                    }
+                    self.rk4(t, t_ref, y, hi, *mode, &mut trial);
+                    y.copy_from_slice(&trial);
+                    stuck += hi;
+                    t += hi;
+                    events += 1;
+                    let dir = self.stick_violated(t, t_ref, y, &fr).unwrap_or(1.0);
+                    *mode = Mode::Slip(dir);
+                }
+            }
+        };
+        self.trial = trial;
+        result.map(|()| (stuck, events))
+    }
+
+    /// Integrates a whole run sampled at `i / sample_rate_hz`, `i = 0..samples`, with input
+    /// breakpoints `breaks` (jump conditions applied there). `y` holds the state at t = 0.
+    /// `on_sample(i, t, t_ref, y, mode)` is called at every sample (right limit).
+    pub fn run(
+        &mut self,
+        y: &mut [f64],
+        samples: usize,
+        sample_rate_hz: f64,
+        breaks: &[f64],
+        mut on_sample: impl FnMut(usize, f64, f64, &[f64], Mode),
+    ) -> Result<RunStats, SimError> {
+        // Nodes: (time, sample index, is input breakpoint).
+        let mut nodes: Vec<(f64, Option<usize>, bool)> = (0..samples)
+            .map(|i| (i as f64 / sample_rate_hz, Some(i), false))
+            .collect();
+        let t_end = (samples.max(1) - 1) as f64 / sample_rate_hz;
+        for &b in breaks {
+            if b <= 0.0 || b > t_end {
+                continue;
+            }
+            let i = (b * sample_rate_hz).round() as usize;
+            if i < samples && (nodes[i].0 - b).abs() <= 1e-12 * b.max(1.0) {
+                nodes[i].2 = true;
+            } else {
+                nodes.push((b, None, true));
+            }
+        }
+        nodes.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut stats = RunStats {
+            stick_time_s: vec![0.0; samples],
+            events: vec![0; samples],
+        };
+        let mut mode = Mode::Free;
+        let mut current = 0usize;
+        for j in 0..nodes.len() {
+            let (t, sample, is_break) = nodes[j];
+            let t_next = nodes.get(j + 1).map(|n| n.0);
+            let t_ref = t_next.map_or(t, |tn| 0.5 * (t + tn));
+            if is_break && j > 0 {
+                self.sys.jump(t, y);
+            }
+            if j == 0 || is_break {
+                mode = self.consistent(t, t_ref, y, mode);
+            }
+            if let Some(i) = sample {
+                current = i;
+                on_sample(i, t, t_ref, y, mode);
+            }
+            let Some(tn) = t_next else { break };
+            let n = ((tn - t) / self.opts.max_substep_s).ceil().max(1.0) as usize;
+            let h = (tn - t) / n as f64;
+            for s in 0..n {
+                let a = t + s as f64 * h;
+                let b = if s + 1 == n {
+                    tn
+                } else {
+                    t + (s + 1) as f64 * h
+                };
+                let (st, ev) = self.advance(a, b, t_ref, y, &mut mode)?;
+                stats.stick_time_s[current] += st;
+                stats.events[current] += ev;
+            }
+            if y.iter().any(|v| !v.is_finite()) {
+                return Err(SimError::NonFinite { time_s: tn });
+            }
+        }
+        Ok(stats)
+    }
+}
