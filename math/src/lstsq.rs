@@ -154,8 +154,10 @@ fn unidentifiable(v_t: &DMatrix<f64>, sv: &DVector<f64>, names: &[String], s_max
     let mut out: Vec<String> = Vec::new();
     for (m, s) in sv.iter().enumerate() {
         if *s <= s_max / WARN_CONDITION_NUMBER || *s == 0.0 {
+            // the parameters that take part in this (near) null direction
+            let biggest = (0..names.len()).fold(0.0f64, |b, j| b.max(v_t[(m, j)].abs()));
             for (j, name) in names.iter().enumerate() {
-                if v_t[(m, j)].abs() > 0.3 && !out.contains(name) {
+                if v_t[(m, j)].abs() > 0.1 * biggest && !out.contains(name) {
                     out.push(name.clone());
                 }
             }

@@ -2,3 +2,5 @@
 //! `forcemap_math`.
 pub mod csv_export;
 pub mod params;
+pub mod cli;
+pub mod commands;

@@ -1,0 +1,124 @@
+//! Command-line definitions (clap derive), one struct per subcommand.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+#[derive(Debug, Parser)]
+#[command(name = "forcemap", version, about = "Frequency-domain force-state mapping for test rigs: identify nonlinear element parameters, reproduce the reference tables, simulate rigs.")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Reproduce Tables 1-4 of Kim (1997): the paper's numbers, the truth and forcemap's
+    /// (paper method and improved method) side by side.
+    Reproduce(ReproduceArgs),
+    /// Identify a model's parameters from a test-bench CSV export.
+    Identify(IdentifyArgs),
+    /// Simulate the suspension rig or the 3-DOF example and write a test-bench CSV export.
+    Simulate(SimulateArgs),
+    /// List the named models.
+    Models,
+}
+
+#[derive(Debug, Args)]
+pub struct ReproduceArgs {
+    /// One JSON object per row (JSON lines) instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Measurement SNR [dB] of the simulated rig stand-in (Tables 2-4).
+    #[arg(long, default_value_t = 40.0)]
+    pub rig_snr_db: f64,
+    /// Seed of the simulated noise and random excitation.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Only these tables (1-4); all by default.
+    #[arg(long, value_delimiter = ',')]
+    pub tables: Vec<u8>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// The paper's FD-FSM, first harmonic only.
+    Fd,
+    /// All harmonics, slip-phase aware (forcemap's improved method).
+    FdMulti,
+    /// Time-domain FSM (needs mass acceleration; velocity integrated from acceleration).
+    Td,
+}
+
+#[derive(Debug, Args)]
+pub struct IdentifyArgs {
+    /// Test-bench CSV export (see the README for the column contract).
+    pub file: PathBuf,
+    /// Model name (see `forcemap models`).
+    #[arg(long)]
+    pub model: String,
+    #[arg(long, value_enum, default_value_t = MethodArg::FdMulti)]
+    pub method: MethodArg,
+    /// Time points per step for --method td ("all" for every settled sample).
+    #[arg(long, default_value = "20")]
+    pub td_points: String,
+    /// Mass of the rig [kg] (overrides the params file).
+    #[arg(long)]
+    pub mass_kg: Option<f64>,
+    /// Slope M [s/m] of the atan friction term (coulomb-atan models).
+    #[arg(long)]
+    pub atan_m: Option<f64>,
+    /// Polynomial model orders P,Q (x^i x'^j, i <= P, j <= Q), e.g. 3,1.
+    #[arg(long, value_parser = parse_order)]
+    pub poly_order: Option<(u32, u32)>,
+    /// Rig constants in a ROS 2 params YAML (`/**: ros__parameters: {mass_kg: 36.0}`).
+    #[arg(long)]
+    pub params: Option<PathBuf>,
+    /// Highest harmonic to analyse (default: as many as the sampling allows; harmonics that do
+    /// not stand out of their noise are dropped by the improved method anyway).
+    #[arg(long)]
+    pub max_harmonic: Option<usize>,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SystemArg {
+    /// The 36 kg base-excited suspension rig (METHOD.md section 4).
+    Rig,
+    /// The 3-DOF example (METHOD.md section 3).
+    ThreeDof,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CaseArg {
+    I,
+    Ii,
+}
+
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    #[arg(long, value_enum, default_value_t = SystemArg::Rig)]
+    pub system: SystemArg,
+    /// 3-DOF force amplitudes: CASE I (5..25 N) or CASE II (50..90 N).
+    #[arg(long, value_enum, default_value_t = CaseArg::Ii)]
+    pub case: CaseArg,
+    /// Measurement SNR [dB]; noise-free when absent.
+    #[arg(long)]
+    pub snr_db: Option<f64>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Rig: skip the two band-random validation records.
+    #[arg(long)]
+    pub no_random: bool,
+    /// Write the test-bench CSV export here.
+    #[arg(long)]
+    pub csv: PathBuf,
+}
+
+fn parse_order(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("'{s}' is not two whole numbers P,Q (e.g. 3,1)");
+    let (p, q) = s.split_once(',').ok_or_else(bad)?;
+    Ok((p.trim().parse().map_err(|_| bad())?, q.trim().parse().map_err(|_| bad())?))
+}

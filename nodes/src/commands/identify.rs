@@ -1,0 +1,141 @@
+//! `forcemap identify FILE`: identify a model on a test-bench CSV export.
+
+use anyhow::{bail, Context};
+use forcemap_math::frf::LinearSubstructure;
+use forcemap_math::identify::{FdMultiOptions, Identification, Method, Setup};
+use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
+use forcemap_math::phasor::PhasorOptions;
+use forcemap_math::pipeline::{self, Validation};
+use forcemap_math::record::Excitation;
+use serde_json::json;
+
+use crate::cli::{IdentifyArgs, MethodArg};
+use crate::csv_export::{read_csv, CsvProfile};
+use crate::params::{read_params, Params};
+
+fn method(args: &IdentifyArgs) -> anyhow::Result<Method> {
+    Ok(match args.method {
+        MethodArg::Fd => Method::Fd,
+        MethodArg::FdMulti => Method::FdMulti,
+        MethodArg::Td => Method::Td {
+            points_per_step: if args.td_points == "all" {
+                None
+            } else {
+                Some(args.td_points.parse().ok().filter(|n: &usize| *n > 0).with_context(|| {
+                    format!("--td-points: '{}' is neither a positive whole number nor 'all'", args.td_points)
+                })?)
+            },
+        },
+    })
+}
+
+/// The drive-point substructure from the params (`substructure.*`).
+fn substructure(params: &Params, source: &str) -> anyhow::Result<LinearSubstructure> {
+    if params.opt_str("substructure")? == Some("paper_three_dof") {
+        return Ok(LinearSubstructure::paper_three_dof_substructure_i());
+    }
+    let masses = params.opt_f64_array("substructure.masses_kg")?;
+    let springs = params.opt_f64_array("substructure.springs_n_per_m")?;
+    let dampers = params.opt_f64_array("substructure.dampers_n_s_per_m")?;
+    let (Some(m), Some(k), Some(c)) = (masses, springs, dampers) else {
+        bail!(
+            "{source}: a drive-point export (force_n, drive_point_displacement_m) needs the linear substructure the element is attached to: \
+             give `substructure: paper_three_dof` or the chain `substructure.masses_kg`, `substructure.springs_n_per_m`, \
+             `substructure.dampers_n_s_per_m` (ground first) and `substructure.drive_dof` in a --params file \
+             (see launch_configs/three_dof.params.yaml)"
+        );
+    };
+    if m.is_empty() || m.len() != k.len() || m.len() != c.len() {
+        bail!("{source}: substructure.masses_kg, springs_n_per_m and dampers_n_s_per_m must have the same, non-zero length");
+    }
+    let drive = params.opt_usize("substructure.drive_dof")?.unwrap_or(m.len() - 1);
+    if drive >= m.len() {
+        bail!("{source}: substructure.drive_dof = {drive} but the chain has {} masses", m.len());
+    }
+    Ok(LinearSubstructure::chain(&m, &k, &c, drive))
+}
+
+pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
+    let file = args.file.display().to_string();
+    let import = read_csv(&args.file)?;
+    if !import.ignored_columns.is_empty() {
+        eprintln!("notice: {file}: ignored columns not in the contract: {}", import.ignored_columns.join(", "));
+    }
+    let params = match &args.params {
+        Some(p) => read_params(p, None)?,
+        None => Params::new(),
+    };
+    let params_source = args.params.as_ref().map_or("no --params file".to_string(), |p| p.display().to_string());
+    let setup = match import.profile {
+        CsvProfile::Rig => {
+            let mass_kg = match args.mass_kg {
+                Some(m) => m,
+                None => params.opt_f64("mass_kg")?.with_context(|| {
+                    format!("{file}: the rig's mass is needed: give --mass-kg 36 or mass_kg in a --params file ({params_source})")
+                })?,
+            };
+            if !(mass_kg > 0.0 && mass_kg.is_finite()) {
+                bail!("mass_kg = {mass_kg}: the rig's mass must be a positive number of kg");
+            }
+            Setup::BaseExcited { mass_kg }
+        }
+        CsvProfile::DrivePoint => Setup::DrivePoint { substructure: substructure(&params, &params_source)? },
+    };
+    let atan_m = args.atan_m.or(params.opt_f64("atan_m")?);
+    let poly = args.poly_order;
+    let model = Model::by_name(&args.model, &ModelOptions { atan_slope_s_per_m: atan_m, polynomial_order: poly })?;
+    let method = method(args)?;
+    let phasor_options = PhasorOptions { max_harmonic: args.max_harmonic.unwrap_or(usize::MAX), ..PhasorOptions::default() };
+    let id = pipeline::identify_records(&model, &setup, method, &import.records, &phasor_options, &FdMultiOptions::default())
+        .with_context(|| format!("{file}: identifying model '{}' by {}", model.name, method.name()))?;
+
+    // Validation on the random records (rig only: the model is simulated on the measured base).
+    let mut validations = Vec::new();
+    if let Setup::BaseExcited { mass_kg } = setup {
+        let fitted = IdentifiedModel::new(model.clone(), id.theta());
+        for rec in import.records.iter().filter(|r| matches!(r.excitation, Excitation::Random { .. })) {
+            validations.push(
+                pipeline::validate_rig(&fitted, mass_kg, rec)
+                    .with_context(|| format!("{file}: validating on random record {}", rec.step))?,
+            );
+        }
+    }
+    if args.json {
+        println!("{}", identification_json(&id, &validations, &import.ignored_columns));
+    } else {
+        print_identification(&file, &id, &validations);
+    }
+    Ok(())
+}
+
+pub fn identification_json(id: &Identification, validations: &[Validation], ignored: &[String]) -> serde_json::Value {
+    json!({
+        "model": id.model,
+        "method": id.method,
+        "parameters": id.parameters.iter().map(|p| json!({"name": p.name, "value": p.value, "std": p.std})).collect::<Vec<_>>(),
+        "condition_number": id.condition_number,
+        "equations": id.equations,
+        "r": id.r.iter().map(|(n, x)| (n.clone(), json!(x))).collect::<serde_json::Map<_, _>>(),
+        "covariance": id.covariance,
+        "residual_rms": id.residual_rms,
+        "steps_used": id.steps_used,
+        "validation": validations.iter().map(|v| json!({"step": v.step, "nmse_percent": v.nmse_percent})).collect::<Vec<_>>(),
+        "warnings": id.warnings,
+        "ignored_columns": ignored,
+    })
+}
+
+fn print_identification(file: &str, id: &Identification, validations: &[Validation]) {
+    println!("{file}: model {} by {} ({} equations from steps {:?})", id.model, id.method, id.equations, id.steps_used);
+    println!("{:<8} {:>16} {:>12} {:>8}", "param", "value", "std", "r [%]");
+    for (p, (_, r)) in id.parameters.iter().zip(&id.r) {
+        println!("{:<8} {:>16.6e} {:>12.3e} {:>8.1}", p.name, p.value, p.std, r);
+    }
+    println!("condition number {:.3e}, residual RMS {:.3e}", id.condition_number, id.residual_rms);
+    for v in validations {
+        println!("validation on random record {}: NMSE of mass acceleration {:.2} % (eq. 27)", v.step, v.nmse_percent);
+    }
+    for w in &id.warnings {
+        println!("warning: {w}");
+    }
+}

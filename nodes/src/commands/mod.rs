@@ -1,0 +1,34 @@
+//! One module per `forcemap` subcommand; `dispatch` routes to them.
+
+pub mod identify;
+pub mod reproduce;
+pub mod simulate;
+
+use crate::cli::Command;
+
+/// Runs a parsed command.
+pub fn dispatch(command: Command) -> anyhow::Result<()> {
+    match command {
+        Command::Reproduce(a) => reproduce::run(&a),
+        Command::Identify(a) => identify::run(&a),
+        Command::Simulate(a) => simulate::run(&a),
+        Command::Models => {
+            for (name, what) in forcemap_math::model::MODEL_NAMES {
+                println!("{name:<20} {what}");
+            }
+            Ok(())
+        }
+    }
+}
+
+/// A spinner on stderr for long work (hidden when stderr is not a terminal).
+pub fn progress_spinner() -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new_spinner();
+    pb.enable_steady_tick(std::time::Duration::from_millis(120));
+    pb
+}
+
+/// Formats an optional number with `prec` decimals, "-" when absent.
+pub fn fmt_opt(v: Option<f64>, prec: usize) -> String {
+    v.map_or_else(|| "-".to_string(), |x| format!("{x:.prec$}"))
+}
