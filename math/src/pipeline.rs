@@ -48,10 +48,22 @@ pub fn identify_records(
     phasor_options: &PhasorOptions,
     fd_options: &FdMultiOptions,
 ) -> Result<Identification, PipelineError> {
+    identify_records_with_analyses(model, setup, method, records, phasor_options, fd_options).map(|(id, _)| id)
+}
+
+/// [`identify_records`], also returning the harmonic analyses of the sine steps.
+pub fn identify_records_with_analyses(
+    model: &Model,
+    setup: &Setup,
+    method: Method,
+    records: &[Record],
+    phasor_options: &PhasorOptions,
+    fd_options: &FdMultiOptions,
+) -> Result<(Identification, Vec<HarmonicAnalysis>), PipelineError> {
     let (analyses, notes) = analyse_sine_steps(records, phasor_options)?;
     let mut id = identify::identify(model, setup, method, records, &analyses, fd_options)?;
     id.warnings.splice(0..0, notes);
-    Ok(id)
+    Ok((id, analyses))
 }
 
 /// The prediction of a base-excited rig model on one record.

@@ -4,3 +4,4 @@ pub mod csv_export;
 pub mod params;
 pub mod cli;
 pub mod commands;
+pub mod plot;

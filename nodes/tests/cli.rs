@@ -214,3 +214,20 @@ fn reproduce_json_rows_have_the_documented_keys() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("Table 7"));
 }
+
+#[test]
+fn plots_are_written_as_svg_with_one_series_per_step() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = rig_csv(dir.path());
+    let plots = dir.path().join("plots");
+    let o = forcemap(&["identify", csv.to_str().unwrap(), "--model", "coulomb", "--mass-kg", "36", "--plot", plots.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let fs = std::fs::read_to_string(plots.join("force_state.svg")).unwrap();
+    assert!(fs.starts_with("<svg") && fs.contains("step 9 (3.40 Hz) measured"), "force-state map lacks the steps");
+    for step in [10, 11] {
+        let v = std::fs::read_to_string(plots.join(format!("validation_step{step}.svg"))).unwrap();
+        assert!(v.contains("NMSE") && v.contains("predicted"));
+    }
+    // nothing temporary left behind
+    assert!(std::fs::read_dir(&plots).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".tmp")));
+}

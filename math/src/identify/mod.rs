@@ -11,8 +11,11 @@
 //! Each step gives a block of equations (`StepEquations`); blocks are stacked and solved by
 //! `lstsq::solve`. The live identifier node accumulates the same blocks.
 
+mod cycle;
 mod fd;
 mod td;
+
+pub use cycle::{rebuilt_cycle, Cycle};
 
 pub use fd::{step_equations, ElementHarmonics, element_harmonics};
 pub use td::td_step_equations;
@@ -79,16 +82,36 @@ pub struct FdMultiOptions {
     /// power of two, at least 16 per harmonic).
     pub grid_points: usize,
     /// Samples with |x'| below this fraction of the step's peak |x'| are taken as stuck (or at
-    /// a velocity reversal) and left out for models with a sgn term.
+    /// a velocity reversal) and left out of the basis functions for models with a sgn term.
     pub stick_velocity_fraction: f64,
-    /// Margin around the left-out intervals, in periods of the highest harmonic: the rebuilt
-    /// force rings there (Gibbs) because the true force jumps when the element sticks.
+    /// Margin around the stick intervals, in periods of the highest significant displacement
+    /// harmonic (the resolution of the rebuilt velocity).
     pub guard_harmonic_periods: f64,
+    /// Degree of the polynomial (per stick interval) that stands for the unknown element force
+    /// while it sticks.
+    pub stick_force_degree: usize,
+    /// Directions of the stick-force polynomials with a singular value below this fraction of
+    /// the largest are not projected out (they would need a huge stick force).
+    pub stick_force_tolerance: f64,
+    /// Where the force may jump inside a stick interval (stick onset or sign change of x') is
+    /// located to within this many periods of the highest significant displacement harmonic.
+    pub jump_margin_harmonic_periods: f64,
+    /// Floor of each harmonic's force noise, relative to the first force harmonic, so that
+    /// noise-free data are not weighted by round-off.
+    pub noise_floor: f64,
 }
 
 impl Default for FdMultiOptions {
     fn default() -> Self {
-        FdMultiOptions { grid_points: 1024, stick_velocity_fraction: 0.03, guard_harmonic_periods: 0.25 }
+        FdMultiOptions {
+            grid_points: 1024,
+            stick_velocity_fraction: 0.03,
+            guard_harmonic_periods: 0.25,
+            stick_force_degree: 3,
+            stick_force_tolerance: 1e-6,
+            jump_margin_harmonic_periods: 0.5,
+            noise_floor: 1e-4,
+        }
     }
 }
 

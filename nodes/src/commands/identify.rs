@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Context};
 use forcemap_math::frf::LinearSubstructure;
-use forcemap_math::identify::{FdMultiOptions, Identification, Method, Setup};
+use forcemap_math::identify::{rebuilt_cycle, FdMultiOptions, Identification, Method, Setup};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::{self, Validation};
@@ -12,6 +12,7 @@ use serde_json::json;
 use crate::cli::{IdentifyArgs, MethodArg};
 use crate::csv_export::{read_csv, CsvProfile};
 use crate::params::{read_params, Params};
+use crate::plot::{self, ForceStateStep};
 
 fn method(args: &IdentifyArgs) -> anyhow::Result<Method> {
     Ok(match args.method {
@@ -86,8 +87,15 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     let model = Model::by_name(&args.model, &ModelOptions { atan_slope_s_per_m: atan_m, polynomial_order: poly })?;
     let method = method(args)?;
     let phasor_options = PhasorOptions { max_harmonic: args.max_harmonic.unwrap_or(usize::MAX), ..PhasorOptions::default() };
-    let id = pipeline::identify_records(&model, &setup, method, &import.records, &phasor_options, &FdMultiOptions::default())
-        .with_context(|| format!("{file}: identifying model '{}' by {}", model.name, method.name()))?;
+    let (id, analyses) = pipeline::identify_records_with_analyses(
+        &model,
+        &setup,
+        method,
+        &import.records,
+        &phasor_options,
+        &FdMultiOptions::default(),
+    )
+    .with_context(|| format!("{file}: identifying model '{}' by {}", model.name, method.name()))?;
 
     // Validation on the random records (rig only: the model is simulated on the measured base).
     let mut validations = Vec::new();
@@ -100,10 +108,52 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
             );
         }
     }
+    if let Some(dir) = &args.plot {
+        write_plots(dir, &setup, &model, &id, &analyses, &import.records, &validations)?;
+    }
     if args.json {
         println!("{}", identification_json(&id, &validations, &import.ignored_columns));
     } else {
         print_identification(&file, &id, &validations);
+    }
+    Ok(())
+}
+
+/// Force-state map of the fit and, for the rig, the validation time traces.
+fn write_plots(
+    dir: &std::path::Path,
+    setup: &Setup,
+    model: &Model,
+    id: &Identification,
+    analyses: &[forcemap_math::phasor::HarmonicAnalysis],
+    records: &[forcemap_math::record::Record],
+    validations: &[Validation],
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating the plot directory {}", dir.display()))?;
+    let theta = id.theta();
+    let mut steps = Vec::new();
+    for an in analyses {
+        let cyc = rebuilt_cycle(setup, an, 256)?;
+        let model_force_n = cyc.displacement_m.iter().zip(&cyc.velocity_mps).map(|(x, v)| model.force(&theta, *x, *v)).collect();
+        steps.push(ForceStateStep {
+            label: format!("step {} ({:.2} Hz)", an.step, an.frequency_hz),
+            displacement_m: cyc.displacement_m,
+            velocity_mps: cyc.velocity_mps,
+            measured_force_n: cyc.force_n,
+            model_force_n,
+        });
+    }
+    let path = dir.join("force_state.svg");
+    let title = format!("force-state map: measured element force (points) and model {} by {} (lines)", id.model, id.method);
+    plot::force_state_map(&path, &title, &steps)?;
+    eprintln!("wrote {}", path.display());
+    for v in validations {
+        let Some(rec) = records.iter().find(|r| r.step == v.step) else { continue };
+        let t: Vec<f64> = (0..v.measured_mass_acceleration_mps2.len()).map(|i| rec.time_s(i)).collect();
+        let path = dir.join(format!("validation_step{}.svg", v.step));
+        let title = format!("record {}: mass acceleration, measured and predicted by the identified model (NMSE {:.2} %)", v.step, v.nmse_percent);
+        plot::time_trace(&path, &title, &t, &v.measured_mass_acceleration_mps2, &v.predicted_mass_acceleration_mps2, "mass acceleration [m/s^2]")?;
+        eprintln!("wrote {}", path.display());
     }
     Ok(())
 }
