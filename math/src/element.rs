@@ -23,7 +23,12 @@ pub struct Friction {
 
 impl Friction {
     pub fn coulomb(level_n: f64) -> Friction {
-        Friction { breakaway_n: level_n, kinetic_n: level_n, stribeck_velocity_mps: 1.0, asymmetry: 0.0 }
+        Friction {
+            breakaway_n: level_n,
+            kinetic_n: level_n,
+            stribeck_velocity_mps: 1.0,
+            asymmetry: 0.0,
+        }
     }
 
     /// Friction force while slipping at relative velocity `v` (v != 0) [N].

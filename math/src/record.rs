@@ -97,11 +97,17 @@ impl Record {
     }
 
     pub fn channel(&self, c: Channel) -> Option<&[f64]> {
-        self.channels.iter().find(|(k, _)| *k == c).map(|(_, v)| v.as_slice())
+        self.channels
+            .iter()
+            .find(|(k, _)| *k == c)
+            .map(|(_, v)| v.as_slice())
     }
 
     pub fn channel_mut(&mut self, c: Channel) -> Option<&mut Vec<f64>> {
-        self.channels.iter_mut().find(|(k, _)| *k == c).map(|(_, v)| v)
+        self.channels
+            .iter_mut()
+            .find(|(k, _)| *k == c)
+            .map(|(_, v)| v)
     }
 
     /// Time of sample `i` [s].

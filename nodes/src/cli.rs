@@ -74,8 +74,8 @@ pub struct IdentifyArgs {
     /// Rig constants in a ROS 2 params YAML (`/**: ros__parameters: {mass_kg: 36.0}`).
     #[arg(long)]
     pub params: Option<PathBuf>,
-    /// Highest harmonic to analyse (default: as many as the sampling allows; harmonics that do
-    /// not stand out of their noise are dropped by the improved method anyway).
+    /// Highest harmonic to analyse (default: as many as the sampling allows, at most 100;
+    /// harmonics that do not stand out of their noise are dropped by the improved method).
     #[arg(long)]
     pub max_harmonic: Option<usize>,
     /// Print one JSON object instead of a table.

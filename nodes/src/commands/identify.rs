@@ -86,7 +86,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     let poly = args.poly_order;
     let model = Model::by_name(&args.model, &ModelOptions { atan_slope_s_per_m: atan_m, polynomial_order: poly })?;
     let method = method(args)?;
-    let phasor_options = PhasorOptions { max_harmonic: args.max_harmonic.unwrap_or(usize::MAX), ..PhasorOptions::default() };
+    let phasor_options = PhasorOptions { max_harmonic: args.max_harmonic.unwrap_or(100), ..PhasorOptions::default() };
     let (id, analyses) = pipeline::identify_records_with_analyses(
         &model,
         &setup,

@@ -1,1 +1,0 @@
-//! Harmonic analysis (helper is writing this module).
