@@ -1,0 +1,44 @@
+//! Identification throughput: samples of the rig's stepped-sine run (10 steps x 1300 samples at
+//! 100 Hz) turned into theta per second, by method, from phasors and from raw records.
+
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use forcemap_math::identify::{identify, FdMultiOptions, Method, Setup};
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::pipeline::{analyse_sine_steps, identify_records};
+use forcemap_math::reproduce::phasor_options;
+use forcemap_math::sim::{simulate, RigRun, SimSpec, TruthElement};
+
+fn bench_identify(c: &mut Criterion) {
+    let run = RigRun { snr_db: Some(40.0), seed: 1, ..RigRun::paper_sine(TruthElement::rig_coulomb()) };
+    let records = simulate(&SimSpec::Rig(run)).expect("simulation runs");
+    let samples: usize = records.iter().map(|r| r.len()).sum();
+    let (analyses, _) = analyse_sine_steps(&records, &phasor_options()).expect("analysis runs");
+    let setup = Setup::BaseExcited { mass_kg: 36.0 };
+    let model = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
+    let options = FdMultiOptions::default();
+
+    let mut g = c.benchmark_group("identify/rig_coulomb/from_phasors");
+    g.throughput(Throughput::Elements(samples as u64));
+    for method in [Method::Fd, Method::FdMulti] {
+        g.bench_function(method.name(), |b| {
+            b.iter(|| identify(black_box(&model), &setup, method, &records, black_box(&analyses), &options).unwrap())
+        });
+    }
+    g.finish();
+
+    let mut g = c.benchmark_group("identify/rig_coulomb/from_records");
+    g.throughput(Throughput::Elements(samples as u64));
+    for method in [Method::Fd, Method::FdMulti, Method::Td { points_per_step: None }] {
+        g.bench_function(method.name(), |b| {
+            b.iter(|| {
+                identify_records(black_box(&model), &setup, method, black_box(&records), &phasor_options(), &options).unwrap()
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench_identify);
+criterion_main!(benches);
