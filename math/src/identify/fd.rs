@@ -31,37 +31,64 @@ impl ElementHarmonics {
 }
 
 fn missing(step: usize, c: Channel, why: &str) -> IdentifyError {
-    IdentifyError::Step { step, problem: format!("channel {} is missing ({why})", c.name()) }
+    IdentifyError::Step {
+        step,
+        problem: format!("channel {} is missing ({why})", c.name()),
+    }
 }
 
 /// Element state and force harmonics from a step's phasors. `paper_force` selects the paper's
 /// displacement-only force (rig: m w^2 X_o); otherwise, where both the mass displacement and
 /// the mass acceleration are measured, each harmonic combines them by inverse noise variance.
-pub fn element_harmonics(setup: &Setup, an: &HarmonicAnalysis, paper_force: bool) -> Result<ElementHarmonics, IdentifyError> {
+pub fn element_harmonics(
+    setup: &Setup,
+    an: &HarmonicAnalysis,
+    paper_force: bool,
+) -> Result<ElementHarmonics, IdentifyError> {
     let step = an.step;
     let omega = TAU * an.frequency_hz;
-    let rel = an
-        .channel(Channel::RelativeDisplacementM)
-        .ok_or_else(|| missing(step, Channel::RelativeDisplacementM, "it is the state of the element"))?;
+    let rel = an.channel(Channel::RelativeDisplacementM).ok_or_else(|| {
+        missing(
+            step,
+            Channel::RelativeDisplacementM,
+            "it is the state of the element",
+        )
+    })?;
     let nh = rel.phasors.len();
     let (force, force_noise) = match setup {
         Setup::BaseExcited { mass_kg } => {
             let m = *mass_kg;
             // Mass displacement: measured, or base + relative.
-            let disp: Option<(Vec<Complex64>, Vec<f64>)> = if let Some(xo) = an.channel(Channel::MassDisplacementM) {
-                Some((xo.phasors.clone(), xo.noise_std.clone()))
-            } else {
-                an.channel(Channel::BaseDisplacementM).map(|xi| {
-                    (
-                        xi.phasors.iter().zip(&rel.phasors).map(|(a, b)| a + b).collect(),
-                        xi.noise_std.iter().zip(&rel.noise_std).map(|(a, b)| a.hypot(*b)).collect(),
-                    )
-                })
-            };
+            let disp: Option<(Vec<Complex64>, Vec<f64>)> =
+                if let Some(xo) = an.channel(Channel::MassDisplacementM) {
+                    Some((xo.phasors.clone(), xo.noise_std.clone()))
+                } else {
+                    an.channel(Channel::BaseDisplacementM).map(|xi| {
+                        (
+                            xi.phasors
+                                .iter()
+                                .zip(&rel.phasors)
+                                .map(|(a, b)| a + b)
+                                .collect(),
+                            xi.noise_std
+                                .iter()
+                                .zip(&rel.noise_std)
+                                .map(|(a, b)| a.hypot(*b))
+                                .collect(),
+                        )
+                    })
+                };
             let from_disp = disp.map(|(xo, s)| {
-                let g: Vec<Complex64> =
-                    xo.iter().enumerate().map(|(n, x)| x * m * (n as f64 * omega).powi(2)).collect();
-                let gs: Vec<f64> = s.iter().enumerate().map(|(n, x)| x * m * (n as f64 * omega).powi(2)).collect();
+                let g: Vec<Complex64> = xo
+                    .iter()
+                    .enumerate()
+                    .map(|(n, x)| x * m * (n as f64 * omega).powi(2))
+                    .collect();
+                let gs: Vec<f64> = s
+                    .iter()
+                    .enumerate()
+                    .map(|(n, x)| x * m * (n as f64 * omega).powi(2))
+                    .collect();
                 (g, gs)
             });
             let from_acc = an.channel(Channel::MassAccelerationMps2).map(|a| {
@@ -98,9 +125,15 @@ pub fn element_harmonics(setup: &Setup, an: &HarmonicAnalysis, paper_force: bool
             }
         }
         Setup::DrivePoint { substructure } => {
-            let xd = an.channel(Channel::DrivePointDisplacementM).ok_or_else(|| {
-                missing(step, Channel::DrivePointDisplacementM, "eq. 22 needs the drive-point displacement")
-            })?;
+            let xd = an
+                .channel(Channel::DrivePointDisplacementM)
+                .ok_or_else(|| {
+                    missing(
+                        step,
+                        Channel::DrivePointDisplacementM,
+                        "eq. 22 needs the drive-point displacement",
+                    )
+                })?;
             let f = an
                 .channel(Channel::ForceN)
                 .ok_or_else(|| missing(step, Channel::ForceN, "eq. 22 needs the drive force"))?;
@@ -141,7 +174,11 @@ fn synthesize_grid(c: &[Complex64], l: usize, scale: impl Fn(usize) -> Complex64
 /// One-sided first-harmonic phasor of `h` sampled on a uniform grid over one period.
 fn first_harmonic(h: &[f64]) -> Complex64 {
     let l = h.len() as f64;
-    h.iter().enumerate().map(|(i, v)| v * Complex64::from_polar(1.0, -TAU * i as f64 / l)).sum::<Complex64>() * (2.0 / l)
+    h.iter()
+        .enumerate()
+        .map(|(i, v)| v * Complex64::from_polar(1.0, -TAU * i as f64 / l))
+        .sum::<Complex64>()
+        * (2.0 / l)
 }
 
 fn rms(v: &[f64]) -> f64 {
@@ -152,38 +189,77 @@ fn rms(v: &[f64]) -> f64 {
 /// would carry noise amplified by n w (velocity) or n^2 w^2 (force from displacement) and no
 /// information.
 fn significant_harmonics(c: &[Complex64], noise: &[f64]) -> usize {
-    (1..c.len()).rev().find(|&n| c[n].norm() > 3.0 * noise[n]).unwrap_or(1)
+    (1..c.len())
+        .rev()
+        .find(|&n| c[n].norm() > 3.0 * noise[n])
+        .unwrap_or(1)
 }
 
-/// Keeps harmonics 0..=n of a real periodic signal sampled on a uniform grid over one period.
-fn band_limit(h: &mut [f64], n: usize, fft: &FftPair) {
+/// One-sided harmonics 0..=n of a real periodic signal sampled on a uniform grid over one period
+/// (the inverse of `synthesize_grid`).
+fn grid_harmonics(h: &[f64], n: usize, fft: &dyn rustfft::Fft<f64>) -> Vec<Complex64> {
     let l = h.len();
-    if n >= l / 2 {
-        return;
-    }
     let mut buf: Vec<Complex64> = h.iter().map(|v| Complex64::new(*v, 0.0)).collect();
-    fft.forward.process(&mut buf);
-    for (k, b) in buf.iter_mut().enumerate() {
-        let order = k.min(l - k);
-        if order > n {
-            *b = Complex64::new(0.0, 0.0);
+    fft.process(&mut buf);
+    (0..=n)
+        .map(|k| {
+            buf[k]
+                * if k == 0 {
+                    1.0 / l as f64
+                } else {
+                    2.0 / l as f64
+                }
+        })
+        .collect()
+}
+
+/// Runs of `false` in a circular mask, as (start, length); a mask that is all `false` is one
+/// run starting at 0.
+fn circular_runs(keep: &[bool]) -> Vec<(usize, usize)> {
+    let l = keep.len();
+    let Some(first_kept) = keep.iter().position(|k| *k) else {
+        return vec![(0, l)];
+    };
+    let mut runs = Vec::new();
+    let mut i = 0;
+    while i < l {
+        let idx = (first_kept + i) % l;
+        if keep[idx] {
+            i += 1;
+            continue;
         }
+        let start = idx;
+        let mut len = 0;
+        while i < l && !keep[(first_kept + i) % l] {
+            len += 1;
+            i += 1;
+        }
+        runs.push((start, len));
     }
-    fft.inverse.process(&mut buf);
-    for (v, b) in h.iter_mut().zip(&buf) {
-        *v = b.re / l as f64;
-    }
+    runs
 }
 
-struct FftPair {
-    forward: std::sync::Arc<dyn rustfft::Fft<f64>>,
-    inverse: std::sync::Arc<dyn rustfft::Fft<f64>>,
+/// Legendre polynomials P_0..P_d at t in [-1, 1].
+fn legendre(t: f64, d: usize) -> Vec<f64> {
+    let mut p = vec![1.0; d + 1];
+    if d >= 1 {
+        p[1] = t;
+    }
+    for k in 2..=d {
+        p[k] = ((2 * k - 1) as f64 * t * p[k - 1] - (k - 1) as f64 * p[k - 2]) / k as f64;
+    }
+    p
 }
 
-/// The improved equations: one period of the element force and state rebuilt from the
-/// significant harmonics, every basis function band-limited to the same harmonics (so each
-/// side holds exactly harmonics 0..=n, as eq. 11 balances them), and the samples where the
-/// element sticks or reverses left out for models with a sgn term.
+/// The improved equations, a weighted harmonic balance of every measured harmonic (eq. 11 for
+/// n = 0..N). One period of the state is rebuilt from the displacement's significant harmonics;
+/// for models with a sgn term the cycle is split into slip samples (where g = theta^T h holds) and
+/// stick samples (|x'| small, plus a guard), where the element force is set-valued and is
+/// represented instead by an unknown smooth function: a low-order polynomial per stick interval.
+/// The harmonics of both parts are balanced against the measured force harmonics, each weighted
+/// by its own noise, and the polynomial coefficients are projected out (they are per step, theta
+/// is shared). Noisy high harmonics thus get little weight instead of a hard cut, and no
+/// truncated waveform is compared sample by sample (no Gibbs ringing to guard against).
 fn fd_multi_equations(
     model: &Model,
     eh: &ElementHarmonics,
@@ -193,44 +269,40 @@ fn fd_multi_equations(
     mut notes: Vec<String>,
 ) -> Result<StepEquations, IdentifyError> {
     let p = model.terms.len();
+    let empty = |notes: Vec<String>, term_rms: Vec<f64>| StepEquations {
+        step,
+        a: DMatrix::zeros(0, p),
+        b: DVector::zeros(0),
+        independent_equations: 0.0,
+        term_rms,
+        notes,
+    };
     let amp = eh.displacement.get(1).map_or(0.0, |c| c.norm());
     let amp_noise = eh.displacement_noise.get(1).copied().unwrap_or(0.0);
     if model.has_velocity_jump() && (amp < 1e-9 || amp < 5.0 * amp_noise) {
         notes.push(format!(
             "step {step}: the element did not slip (relative displacement amplitude {amp:.3e} m); left out, as no sgn model can describe a step that only sticks"
         ));
-        return Ok(StepEquations { step, a: DMatrix::zeros(0, p), b: DVector::zeros(0), independent_equations: 0.0, term_rms, notes });
+        return Ok(empty(notes, term_rms));
     }
-    // The state comes from the displacement's significant harmonics, the force from its own;
-    // where the force has fewer, the basis functions are band-limited to the same harmonics
-    // so that both sides of each equation hold the same harmonics (eq. 11).
+    let nh = eh.harmonics();
     let nx = significant_harmonics(&eh.displacement, &eh.displacement_noise);
-    let ng = significant_harmonics(&eh.force, &eh.force_noise);
-    if std::env::var("FM_DEBUG").is_ok() { eprintln!("step {step} N {} nx {nx} ng {ng}", eh.harmonics()); }
-    let l = options.grid_points.max(16 * (eh.harmonics() + 1)).next_power_of_two();
+    let l = options.grid_points.max(16 * (nh + 1)).next_power_of_two();
     let w = eh.omega_rad_s;
     let x = synthesize_grid(&eh.displacement[..=nx], l, |_| Complex64::new(1.0, 0.0));
-    let v = synthesize_grid(&eh.displacement[..=nx], l, |n| Complex64::new(0.0, n as f64 * w));
-    let g = synthesize_grid(&eh.force[..=ng], l, |_| Complex64::new(1.0, 0.0));
-    let mut planner = rustfft::FftPlanner::new();
-    let fft = FftPair { forward: planner.plan_fft_forward(l), inverse: planner.plan_fft_inverse(l) };
-    let h: Vec<Vec<f64>> = model
-        .terms
-        .iter()
-        .map(|t| {
-            let mut hi: Vec<f64> = x.iter().zip(&v).map(|(x, v)| t.eval(*x, *v)).collect();
-            if ng < eh.harmonics() {
-                band_limit(&mut hi, ng, &fft);
-            }
-            hi
-        })
-        .collect();
+    let v = synthesize_grid(&eh.displacement[..=nx], l, |n| {
+        Complex64::new(0.0, n as f64 * w)
+    });
     let mut keep = vec![true; l];
+    let vmax = v.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let v_noise = (1..=nx)
+        .map(|n| (n as f64 * w * eh.displacement_noise[n]).powi(2) / 2.0)
+        .sum::<f64>()
+        .sqrt();
+    let threshold = (options.stick_velocity_fraction * vmax).max(3.0 * v_noise);
+    let jump_stride = (l / (8 * nh.max(1))).max(1);
     if model.has_velocity_jump() {
-        let vmax = v.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let v_noise = (1..=nx).map(|n| (n as f64 * w * eh.displacement_noise[n]).powi(2) / 2.0).sum::<f64>().sqrt();
-        let threshold = (options.stick_velocity_fraction * vmax).max(3.0 * v_noise);
-        let guard = (options.guard_harmonic_periods * l as f64 / ng.min(nx) as f64).ceil() as isize;
+        let guard = (options.guard_harmonic_periods * l as f64 / nx as f64).ceil() as isize;
         for i in 0..l {
             if v[i].abs() < threshold {
                 for d in -guard..=guard {
@@ -239,17 +311,124 @@ fn fd_multi_equations(
             }
         }
     }
-    let kept: Vec<usize> = (0..l).filter(|i| keep[*i]).collect();
-    // Weight by the step's force noise (floor: 1e-3 of its RMS, so noise-free steps are
-    // weighted by their size, not by round-off).
-    let g_noise = (eh.force_noise[0].powi(2) + eh.force_noise[1..=ng].iter().map(|s| s * s / 2.0).sum::<f64>()).sqrt();
-    let g_rms = rms(&g);
-    let sigma = if g_noise.is_finite() { g_noise.max(1e-3 * g_rms) } else { g_rms };
-    let weight = 1.0 / sigma.max(f64::MIN_POSITIVE);
-    let a = DMatrix::from_fn(kept.len(), p, |r, i| h[i][kept[r]] * weight);
-    let b = DVector::from_fn(kept.len(), |r, _| g[kept[r]] * weight);
-    let independent = (2 * ng + 1) as f64 * kept.len() as f64 / l as f64;
-    Ok(StepEquations { step, a, b, independent_equations: independent, term_rms, notes })
+    let kept = keep.iter().filter(|k| **k).count();
+    if kept == 0 {
+        notes.push(format!("step {step}: no slip samples; left out"));
+        return Ok(empty(notes, term_rms));
+    }
+    let fft = rustfft::FftPlanner::new().plan_fft_forward(l);
+    // Harmonics of the basis functions over the slip samples.
+    let hh: Vec<Vec<Complex64>> = model
+        .terms
+        .iter()
+        .map(|t| {
+            let hi: Vec<f64> = x
+                .iter()
+                .zip(&v)
+                .zip(&keep)
+                .map(|((x, v), k)| if *k { t.eval(*x, *v) } else { 0.0 })
+                .collect();
+            grid_harmonics(&hi, nh, fft.as_ref())
+        })
+        .collect();
+    // Harmonics of the stick-force polynomials.
+    let mut qq: Vec<Vec<Complex64>> = Vec::new();
+    for (start, len) in circular_runs(&keep) {
+        let d = options.stick_force_degree.min(len.saturating_sub(1));
+        let mut cols = vec![vec![0.0; l]; d + 1];
+        for j in 0..len {
+            let t = 2.0 * (j as f64 + 0.5) / len as f64 - 1.0;
+            for (k, pk) in legendre(t, d).into_iter().enumerate() {
+                cols[k][(start + j) % l] = pk;
+            }
+        }
+        // Where the force may jump: at the stick onset (the true force jumps from the slip
+        // value to the static one) or, if the element only reverses, at the sign change of x'.
+        // Both lie between the run's first sample with |x'| below the threshold and the first
+        // sign change of x' after it, give or take the resolution of the rebuilt velocity.
+        let at = |j: usize| v[(start + j) % l];
+        let first_low = (0..len).find(|&j| at(j).abs() < threshold).unwrap_or(0);
+        let first_flip = (first_low + 1..len)
+            .find(|&j| at(j).signum() != at(first_low).signum())
+            .unwrap_or(first_low);
+        let margin = (options.jump_margin_harmonic_periods * l as f64 / nx as f64).ceil() as usize;
+        let lo = first_low.saturating_sub(margin).max(1);
+        let hi = (first_flip + margin).min(len - 1);
+        for j in (lo..=hi).step_by(jump_stride) {
+            let mut c = vec![0.0; l];
+            for jj in j..len {
+                c[(start + jj) % l] = 1.0;
+            }
+            cols.push(c);
+        }
+        qq.extend(cols.iter().map(|c| grid_harmonics(c, nh, fft.as_ref())));
+    }
+    // Weighted real equations: DC, then real and imaginary part of each harmonic. The per-part
+    // noise std of harmonic n >= 1 is |noise| / sqrt 2; a floor keeps noise-free data from being
+    // weighted by round-off.
+    let floor = options.noise_floor
+        * eh.force
+            .get(1)
+            .map_or(0.0, |g| g.norm())
+            .max(f64::MIN_POSITIVE);
+    let rows = 2 * nh + 1;
+    let mut a = DMatrix::zeros(rows, p);
+    let mut q = DMatrix::zeros(rows, qq.len());
+    let mut b = DVector::zeros(rows);
+    for n in 0..=nh {
+        let s = if n == 0 {
+            eh.force_noise[0]
+        } else {
+            eh.force_noise[n] / 2f64.sqrt()
+        };
+        let s = if s.is_finite() {
+            s.max(floor)
+        } else {
+            f64::INFINITY
+        };
+        let wt = 1.0 / s;
+        let parts: &[(usize, bool)] = if n == 0 {
+            &[(0, false)]
+        } else {
+            &[(2 * n - 1, false), (2 * n, true)]
+        };
+        for &(r, im) in parts {
+            let pick = |c: Complex64| if im { c.im } else { c.re };
+            b[r] = pick(eh.force[n]) * wt;
+            for i in 0..p {
+                a[(r, i)] = pick(hh[i][n]) * wt;
+            }
+            for (k, qk) in qq.iter().enumerate() {
+                q[(r, k)] = pick(qk[n]) * wt;
+            }
+        }
+    }
+    // Project the stick-force columns out.
+    let mut nq = 0;
+    if q.ncols() > 0 {
+        let svd = q.clone().svd(true, false);
+        let u = svd.u.expect("U requested");
+        let smax = svd.singular_values.max();
+        for (k, sv) in svd.singular_values.iter().enumerate() {
+            if *sv > options.stick_force_tolerance * smax {
+                let uk = u.column(k).into_owned();
+                let ua = uk.transpose() * &a;
+                a -= &uk * ua;
+                let ub = uk.dot(&b);
+                b -= &uk * ub;
+                nq += 1;
+            }
+        }
+    }
+    let independent = (rows - nq) as f64;
+    Ok(StepEquations {
+        step,
+        a,
+        b,
+        independent_equations: independent,
+        term_rms,
+        notes,
+    })
 }
 
 /// The equations of one step for the FD methods.
@@ -267,7 +446,11 @@ pub fn step_equations(
     let x = synthesize_grid(&eh.displacement, l, |_| Complex64::new(1.0, 0.0));
     let v = synthesize_grid(&eh.displacement, l, |n| Complex64::new(0.0, n as f64 * w));
     let p = model.terms.len();
-    let h: Vec<Vec<f64>> = model.terms.iter().map(|t| x.iter().zip(&v).map(|(x, v)| t.eval(*x, *v)).collect()).collect();
+    let h: Vec<Vec<f64>> = model
+        .terms
+        .iter()
+        .map(|t| x.iter().zip(&v).map(|(x, v)| t.eval(*x, *v)).collect())
+        .collect();
     let term_rms: Vec<f64> = h.iter().map(|hi| rms(hi)).collect();
     let notes = Vec::new();
     match method {
@@ -276,7 +459,14 @@ pub fn step_equations(
             let y1: Vec<Complex64> = h.iter().map(|hi| first_harmonic(hi)).collect();
             let a = DMatrix::from_fn(2, p, |r, i| if r == 0 { y1[i].re } else { y1[i].im });
             let b = DVector::from_vec(vec![eh.force[1].re, eh.force[1].im]);
-            Ok(StepEquations { step: an.step, a, b, independent_equations: 2.0, term_rms, notes })
+            Ok(StepEquations {
+                step: an.step,
+                a,
+                b,
+                independent_equations: 2.0,
+                term_rms,
+                notes,
+            })
         }
         Method::FdMulti => fd_multi_equations(model, &eh, an.step, options, term_rms, notes),
         Method::Td { .. } => unreachable!("time-domain equations come from td_step_equations"),
@@ -289,7 +479,11 @@ mod tests {
 
     #[test]
     fn grid_synthesis_and_first_harmonic_are_inverse() {
-        let c = vec![Complex64::new(0.1, 0.0), Complex64::new(0.3, -0.2), Complex64::new(0.0, 0.05)];
+        let c = vec![
+            Complex64::new(0.1, 0.0),
+            Complex64::new(0.3, -0.2),
+            Complex64::new(0.0, 0.05),
+        ];
         let g = synthesize_grid(&c, 64, |_| Complex64::new(1.0, 0.0));
         assert!((first_harmonic(&g) - c[1]).norm() < 1e-14);
         // derivative of cos(th) at th = pi/2 with w = 2: -2

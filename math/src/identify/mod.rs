@@ -1,11 +1,13 @@
 //! Identification of the element parameters theta from stepped-sine data.
 //!
 //! - `Method::Fd`: the paper's FD-FSM, first harmonic only (eqs. 12-17, 22, 23).
-//! - `Method::FdMulti`: forcemap's improved FD-FSM: every harmonic n = 0..N of the measured
-//!   response rebuilds one period of the element force and the state (eq. 11); the fit uses only
-//!   the slip part of the cycle when the model has a Coulomb (sgn) term, because while the element
-//!   sticks its force is set-valued and no function of (x, x') can represent it. Steps are weighted
-//!   by their measured phasor noise.
+//! - `Method::FdMulti`: forcemap's improved FD-FSM, a weighted harmonic balance of every
+//!   measured harmonic n = 0..N (eq. 11), each real equation weighted by that harmonic's
+//!   measured noise (so noisy high harmonics count little instead of being cut). For models with
+//!   a sgn term, the basis functions are balanced over the slip part of the cycle only; while the
+//!   element sticks (or reverses) its force is set-valued, so there it is an unknown per step (a
+//!   low-order polynomial per stick interval plus a jump where the element sticks or reverses),
+//!   whose columns are projected out of the step's equations.
 //! - `Method::Td`: classical time-domain force-state mapping (paper section 4.3), the baseline.
 //!
 //! Each step gives a block of equations (`StepEquations`); blocks are stacked and solved by
@@ -105,8 +107,8 @@ impl Default for FdMultiOptions {
     fn default() -> Self {
         FdMultiOptions {
             grid_points: 1024,
-            stick_velocity_fraction: 0.03,
-            guard_harmonic_periods: 0.25,
+            stick_velocity_fraction: 0.01,
+            guard_harmonic_periods: 0.0,
             stick_force_degree: 3,
             stick_force_tolerance: 1e-6,
             jump_margin_harmonic_periods: 0.5,
