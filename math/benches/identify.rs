@@ -3,15 +3,19 @@
 
 use std::hint::black_box;
 
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use forcemap_math::identify::{identify, FdMultiOptions, Method, Setup};
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use forcemap_math::identify::{FdMultiOptions, Method, Setup, identify};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::pipeline::{analyse_sine_steps, identify_records};
 use forcemap_math::reproduce::phasor_options;
-use forcemap_math::sim::{simulate, RigRun, SimSpec, TruthElement};
+use forcemap_math::sim::{RigRun, SimSpec, TruthElement, simulate};
 
 fn bench_identify(c: &mut Criterion) {
-    let run = RigRun { snr_db: Some(40.0), seed: 1, ..RigRun::paper_sine(TruthElement::rig_coulomb()) };
+    let run = RigRun {
+        snr_db: Some(40.0),
+        seed: 1,
+        ..RigRun::paper_sine(TruthElement::rig_coulomb())
+    };
     let records = simulate(&SimSpec::Rig(run)).expect("simulation runs");
     let samples: usize = records.iter().map(|r| r.len()).sum();
     let (analyses, _) = analyse_sine_steps(&records, &phasor_options()).expect("analysis runs");
@@ -23,17 +27,41 @@ fn bench_identify(c: &mut Criterion) {
     g.throughput(Throughput::Elements(samples as u64));
     for method in [Method::Fd, Method::FdMulti] {
         g.bench_function(method.name(), |b| {
-            b.iter(|| identify(black_box(&model), &setup, method, &records, black_box(&analyses), &options).unwrap())
+            b.iter(|| {
+                identify(
+                    black_box(&model),
+                    &setup,
+                    method,
+                    &records,
+                    black_box(&analyses),
+                    &options,
+                )
+                .unwrap()
+            })
         });
     }
     g.finish();
 
     let mut g = c.benchmark_group("identify/rig_coulomb/from_records");
     g.throughput(Throughput::Elements(samples as u64));
-    for method in [Method::Fd, Method::FdMulti, Method::Td { points_per_step: None }] {
+    for method in [
+        Method::Fd,
+        Method::FdMulti,
+        Method::Td {
+            points_per_step: None,
+        },
+    ] {
         g.bench_function(method.name(), |b| {
             b.iter(|| {
-                identify_records(black_box(&model), &setup, method, black_box(&records), &phasor_options(), &options).unwrap()
+                identify_records(
+                    black_box(&model),
+                    &setup,
+                    method,
+                    black_box(&records),
+                    &phasor_options(),
+                    &options,
+                )
+                .unwrap()
             })
         });
     }

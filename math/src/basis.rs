@@ -22,6 +22,12 @@ pub trait Term: Debug + Send + Sync {
     fn jumps_at_zero_velocity(&self) -> bool {
         false
     }
+    /// True for a friction term (sgn or a smoothed sgn): the element it describes can stick,
+    /// and while it sticks its force is set-valued, whatever smooth law the model uses, so the
+    /// improved method does not fit the model to the stick phase.
+    fn describes_friction(&self) -> bool {
+        self.jumps_at_zero_velocity()
+    }
 }
 
 /// x: linear stiffness, coefficient k [N/m].
@@ -115,6 +121,9 @@ impl Term for AtanVelocity {
     }
     fn eval(&self, _x: f64, v: f64) -> f64 {
         FRAC_2_PI * (self.slope_s_per_m * v).atan()
+    }
+    fn describes_friction(&self) -> bool {
+        true
     }
 }
 
@@ -237,5 +246,13 @@ mod tests {
         assert_eq!(AbsVelocity.eval(x, -v), AbsVelocity.eval(x, v));
         assert!(SignVelocity.jumps_at_zero_velocity());
         assert!(!AtanVelocity { slope_s_per_m: 1e5 }.jumps_at_zero_velocity());
+        assert!(
+            AtanVelocity {
+                slope_s_per_m: 50.0
+            }
+            .describes_friction()
+                && SignVelocity.describes_friction()
+        );
+        assert!(!Velocity.describes_friction() && !SignedSquareVelocity.describes_friction());
     }
 }

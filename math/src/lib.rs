@@ -14,12 +14,12 @@
 pub mod basis;
 pub mod element;
 pub mod frf;
+pub mod identify;
 pub mod lstsq;
 pub mod model;
-pub mod phasor;
-pub mod record;
-pub mod sim;
-pub mod identify;
 pub mod paper;
+pub mod phasor;
 pub mod pipeline;
+pub mod record;
 pub mod reproduce;
+pub mod sim;

@@ -132,6 +132,11 @@ impl Model {
         self.terms.iter().any(|t| t.jumps_at_zero_velocity())
     }
 
+    /// True when a term describes friction (sgn or smoothed sgn): see `Term::describes_friction`.
+    pub fn has_friction(&self) -> bool {
+        self.terms.iter().any(|t| t.describes_friction())
+    }
+
     /// The element force with parameters `theta`.
     pub fn force(&self, theta: &[f64], x: f64, v: f64) -> f64 {
         self.terms

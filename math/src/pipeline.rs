@@ -6,9 +6,9 @@ use thiserror::Error;
 
 use crate::identify::{self, FdMultiOptions, Identification, IdentifyError, Method, Setup};
 use crate::model::{IdentifiedModel, Model};
-use crate::phasor::{analyse_record, HarmonicAnalysis, PhasorError, PhasorOptions};
+use crate::phasor::{HarmonicAnalysis, PhasorError, PhasorOptions, analyse_record};
 use crate::record::{Channel, Excitation, Record};
-use crate::sim::{simulate_on_sampled_base, ReplayOptions, RigInitial, SimError, ZeroPhaseLowpass};
+use crate::sim::{ReplayOptions, RigInitial, SimError, ZeroPhaseLowpass, simulate_on_sampled_base};
 
 #[derive(Debug, Error)]
 pub enum PipelineError {
@@ -23,10 +23,16 @@ pub enum PipelineError {
 }
 
 /// Harmonic analyses of the sine steps; steps that never settled are kept but noted.
-pub fn analyse_sine_steps(records: &[Record], options: &PhasorOptions) -> Result<(Vec<HarmonicAnalysis>, Vec<String>), PhasorError> {
+pub fn analyse_sine_steps(
+    records: &[Record],
+    options: &PhasorOptions,
+) -> Result<(Vec<HarmonicAnalysis>, Vec<String>), PhasorError> {
     let mut out = Vec::new();
     let mut notes = Vec::new();
-    for r in records.iter().filter(|r| matches!(r.excitation, Excitation::Sine { .. })) {
+    for r in records
+        .iter()
+        .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
+    {
         let an = analyse_record(r, options)?;
         if !an.settled {
             notes.push(format!(
@@ -48,7 +54,8 @@ pub fn identify_records(
     phasor_options: &PhasorOptions,
     fd_options: &FdMultiOptions,
 ) -> Result<Identification, PipelineError> {
-    identify_records_with_analyses(model, setup, method, records, phasor_options, fd_options).map(|(id, _)| id)
+    identify_records_with_analyses(model, setup, method, records, phasor_options, fd_options)
+        .map(|(id, _)| id)
 }
 
 /// [`identify_records`], also returning the harmonic analyses of the sine steps.
@@ -85,8 +92,16 @@ pub fn nmse_percent(measured: &[f64], predicted: &[f64]) -> f64 {
         return f64::NAN;
     }
     let mean = measured[..n].iter().sum::<f64>() / n as f64;
-    let var = measured[..n].iter().map(|y| (y - mean).powi(2)).sum::<f64>() / n as f64;
-    let sse: f64 = measured[..n].iter().zip(predicted).map(|(y, p)| (y - p).powi(2)).sum();
+    let var = measured[..n]
+        .iter()
+        .map(|y| (y - mean).powi(2))
+        .sum::<f64>()
+        / n as f64;
+    let sse: f64 = measured[..n]
+        .iter()
+        .zip(predicted)
+        .map(|(y, p)| (y - p).powi(2))
+        .sum();
     100.0 * sse / (n as f64 * var)
 }
 
@@ -100,14 +115,28 @@ pub fn nmse_percent(measured: &[f64], predicted: &[f64]) -> f64 {
 /// 0.003 % to 1.3 % on the rig stand-in).
 pub const VALIDATION_BASE_LOWPASS_HZ: f64 = 10.0;
 
-pub fn validate_rig(model: &IdentifiedModel, mass_kg: f64, record: &Record) -> Result<Validation, PipelineError> {
+pub fn validate_rig(
+    model: &IdentifiedModel,
+    mass_kg: f64,
+    record: &Record,
+) -> Result<Validation, PipelineError> {
     validate_rig_with(model, mass_kg, record, Some(VALIDATION_BASE_LOWPASS_HZ))
 }
 
 /// [`validate_rig`] with a chosen base low-pass (None: the raw samples).
-pub fn validate_rig_with(model: &IdentifiedModel, mass_kg: f64, record: &Record, base_lowpass_hz: Option<f64>) -> Result<Validation, PipelineError> {
+pub fn validate_rig_with(
+    model: &IdentifiedModel,
+    mass_kg: f64,
+    record: &Record,
+    base_lowpass_hz: Option<f64>,
+) -> Result<Validation, PipelineError> {
     let step = record.step;
-    let get = |c: Channel| record.channel(c).ok_or(PipelineError::MissingChannel { step, channel: c.name() });
+    let get = |c: Channel| {
+        record.channel(c).ok_or(PipelineError::MissingChannel {
+            step,
+            channel: c.name(),
+        })
+    };
     let base = get(Channel::BaseDisplacementM)?;
     let rel = get(Channel::RelativeDisplacementM)?;
     let acc = get(Channel::MassAccelerationMps2)?;
@@ -118,7 +147,10 @@ pub fn validate_rig_with(model: &IdentifiedModel, mass_kg: f64, record: &Record,
         0.0
     };
     let opts = ReplayOptions {
-        initial: RigInitial { relative_displacement_m: rel[0], mass_velocity_mps: mass_velocity },
+        initial: RigInitial {
+            relative_displacement_m: rel[0],
+            mass_velocity_mps: mass_velocity,
+        },
         prefilter: base_lowpass_hz.map(|cutoff_hz| ZeroPhaseLowpass { cutoff_hz }),
         ..ReplayOptions::default()
     };

@@ -61,7 +61,11 @@ pub struct Settings {
 
 impl Default for Settings {
     fn default() -> Self {
-        Settings { three_dof_snr_db: 40.0, rig_snr_db: 40.0, seed: 1 }
+        Settings {
+            three_dof_snr_db: 40.0,
+            rig_snr_db: 40.0,
+            seed: 1,
+        }
     }
 }
 
@@ -71,7 +75,11 @@ fn paper_row(p: &PaperRow) -> Row {
         case: p.case.map(String::from),
         model: p.model.into(),
         atan_m: p.atan_m,
-        method: Some(if p.table == 4 { "td-20".into() } else { "fd".into() }),
+        method: Some(if p.table == 4 {
+            "td-20".into()
+        } else {
+            "fd".into()
+        }),
         source: "paper",
         snr_db: None,
         k: Some(p.k),
@@ -85,7 +93,13 @@ fn paper_row(p: &PaperRow) -> Row {
     }
 }
 
-fn forcemap_row(table: u8, case: Option<&str>, atan_m: Option<f64>, snr_db: Option<f64>, id: &Identification) -> Row {
+fn forcemap_row(
+    table: u8,
+    case: Option<&str>,
+    atan_m: Option<f64>,
+    snr_db: Option<f64>,
+    id: &Identification,
+) -> Row {
     let pick = |n: &str| id.value(n);
     Row {
         table,
@@ -102,37 +116,74 @@ fn forcemap_row(table: u8, case: Option<&str>, atan_m: Option<f64>, snr_db: Opti
         nmse1: None,
         nmse2: None,
         r: Some(id.r.clone()),
-        std: Some(id.parameters.iter().map(|p| (p.name.clone(), p.std)).collect()),
+        std: Some(
+            id.parameters
+                .iter()
+                .map(|p| (p.name.clone(), p.std))
+                .collect(),
+        ),
     }
 }
 
 fn simulate(spec: &SimSpec, what: &str) -> Result<Vec<Record>, ReproduceError> {
-    sim::simulate(spec).map_err(|source| ReproduceError::Sim { what: what.into(), source })
+    sim::simulate(spec).map_err(|source| ReproduceError::Sim {
+        what: what.into(),
+        source,
+    })
 }
 
 fn model(name: &str, atan_m: Option<f64>) -> Model {
-    Model::by_name(name, &ModelOptions { atan_slope_s_per_m: atan_m, polynomial_order: None })
-        .expect("the tables use known models")
+    Model::by_name(
+        name,
+        &ModelOptions {
+            atan_slope_s_per_m: atan_m,
+            polynomial_order: None,
+        },
+    )
+    .expect("the tables use known models")
 }
 
 /// Phasor options of the reproduction: as many harmonics as the sampling allows.
 pub fn phasor_options() -> PhasorOptions {
-    PhasorOptions { max_harmonic: usize::MAX, ..PhasorOptions::default() }
+    PhasorOptions {
+        max_harmonic: usize::MAX,
+        ..PhasorOptions::default()
+    }
 }
 
 /// Table 1: the 3-DOF example, CASE I and II, three friction models, the paper's method and the
 /// improved one, noise-free and at `three_dof_snr_db`.
-pub fn table1(settings: &Settings, mut progress: impl FnMut(&str)) -> Result<Vec<Row>, ReproduceError> {
-    let setup = Setup::DrivePoint { substructure: LinearSubstructure::paper_three_dof_substructure_i() };
-    let models: [(&str, Option<f64>); 3] =
-        [("coulomb-cubic", None), ("coulomb-atan-cubic", Some(1e5)), ("coulomb-atan-cubic", Some(1e3))];
+pub fn table1(
+    settings: &Settings,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<Row>, ReproduceError> {
+    let setup = Setup::DrivePoint {
+        substructure: LinearSubstructure::paper_three_dof_substructure_i(),
+    };
+    let models: [(&str, Option<f64>); 3] = [
+        ("coulomb-cubic", None),
+        ("coulomb-atan-cubic", Some(1e5)),
+        ("coulomb-atan-cubic", Some(1e3)),
+    ];
     let (k, c, fd, s) = paper::TABLE1_TRUTH;
     let mut rows = Vec::new();
     for (case, run) in [("I", ThreeDofRun::case_i()), ("II", ThreeDofRun::case_ii())] {
-        progress(&format!("Table 1, CASE {case}: simulating the 3-DOF example"));
-        let clean = simulate(&SimSpec::ThreeDof(run.clone()), &format!("3-DOF CASE {case}"))?;
-        let noisy_run = ThreeDofRun { snr_db: Some(settings.three_dof_snr_db), seed: settings.seed, ..run };
-        let noisy = simulate(&SimSpec::ThreeDof(noisy_run), &format!("3-DOF CASE {case} with noise"))?;
+        progress(&format!(
+            "Table 1, CASE {case}: simulating the 3-DOF example"
+        ));
+        let clean = simulate(
+            &SimSpec::ThreeDof(run.clone()),
+            &format!("3-DOF CASE {case}"),
+        )?;
+        let noisy_run = ThreeDofRun {
+            snr_db: Some(settings.three_dof_snr_db),
+            seed: settings.seed,
+            ..run
+        };
+        let noisy = simulate(
+            &SimSpec::ThreeDof(noisy_run),
+            &format!("3-DOF CASE {case} with noise"),
+        )?;
         rows.push(Row {
             table: 1,
             case: Some(case.into()),
@@ -151,7 +202,10 @@ pub fn table1(settings: &Settings, mut progress: impl FnMut(&str)) -> Result<Vec
             std: None,
         });
         for (name, m) in models {
-            if let Some(p) = paper::TABLE1.iter().find(|p| p.case == Some(case) && p.model == name && p.atan_m == m) {
+            if let Some(p) = paper::TABLE1
+                .iter()
+                .find(|p| p.case == Some(case) && p.model == name && p.atan_m == m)
+            {
                 rows.push(paper_row(p));
             }
             let mdl = model(name, m);
@@ -161,8 +215,15 @@ pub fn table1(settings: &Settings, mut progress: impl FnMut(&str)) -> Result<Vec
                 (Method::FdMulti, &noisy, Some(settings.three_dof_snr_db)),
             ] {
                 let what = format!("Table 1 CASE {case} {name} {}", method.name());
-                let id = pipeline::identify_records(&mdl, &setup, method, data, &phasor_options(), &FdMultiOptions::default())
-                    .map_err(|source| ReproduceError::Pipeline { what, source })?;
+                let id = pipeline::identify_records(
+                    &mdl,
+                    &setup,
+                    method,
+                    data,
+                    &phasor_options(),
+                    &FdMultiOptions::default(),
+                )
+                .map_err(|source| ReproduceError::Pipeline { what, source })?;
                 rows.push(forcemap_row(1, Some(case), m, snr, &id));
             }
         }
@@ -177,11 +238,29 @@ pub struct RigData {
 }
 
 /// Simulates the rig stand-in (truth: the paper's Coulomb values) at `snr_db`.
-pub fn rig_data(truth: TruthElement, snr_db: Option<f64>, seed: u64) -> Result<RigData, ReproduceError> {
-    let sine = simulate(&SimSpec::Rig(RigRun { snr_db, seed, ..RigRun::paper_sine(truth.clone()) }), "rig stepped sine")?;
+pub fn rig_data(
+    truth: TruthElement,
+    snr_db: Option<f64>,
+    seed: u64,
+) -> Result<RigData, ReproduceError> {
+    let sine = simulate(
+        &SimSpec::Rig(RigRun {
+            snr_db,
+            seed,
+            ..RigRun::paper_sine(truth.clone())
+        }),
+        "rig stepped sine",
+    )?;
     let mut random = [Vec::new(), Vec::new()];
-    for (i, band) in sim::excitation::PAPER_RIG_RANDOM_BANDS_HZ.iter().enumerate() {
-        let run = RigRun { snr_db, seed: seed + 1 + i as u64, ..RigRun::paper_random(truth.clone(), *band) };
+    for (i, band) in sim::excitation::PAPER_RIG_RANDOM_BANDS_HZ
+        .iter()
+        .enumerate()
+    {
+        let run = RigRun {
+            snr_db,
+            seed: seed + 1 + i as u64,
+            ..RigRun::paper_random(truth.clone(), *band)
+        };
         random[i] = simulate(&SimSpec::Rig(run), "rig band random")?;
     }
     Ok(RigData { sine, random })
@@ -196,16 +275,30 @@ pub fn rig_row(
     method: Method,
     snr_db: Option<f64>,
 ) -> Result<Row, ReproduceError> {
-    let setup = Setup::BaseExcited { mass_kg: sim::rig::PAPER_RIG_MASS_KG };
+    let setup = Setup::BaseExcited {
+        mass_kg: sim::rig::PAPER_RIG_MASS_KG,
+    };
     let mdl = model(name, atan_m);
     let what = format!("Table {table} {name} {}", method.name());
-    let wrap = |source| ReproduceError::Pipeline { what: what.clone(), source };
-    let id = pipeline::identify_records(&mdl, &setup, method, &data.sine, &phasor_options(), &FdMultiOptions::default())
-        .map_err(wrap)?;
+    let wrap = |source| ReproduceError::Pipeline {
+        what: what.clone(),
+        source,
+    };
+    let id = pipeline::identify_records(
+        &mdl,
+        &setup,
+        method,
+        &data.sine,
+        &phasor_options(),
+        &FdMultiOptions::default(),
+    )
+    .map_err(wrap)?;
     let fitted = IdentifiedModel::new(mdl, id.theta());
     let mut row = forcemap_row(table, None, atan_m, snr_db, &id);
     let nmse = |recs: &Vec<Record>| -> Result<f64, ReproduceError> {
-        pipeline::validate_rig(&fitted, sim::rig::PAPER_RIG_MASS_KG, &recs[0]).map(|v| v.nmse_percent).map_err(wrap)
+        pipeline::validate_rig(&fitted, sim::rig::PAPER_RIG_MASS_KG, &recs[0])
+            .map(|v| v.nmse_percent)
+            .map_err(wrap)
     };
     row.nmse1 = Some(nmse(&data.random[0])?);
     row.nmse2 = Some(nmse(&data.random[1])?);
@@ -213,7 +306,11 @@ pub fn rig_row(
 }
 
 /// Tables 2-4 on the rig stand-in.
-pub fn rig_tables(tables: &[u8], settings: &Settings, mut progress: impl FnMut(&str)) -> Result<Vec<Row>, ReproduceError> {
+pub fn rig_tables(
+    tables: &[u8],
+    settings: &Settings,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<Row>, ReproduceError> {
     progress("Tables 2-4: simulating the rig stand-in (stepped sine and two band-random records)");
     let snr = Some(settings.rig_snr_db);
     let data = rig_data(TruthElement::rig_coulomb(), snr, settings.seed)?;
@@ -251,7 +348,11 @@ pub fn rig_tables(tables: &[u8], settings: &Settings, mut progress: impl FnMut(&
         for p in &paper::TABLE3 {
             rows.push(paper_row(p));
             for method in [Method::Fd, Method::FdMulti] {
-                progress(&format!("Table 3: M = {} {}", p.atan_m.unwrap_or(0.0), method.name()));
+                progress(&format!(
+                    "Table 3: M = {} {}",
+                    p.atan_m.unwrap_or(0.0),
+                    method.name()
+                ));
                 rows.push(rig_row(3, &data, p.model, p.atan_m, method, snr)?);
             }
         }
@@ -259,7 +360,16 @@ pub fn rig_tables(tables: &[u8], settings: &Settings, mut progress: impl FnMut(&
     if tables.contains(&4) {
         rows.push(truth(4));
         rows.push(paper_row(&paper::TABLE4[0]));
-        for method in [Method::Td { points_per_step: Some(20) }, Method::Td { points_per_step: None }, Method::Fd, Method::FdMulti] {
+        for method in [
+            Method::Td {
+                points_per_step: Some(20),
+            },
+            Method::Td {
+                points_per_step: None,
+            },
+            Method::Fd,
+            Method::FdMulti,
+        ] {
             progress(&format!("Table 4: coulomb {}", method.name()));
             rows.push(rig_row(4, &data, "coulomb", None, method, snr)?);
         }
@@ -268,7 +378,11 @@ pub fn rig_tables(tables: &[u8], settings: &Settings, mut progress: impl FnMut(&
 }
 
 /// All requested tables (1-4).
-pub fn reproduce(tables: &[u8], settings: &Settings, mut progress: impl FnMut(&str)) -> Result<Vec<Row>, ReproduceError> {
+pub fn reproduce(
+    tables: &[u8],
+    settings: &Settings,
+    mut progress: impl FnMut(&str),
+) -> Result<Vec<Row>, ReproduceError> {
     let mut rows = Vec::new();
     if tables.contains(&1) {
         rows.extend(table1(settings, &mut progress)?);

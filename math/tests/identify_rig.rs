@@ -3,7 +3,7 @@
 
 use forcemap_math::identify::Method;
 use forcemap_math::paper::RIG_TRUTH;
-use forcemap_math::reproduce::{rig_data, rig_row, RigData, Row};
+use forcemap_math::reproduce::{RigData, Row, rig_data, rig_row};
 use forcemap_math::sim::TruthElement;
 use std::sync::OnceLock;
 
@@ -29,7 +29,12 @@ fn coulomb_model_recovers_k_c_fd_within_2_percent_at_40_db() {
         assert!(rel(r.c, c) < 0.02, "{method:?} c {:?}", r.c);
         assert!(rel(r.fd, fd) < 0.02, "{method:?} fd {:?}", r.fd);
         // The true structure predicts the held-out band-random records to near the noise floor.
-        assert!(r.nmse1.unwrap() < 0.5 && r.nmse2.unwrap() < 0.5, "{:?} {:?}", r.nmse1, r.nmse2);
+        assert!(
+            r.nmse1.unwrap() < 0.5 && r.nmse2.unwrap() < 0.5,
+            "{:?} {:?}",
+            r.nmse1,
+            r.nmse2
+        );
     }
 }
 
@@ -40,8 +45,18 @@ fn linear_model_absorbs_friction_into_damping_and_predicts_worse() {
     // As in Table 2: c well above the true 184 N s/m, k close to the truth.
     assert!(lin.c.unwrap() > 1.4 * RIG_TRUTH.1, "linear c {:?}", lin.c);
     assert!(rel(lin.k, RIG_TRUTH.0) < 0.05, "linear k {:?}", lin.k);
-    assert!(lin.nmse1.unwrap() > 5.0 * cou.nmse1.unwrap(), "NMSE1 linear {:?} coulomb {:?}", lin.nmse1, cou.nmse1);
-    assert!(lin.nmse2.unwrap() > 5.0 * cou.nmse2.unwrap(), "NMSE2 linear {:?} coulomb {:?}", lin.nmse2, cou.nmse2);
+    assert!(
+        lin.nmse1.unwrap() > 5.0 * cou.nmse1.unwrap(),
+        "NMSE1 linear {:?} coulomb {:?}",
+        lin.nmse1,
+        cou.nmse1
+    );
+    assert!(
+        lin.nmse2.unwrap() > 5.0 * cou.nmse2.unwrap(),
+        "NMSE2 linear {:?} coulomb {:?}",
+        lin.nmse2,
+        cou.nmse2
+    );
     // r values: friction carries a real share of the transmitted force.
     let r_fd = cou.r.unwrap().iter().find(|(n, _)| n == "fd").unwrap().1;
     assert!((8.0..30.0).contains(&r_fd), "r_fd {r_fd}");
@@ -53,17 +68,40 @@ fn atan_model_behaves_as_table_3() {
     // M from 500 up approaches the sgn model.
     let m50 = row("coulomb-atan", Some(50.0), Method::Fd);
     let m1000 = row("coulomb-atan", Some(1000.0), Method::Fd);
-    assert!(m50.c.unwrap() < 0.85 * m1000.c.unwrap(), "c {:?} vs {:?}", m50.c, m1000.c);
-    assert!(m50.fd.unwrap() > 1.3 * m1000.fd.unwrap(), "fd {:?} vs {:?}", m50.fd, m1000.fd);
-    assert!(rel(m1000.fd, RIG_TRUTH.2) < 0.06, "M=1000 fd {:?}", m1000.fd);
+    assert!(
+        m50.c.unwrap() < 0.85 * m1000.c.unwrap(),
+        "c {:?} vs {:?}",
+        m50.c,
+        m1000.c
+    );
+    assert!(
+        m50.fd.unwrap() > 1.3 * m1000.fd.unwrap(),
+        "fd {:?} vs {:?}",
+        m50.fd,
+        m1000.fd
+    );
+    assert!(
+        rel(m1000.fd, RIG_TRUTH.2) < 0.06,
+        "M=1000 fd {:?}",
+        m1000.fd
+    );
     assert!(rel(m1000.c, RIG_TRUTH.1) < 0.03, "M=1000 c {:?}", m1000.c);
 }
 
 #[test]
 fn time_domain_fsm_is_clearly_worse_on_fd_than_frequency_domain() {
-    let td = row("coulomb", None, Method::Td { points_per_step: Some(20) });
+    let td = row(
+        "coulomb",
+        None,
+        Method::Td {
+            points_per_step: Some(20),
+        },
+    );
     let fd = row("coulomb", None, Method::Fd);
     let e_td = rel(td.fd, RIG_TRUTH.2);
     let e_fd = rel(fd.fd, RIG_TRUTH.2);
-    assert!(e_td > 3.0 * e_fd && e_td > 0.03, "F_d error: TD {e_td:.4}, FD {e_fd:.4}");
+    assert!(
+        e_td > 3.0 * e_fd && e_td > 0.03,
+        "F_d error: TD {e_td:.4}, FD {e_fd:.4}"
+    );
 }

@@ -8,20 +8,34 @@ use forcemap_math::paper::TABLE1_TRUTH;
 use forcemap_math::pipeline::identify_records;
 use forcemap_math::record::Record;
 use forcemap_math::reproduce::phasor_options;
-use forcemap_math::sim::{simulate, SimSpec, ThreeDofRun};
+use forcemap_math::sim::{SimSpec, ThreeDofRun, simulate};
 use std::sync::OnceLock;
 
 fn case(which: &str) -> &'static Vec<Record> {
     static I: OnceLock<Vec<Record>> = OnceLock::new();
     static II: OnceLock<Vec<Record>> = OnceLock::new();
-    let (cell, run) = if which == "I" { (&I, ThreeDofRun::case_i()) } else { (&II, ThreeDofRun::case_ii()) };
+    let (cell, run) = if which == "I" {
+        (&I, ThreeDofRun::case_i())
+    } else {
+        (&II, ThreeDofRun::case_ii())
+    };
     cell.get_or_init(|| simulate(&SimSpec::ThreeDof(run)).expect("simulation runs"))
 }
 
 fn identify(which: &str, method: Method) -> Identification {
-    let setup = Setup::DrivePoint { substructure: LinearSubstructure::paper_three_dof_substructure_i() };
+    let setup = Setup::DrivePoint {
+        substructure: LinearSubstructure::paper_three_dof_substructure_i(),
+    };
     let model = Model::by_name("coulomb-cubic", &ModelOptions::default()).unwrap();
-    identify_records(&model, &setup, method, case(which), &phasor_options(), &FdMultiOptions::default()).expect("identifies")
+    identify_records(
+        &model,
+        &setup,
+        method,
+        case(which),
+        &phasor_options(),
+        &FdMultiOptions::default(),
+    )
+    .expect("identifies")
 }
 
 fn errors(id: &Identification) -> [f64; 4] {
@@ -35,11 +49,17 @@ fn paper_method_is_good_in_case_ii_and_clearly_worse_in_case_i() {
     let e1 = errors(&identify("I", Method::Fd));
     let e2 = errors(&identify("II", Method::Fd));
     // CASE II within a few % on k, F_d and S (c within 15 %), as in the paper's Table 1.
-    assert!(e2[0] < 0.06 && e2[2] < 0.05 && e2[3] < 0.07 && e2[1] < 0.15, "CASE II errors {e2:?}");
+    assert!(
+        e2[0] < 0.06 && e2[2] < 0.05 && e2[3] < 0.07 && e2[1] < 0.15,
+        "CASE II errors {e2:?}"
+    );
     // CASE I: the element sticks for much of the cycle; first-harmonic sgn cannot describe it.
     let worst1 = e1.iter().cloned().fold(0.0, f64::max);
     let worst2 = e2.iter().cloned().fold(0.0, f64::max);
-    assert!(worst1 > 0.3 && worst1 > 3.0 * worst2, "CASE I {e1:?} vs CASE II {e2:?}");
+    assert!(
+        worst1 > 0.3 && worst1 > 3.0 * worst2,
+        "CASE I {e1:?} vs CASE II {e2:?}"
+    );
 }
 
 #[test]
@@ -54,6 +74,44 @@ fn improved_method_noise_free_case_i_within_two_percent() {
     let e = errors(&id);
     assert!(e.iter().all(|v| *v < 0.02), "CASE I errors {e:?}");
     // the 5 N step never slips in steady state: it is left out and the user is told
-    assert!(!id.steps_used.contains(&0), "steps used {:?}", id.steps_used);
-    assert!(id.warnings.iter().any(|w| w.contains("step 0") && w.contains("did not slip")), "{:?}", id.warnings);
+    assert!(
+        !id.steps_used.contains(&0),
+        "steps used {:?}",
+        id.steps_used
+    );
+    assert!(
+        id.warnings
+            .iter()
+            .any(|w| w.contains("step 0") && w.contains("did not slip")),
+        "{:?}",
+        id.warnings
+    );
+}
+
+#[test]
+fn steep_atan_friction_is_treated_as_friction_and_agrees_with_sgn() {
+    // The truth sticks whatever law the model smooths friction with: with M = 1e5 the atan model
+    // must give what the sgn model gives, in CASE I where the element sticks for much of the cycle.
+    let setup = Setup::DrivePoint {
+        substructure: LinearSubstructure::paper_three_dof_substructure_i(),
+    };
+    let atan = Model::by_name(
+        "coulomb-atan-cubic",
+        &ModelOptions {
+            atan_slope_s_per_m: Some(1e5),
+            polynomial_order: None,
+        },
+    )
+    .unwrap();
+    let id = identify_records(
+        &atan,
+        &setup,
+        Method::FdMulti,
+        case("I"),
+        &phasor_options(),
+        &FdMultiOptions::default(),
+    )
+    .unwrap();
+    let e = errors(&id);
+    assert!(e.iter().all(|v| *v < 0.02), "CASE I atan(1e5) errors {e:?}");
 }

@@ -5,7 +5,11 @@ use std::path::PathBuf;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 #[derive(Debug, Parser)]
-#[command(name = "forcemap", version, about = "Frequency-domain force-state mapping for test rigs: identify nonlinear element parameters, reproduce the reference tables, simulate rigs.")]
+#[command(
+    name = "forcemap",
+    version,
+    about = "Frequency-domain force-state mapping for test rigs: identify nonlinear element parameters, reproduce the reference tables, simulate rigs."
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -123,5 +127,8 @@ pub struct SimulateArgs {
 fn parse_order(s: &str) -> Result<(u32, u32), String> {
     let bad = || format!("'{s}' is not two whole numbers P,Q (e.g. 3,1)");
     let (p, q) = s.split_once(',').ok_or_else(bad)?;
-    Ok((p.trim().parse().map_err(|_| bad())?, q.trim().parse().map_err(|_| bad())?))
+    Ok((
+        p.trim().parse().map_err(|_| bad())?,
+        q.trim().parse().map_err(|_| bad())?,
+    ))
 }

@@ -1,7 +1,7 @@
 //! forcemap_nodes: the `forcemap` command and (later) the ROS 2 nodes, thin adapters around
 //! `forcemap_math`.
-pub mod csv_export;
-pub mod params;
 pub mod cli;
 pub mod commands;
+pub mod csv_export;
+pub mod params;
 pub mod plot;

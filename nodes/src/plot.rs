@@ -30,7 +30,9 @@ const COLORS: [RGBColor; 10] = [
 ];
 
 fn range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
-    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+        (l.min(v), h.max(v))
+    });
     if !lo.is_finite() || !hi.is_finite() {
         return -1.0..1.0;
     }
@@ -40,8 +42,14 @@ fn range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
 
 /// Writes `text` to `path` through a temporary file in the same directory.
 pub fn write_atomically(path: &Path, text: &str) -> anyhow::Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let tmp = dir.join(format!(".{}.tmp", path.file_name().and_then(|n| n.to_str()).unwrap_or("plot")));
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let tmp = dir.join(format!(
+        ".{}.tmp",
+        path.file_name().and_then(|n| n.to_str()).unwrap_or("plot")
+    ));
     std::fs::write(&tmp, text).with_context(|| format!("writing {}", tmp.display()))?;
     std::fs::rename(&tmp, path).with_context(|| {
         let _ = std::fs::remove_file(&tmp);
@@ -62,10 +70,19 @@ pub fn force_state_map(path: &Path, title: &str, steps: &[ForceStateStep]) -> an
         root.fill(&WHITE).map_err(draw_err)?;
         let root = root.titled(title, ("sans-serif", 18)).map_err(draw_err)?;
         let panels = root.split_evenly((1, 2));
-        let f_range = range(steps.iter().flat_map(|s| s.measured_force_n.iter().chain(&s.model_force_n).copied()));
+        let f_range = range(
+            steps
+                .iter()
+                .flat_map(|s| s.measured_force_n.iter().chain(&s.model_force_n).copied()),
+        );
         for (panel, (xlabel, pick)) in panels.iter().zip([
-            ("relative velocity x' [m/s]", (|s: &ForceStateStep| &s.velocity_mps) as fn(&ForceStateStep) -> &Vec<f64>),
-            ("relative displacement x [m]", |s: &ForceStateStep| &s.displacement_m),
+            (
+                "relative velocity x' [m/s]",
+                (|s: &ForceStateStep| &s.velocity_mps) as fn(&ForceStateStep) -> &Vec<f64>,
+            ),
+            ("relative displacement x [m]", |s: &ForceStateStep| {
+                &s.displacement_m
+            }),
         ]) {
             let x_range = range(steps.iter().flat_map(|s| pick(s).iter().copied()));
             let mut chart = ChartBuilder::on(panel)
@@ -74,18 +91,33 @@ pub fn force_state_map(path: &Path, title: &str, steps: &[ForceStateStep]) -> an
                 .y_label_area_size(60)
                 .build_cartesian_2d(x_range, f_range.clone())
                 .map_err(draw_err)?;
-            chart.configure_mesh().x_desc(xlabel).y_desc("element force g [N]").draw().map_err(draw_err)?;
+            chart
+                .configure_mesh()
+                .x_desc(xlabel)
+                .y_desc("element force g [N]")
+                .draw()
+                .map_err(draw_err)?;
             for (i, s) in steps.iter().enumerate() {
                 let color = COLORS[i % COLORS.len()];
                 let xs = pick(s);
                 chart
-                    .draw_series(xs.iter().zip(&s.measured_force_n).map(|(x, g)| Circle::new((*x, *g), 2, color.filled())))
+                    .draw_series(
+                        xs.iter()
+                            .zip(&s.measured_force_n)
+                            .map(|(x, g)| Circle::new((*x, *g), 2, color.filled())),
+                    )
                     .map_err(draw_err)?
                     .label(format!("{} measured", s.label))
                     .legend(move |(x, y)| Circle::new((x, y), 3, color.filled()));
-                let mut line: Vec<(f64, f64)> = xs.iter().copied().zip(s.model_force_n.iter().copied()).collect();
+                let mut line: Vec<(f64, f64)> = xs
+                    .iter()
+                    .copied()
+                    .zip(s.model_force_n.iter().copied())
+                    .collect();
                 line.push(line[0]);
-                chart.draw_series(LineSeries::new(line, color.stroke_width(1))).map_err(draw_err)?;
+                chart
+                    .draw_series(LineSeries::new(line, color.stroke_width(1)))
+                    .map_err(draw_err)?;
             }
             if steps.len() <= COLORS.len() {
                 chart
@@ -102,7 +134,14 @@ pub fn force_state_map(path: &Path, title: &str, steps: &[ForceStateStep]) -> an
 }
 
 /// Measured against predicted time trace.
-pub fn time_trace(path: &Path, title: &str, time_s: &[f64], measured: &[f64], predicted: &[f64], unit: &str) -> anyhow::Result<()> {
+pub fn time_trace(
+    path: &Path,
+    title: &str,
+    time_s: &[f64],
+    measured: &[f64],
+    predicted: &[f64],
+    unit: &str,
+) -> anyhow::Result<()> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (1200, 420)).into_drawing_area();
@@ -116,18 +155,34 @@ pub fn time_trace(path: &Path, title: &str, time_s: &[f64], measured: &[f64], pr
             .y_label_area_size(60)
             .build_cartesian_2d(t_range, y_range)
             .map_err(draw_err)?;
-        chart.configure_mesh().x_desc("time [s]").y_desc(unit).draw().map_err(draw_err)?;
         chart
-            .draw_series(LineSeries::new(time_s.iter().copied().zip(measured.iter().copied()), BLACK.stroke_width(1)))
+            .configure_mesh()
+            .x_desc("time [s]")
+            .y_desc(unit)
+            .draw()
+            .map_err(draw_err)?;
+        chart
+            .draw_series(LineSeries::new(
+                time_s.iter().copied().zip(measured.iter().copied()),
+                BLACK.stroke_width(1),
+            ))
             .map_err(draw_err)?
             .label("measured")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
         chart
-            .draw_series(LineSeries::new(time_s.iter().copied().zip(predicted.iter().copied()), COLORS[3].stroke_width(1)))
+            .draw_series(LineSeries::new(
+                time_s.iter().copied().zip(predicted.iter().copied()),
+                COLORS[3].stroke_width(1),
+            ))
             .map_err(draw_err)?
             .label("predicted")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], COLORS[3]));
-        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(draw_err)?;
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(draw_err)?;
         root.present().map_err(draw_err)?;
     }
     write_atomically(path, &svg)

@@ -5,7 +5,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn forcemap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_forcemap")).args(args).output().expect("forcemap runs")
+    Command::new(env!("CARGO_BIN_EXE_forcemap"))
+        .args(args)
+        .output()
+        .expect("forcemap runs")
 }
 
 fn stderr(o: &Output) -> String {
@@ -13,13 +16,27 @@ fn stderr(o: &Output) -> String {
 }
 
 fn params(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch_configs").join(name).display().to_string()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../launch_configs")
+        .join(name)
+        .display()
+        .to_string()
 }
 
 /// A simulated rig export at 40 dB SNR (written once per test that needs it).
 fn rig_csv(dir: &Path) -> PathBuf {
     let p = dir.join("rig.csv");
-    let o = forcemap(&["simulate", "--system", "rig", "--snr-db", "40", "--seed", "3", "--csv", p.to_str().unwrap()]);
+    let o = forcemap(&[
+        "simulate",
+        "--system",
+        "rig",
+        "--snr-db",
+        "40",
+        "--seed",
+        "3",
+        "--csv",
+        p.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     p
 }
@@ -28,7 +45,15 @@ fn rig_csv(dir: &Path) -> PathBuf {
 fn identify_json_has_the_documented_shape_and_values_near_the_truth() {
     let dir = tempfile::tempdir().unwrap();
     let csv = rig_csv(dir.path());
-    let o = forcemap(&["identify", csv.to_str().unwrap(), "--model", "coulomb", "--params", &params("rig.params.yaml"), "--json"]);
+    let o = forcemap(&[
+        "identify",
+        csv.to_str().unwrap(),
+        "--model",
+        "coulomb",
+        "--params",
+        &params("rig.params.yaml"),
+        "--json",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
     assert_eq!(v["model"], "coulomb");
@@ -44,7 +69,12 @@ fn identify_json_has_the_documented_shape_and_values_near_the_truth() {
     }
     assert!(v["condition_number"].as_f64().unwrap() >= 1.0);
     assert!(v["equations"].as_u64().unwrap() > 20);
-    let r_sum: f64 = v["r"].as_object().unwrap().values().map(|x| x.as_f64().unwrap()).sum();
+    let r_sum: f64 = v["r"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|x| x.as_f64().unwrap())
+        .sum();
     assert!((r_sum - 100.0).abs() < 1e-9);
     // the two band-random records validate the model
     assert_eq!(v["validation"].as_array().unwrap().len(), 2);
@@ -55,33 +85,91 @@ fn identify_by_each_method_and_flag_overrides_params() {
     let dir = tempfile::tempdir().unwrap();
     let csv = rig_csv(dir.path());
     for method in ["fd", "fd-multi", "td"] {
-        let o = forcemap(&["identify", csv.to_str().unwrap(), "--model", "linear", "--mass-kg", "36", "--method", method, "--json"]);
+        let o = forcemap(&[
+            "identify",
+            csv.to_str().unwrap(),
+            "--model",
+            "linear",
+            "--mass-kg",
+            "36",
+            "--method",
+            method,
+            "--json",
+        ]);
         assert!(o.status.success(), "{method}: {}", stderr(&o));
         let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        assert_eq!(v["method"].as_str().unwrap().split('-').next().unwrap(), method.split('-').next().unwrap());
+        assert_eq!(
+            v["method"].as_str().unwrap().split('-').next().unwrap(),
+            method.split('-').next().unwrap()
+        );
         // the linear model absorbs the friction into c
-        assert!(v["parameters"][1]["value"].as_f64().unwrap() > 250.0, "{method}: {v}");
+        assert!(
+            v["parameters"][1]["value"].as_f64().unwrap() > 250.0,
+            "{method}: {v}"
+        );
     }
     // --mass-kg beats the params file: a wrong mass scales the force, hence k
-    let o = forcemap(&["identify", csv.to_str().unwrap(), "--model", "coulomb", "--params", &params("rig.params.yaml"), "--mass-kg", "72", "--json"]);
+    let o = forcemap(&[
+        "identify",
+        csv.to_str().unwrap(),
+        "--model",
+        "coulomb",
+        "--params",
+        &params("rig.params.yaml"),
+        "--mass-kg",
+        "72",
+        "--json",
+    ]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert!((v["parameters"][0]["value"].as_f64().unwrap() / (2.0 * 6380.0) - 1.0).abs() < 0.03, "{v}");
+    assert!(
+        (v["parameters"][0]["value"].as_f64().unwrap() / (2.0 * 6380.0) - 1.0).abs() < 0.03,
+        "{v}"
+    );
 }
 
 #[test]
 fn three_dof_export_needs_its_substructure_and_is_identified_with_it() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("case2.csv");
-    let o = forcemap(&["simulate", "--system", "three-dof", "--case", "ii", "--csv", csv.to_str().unwrap()]);
+    let o = forcemap(&[
+        "simulate",
+        "--system",
+        "three-dof",
+        "--case",
+        "ii",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let o = forcemap(&["identify", csv.to_str().unwrap(), "--model", "coulomb-cubic"]);
+    let o = forcemap(&[
+        "identify",
+        csv.to_str().unwrap(),
+        "--model",
+        "coulomb-cubic",
+    ]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("substructure"), "{}", stderr(&o));
-    let o = forcemap(&["identify", csv.to_str().unwrap(), "--model", "coulomb-cubic", "--params", &params("three_dof.params.yaml"), "--json"]);
+    let o = forcemap(&[
+        "identify",
+        csv.to_str().unwrap(),
+        "--model",
+        "coulomb-cubic",
+        "--params",
+        &params("three_dof.params.yaml"),
+        "--json",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    for (x, truth) in v["parameters"].as_array().unwrap().iter().zip([8000.0, 20.0, 5.0, 3e8]) {
-        assert!((x["value"].as_f64().unwrap() / truth - 1.0).abs() < 0.02, "{x}");
+    for (x, truth) in v["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip([8000.0, 20.0, 5.0, 3e8])
+    {
+        assert!(
+            (x["value"].as_f64().unwrap() / truth - 1.0).abs() < 0.02,
+            "{x}"
+        );
     }
 }
 
@@ -93,7 +181,9 @@ fn write(dir: &Path, name: &str, text: &str) -> String {
 
 /// A small, valid rig export: two sine steps of 3 periods each, then the text is edited.
 fn small_rig_csv() -> String {
-    let mut s = String::from("time_s,step,frequency_hz,base_displacement_m,relative_displacement_m,mass_acceleration_mps2\n");
+    let mut s = String::from(
+        "time_s,step,frequency_hz,base_displacement_m,relative_displacement_m,mass_acceleration_mps2\n",
+    );
     let fs = 100.0;
     for step in 0..2 {
         let f = 2.0 + step as f64;
@@ -101,7 +191,12 @@ fn small_rig_csv() -> String {
             let t = (step * 150 + i) as f64 / fs;
             let w = std::f64::consts::TAU * f;
             let x = 0.01 * (w * t).sin();
-            s.push_str(&format!("{t},{step},{f},{},{},{}\n", 0.005 * (w * t).sin(), x, -w * w * x));
+            s.push_str(&format!(
+                "{t},{step},{f},{},{},{}\n",
+                0.005 * (w * t).sin(),
+                x,
+                -w * w * x
+            ));
         }
     }
     s
@@ -128,10 +223,26 @@ fn bad_csv_input_names_file_line_and_column() {
     let dir = tempfile::tempdir().unwrap();
     let good = small_rig_csv();
     let cases: Vec<(&str, String, Vec<&str>)> = vec![
-        ("missing_column.csv", good.replace(",mass_acceleration_mps2", ""), vec!["mass_acceleration_mps2"]),
-        ("non_numeric.csv", good.replacen(",0.005", ",abc", 1), vec!["line", "abc"]),
-        ("nan.csv", with_cell(&good, 5, 4, "NaN"), vec!["line 5", "relative_displacement_m"]),
-        ("backwards.csv", good.replacen("\n0.02,", "\n0.005,", 1), vec!["line", "time"]),
+        (
+            "missing_column.csv",
+            good.replace(",mass_acceleration_mps2", ""),
+            vec!["mass_acceleration_mps2"],
+        ),
+        (
+            "non_numeric.csv",
+            good.replacen(",0.005", ",abc", 1),
+            vec!["line", "abc"],
+        ),
+        (
+            "nan.csv",
+            with_cell(&good, 5, 4, "NaN"),
+            vec!["line 5", "relative_displacement_m"],
+        ),
+        (
+            "backwards.csv",
+            good.replacen("\n0.02,", "\n0.005,", 1),
+            vec!["line", "time"],
+        ),
         ("empty.csv", String::new(), vec!["empty"]),
     ];
     for (name, text, needles) in cases {
@@ -139,9 +250,15 @@ fn bad_csv_input_names_file_line_and_column() {
         let o = forcemap(&["identify", &path, "--model", "coulomb", "--mass-kg", "36"]);
         assert_eq!(o.status.code(), Some(1), "{name}: {}", stderr(&o));
         let e = stderr(&o);
-        assert!(e.contains(name), "{name}: error does not name the file: {e}");
+        assert!(
+            e.contains(name),
+            "{name}: error does not name the file: {e}"
+        );
         for n in needles {
-            assert!(e.to_lowercase().contains(&n.to_lowercase()), "{name}: error lacks '{n}': {e}");
+            assert!(
+                e.to_lowercase().contains(&n.to_lowercase()),
+                "{name}: error lacks '{n}': {e}"
+            );
         }
         assert!(o.stdout.is_empty(), "{name}: printed a result anyway");
     }
@@ -151,15 +268,40 @@ fn bad_csv_input_names_file_line_and_column() {
 fn too_few_equations_and_unidentifiable_parameters_are_refused_with_names() {
     let dir = tempfile::tempdir().unwrap();
     // one sine step of the paper's method gives 2 real equations: too few for 4 parameters
-    let text: String = small_rig_csv().lines().filter(|l| !l.contains(",1,3,")).map(|l| format!("{l}\n")).collect();
+    let text: String = small_rig_csv()
+        .lines()
+        .filter(|l| !l.contains(",1,3,"))
+        .map(|l| format!("{l}\n"))
+        .collect();
     let path = write(dir.path(), "one_step.csv", &text);
-    let o = forcemap(&["identify", &path, "--model", "coulomb-cubic", "--mass-kg", "36", "--method", "fd"]);
+    let o = forcemap(&[
+        "identify",
+        &path,
+        "--model",
+        "coulomb-cubic",
+        "--mass-kg",
+        "36",
+        "--method",
+        "fd",
+    ]);
     assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);
-    assert!(e.contains("2 real equations for 4 parameters") && e.contains("one_step.csv"), "{e}");
+    assert!(
+        e.contains("2 real equations for 4 parameters") && e.contains("one_step.csv"),
+        "{e}"
+    );
     // within one pure-sine step x x'^2 = A^2 w^2 x - w^2 x^3: the polynomial model is refused,
     // naming the terms involved
-    let o = forcemap(&["identify", &path, "--model", "polynomial", "--poly-order", "3,2", "--mass-kg", "36"]);
+    let o = forcemap(&[
+        "identify",
+        &path,
+        "--model",
+        "polynomial",
+        "--poly-order",
+        "3,2",
+        "--mass-kg",
+        "36",
+    ]);
     assert_eq!(o.status.code(), Some(1));
     let e = stderr(&o);
     assert!(e.contains("cannot identify") && e.contains("p12"), "{e}");
@@ -169,18 +311,37 @@ fn too_few_equations_and_unidentifiable_parameters_are_refused_with_names() {
 fn short_record_and_missing_mass_are_explained() {
     let dir = tempfile::tempdir().unwrap();
     // 2 Hz at 100 Hz: one period is 50 samples; keep 60 samples of step 0 only
-    let text: String = small_rig_csv().lines().take(61).map(|l| format!("{l}\n")).collect();
+    let text: String = small_rig_csv()
+        .lines()
+        .take(61)
+        .map(|l| format!("{l}\n"))
+        .collect();
     let path = write(dir.path(), "short.csv", &text);
     let o = forcemap(&["identify", &path, "--model", "linear", "--mass-kg", "36"]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("step 0") && stderr(&o).to_lowercase().contains("period"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("step 0") && stderr(&o).to_lowercase().contains("period"),
+        "{}",
+        stderr(&o)
+    );
     let path = write(dir.path(), "ok.csv", &small_rig_csv());
     let o = forcemap(&["identify", &path, "--model", "linear"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("--mass-kg"), "{}", stderr(&o));
-    let o = forcemap(&["identify", &path, "--model", "no-such-model", "--mass-kg", "36"]);
+    let o = forcemap(&[
+        "identify",
+        &path,
+        "--model",
+        "no-such-model",
+        "--mass-kg",
+        "36",
+    ]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains("unknown model 'no-such-model'"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("unknown model 'no-such-model'"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]
@@ -190,18 +351,26 @@ fn simulate_never_leaves_a_half_written_file() {
     let o = forcemap(&["simulate", "--csv", target.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
     assert!(!target.exists());
-    assert!(std::fs::read_dir(dir.path()).unwrap().count() == 0, "something was left behind");
+    assert!(
+        std::fs::read_dir(dir.path()).unwrap().count() == 0,
+        "something was left behind"
+    );
 }
 
 #[test]
 fn reproduce_json_rows_have_the_documented_keys() {
     let o = forcemap(&["reproduce", "--json", "--tables", "4"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let rows: Vec<serde_json::Value> =
-        String::from_utf8(o.stdout).unwrap().lines().map(|l| serde_json::from_str(l).expect("a JSON line")).collect();
+    let rows: Vec<serde_json::Value> = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect();
     assert!(rows.len() >= 4);
     for r in &rows {
-        for key in ["table", "case", "model", "method", "k", "c", "fd", "s", "nmse1", "nmse2"] {
+        for key in [
+            "table", "case", "model", "method", "k", "c", "fd", "s", "nmse1", "nmse2",
+        ] {
             assert!(r.get(key).is_some(), "row lacks {key}: {r}");
         }
         assert_eq!(r["table"], 4);
@@ -209,7 +378,10 @@ fn reproduce_json_rows_have_the_documented_keys() {
     }
     let paper = rows.iter().find(|r| r["source"] == "paper").unwrap();
     assert_eq!(paper["fd"], 4.1);
-    assert!(rows.iter().any(|r| r["source"] == "forcemap" && r["method"] == "td-20"));
+    assert!(
+        rows.iter()
+            .any(|r| r["source"] == "forcemap" && r["method"] == "td-20")
+    );
     let o = forcemap(&["reproduce", "--tables", "7"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("Table 7"));
@@ -220,14 +392,32 @@ fn plots_are_written_as_svg_with_one_series_per_step() {
     let dir = tempfile::tempdir().unwrap();
     let csv = rig_csv(dir.path());
     let plots = dir.path().join("plots");
-    let o = forcemap(&["identify", csv.to_str().unwrap(), "--model", "coulomb", "--mass-kg", "36", "--plot", plots.to_str().unwrap()]);
+    let o = forcemap(&[
+        "identify",
+        csv.to_str().unwrap(),
+        "--model",
+        "coulomb",
+        "--mass-kg",
+        "36",
+        "--plot",
+        plots.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let fs = std::fs::read_to_string(plots.join("force_state.svg")).unwrap();
-    assert!(fs.starts_with("<svg") && fs.contains("step 9 (3.40 Hz) measured"), "force-state map lacks the steps");
+    assert!(
+        fs.starts_with("<svg") && fs.contains("step 9 (3.40 Hz) measured"),
+        "force-state map lacks the steps"
+    );
     for step in [10, 11] {
         let v = std::fs::read_to_string(plots.join(format!("validation_step{step}.svg"))).unwrap();
         assert!(v.contains("NMSE") && v.contains("predicted"));
     }
     // nothing temporary left behind
-    assert!(std::fs::read_dir(&plots).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".tmp")));
+    assert!(
+        std::fs::read_dir(&plots).unwrap().all(|e| !e
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .ends_with(".tmp"))
+    );
 }

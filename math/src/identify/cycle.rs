@@ -5,7 +5,7 @@ use std::f64::consts::TAU;
 
 use num_complex::Complex64;
 
-use super::{element_harmonics, IdentifyError, Setup};
+use super::{IdentifyError, Setup, element_harmonics};
 use crate::phasor::HarmonicAnalysis;
 
 /// Samples over one period of a settled step.
@@ -26,7 +26,9 @@ fn synthesize(c: &[Complex64], points: usize, derivative_omega: Option<f64>) -> 
             c.iter()
                 .enumerate()
                 .map(|(n, cn)| {
-                    let d = derivative_omega.map_or(Complex64::new(1.0, 0.0), |w| Complex64::new(0.0, n as f64 * w));
+                    let d = derivative_omega.map_or(Complex64::new(1.0, 0.0), |w| {
+                        Complex64::new(0.0, n as f64 * w)
+                    });
                     (cn * d * Complex64::from_polar(1.0, n as f64 * th)).re
                 })
                 .sum()
@@ -36,7 +38,11 @@ fn synthesize(c: &[Complex64], points: usize, derivative_omega: Option<f64>) -> 
 
 /// Rebuilds `points` samples of one period of the step's relative displacement, velocity and
 /// element force (all measured harmonics).
-pub fn rebuilt_cycle(setup: &Setup, an: &HarmonicAnalysis, points: usize) -> Result<Cycle, IdentifyError> {
+pub fn rebuilt_cycle(
+    setup: &Setup,
+    an: &HarmonicAnalysis,
+    points: usize,
+) -> Result<Cycle, IdentifyError> {
     let eh = element_harmonics(setup, an, false)?;
     Ok(Cycle {
         step: an.step,

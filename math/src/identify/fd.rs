@@ -253,7 +253,7 @@ fn legendre(t: f64, d: usize) -> Vec<f64> {
 
 /// The improved equations, a weighted harmonic balance of every measured harmonic (eq. 11 for
 /// n = 0..N). One period of the state is rebuilt from the displacement's significant harmonics;
-/// for models with a sgn term the cycle is split into slip samples (where g = theta^T h holds) and
+/// for models with a friction term the cycle is split into slip samples (where g = theta^T h holds) and
 /// stick samples (|x'| small, plus a guard), where the element force is set-valued and is
 /// represented instead by an unknown smooth function: a low-order polynomial per stick interval.
 /// The harmonics of both parts are balanced against the measured force harmonics, each weighted
@@ -279,9 +279,9 @@ fn fd_multi_equations(
     };
     let amp = eh.displacement.get(1).map_or(0.0, |c| c.norm());
     let amp_noise = eh.displacement_noise.get(1).copied().unwrap_or(0.0);
-    if model.has_velocity_jump() && (amp < 1e-9 || amp < 5.0 * amp_noise) {
+    if model.has_friction() && (amp < 1e-9 || amp < 5.0 * amp_noise) {
         notes.push(format!(
-            "step {step}: the element did not slip (relative displacement amplitude {amp:.3e} m); left out, as no sgn model can describe a step that only sticks"
+            "step {step}: the element did not slip (relative displacement amplitude {amp:.3e} m); left out, as no friction model can describe a step that only sticks"
         ));
         return Ok(empty(notes, term_rms));
     }
@@ -301,7 +301,7 @@ fn fd_multi_equations(
         .sqrt();
     let threshold = (options.stick_velocity_fraction * vmax).max(3.0 * v_noise);
     let jump_stride = (l / (8 * nh.max(1))).max(1);
-    if model.has_velocity_jump() {
+    if model.has_friction() {
         let guard = (options.guard_harmonic_periods * l as f64 / nx as f64).ceil() as isize;
         for i in 0..l {
             if v[i].abs() < threshold {

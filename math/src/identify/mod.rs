@@ -4,7 +4,7 @@
 //! - `Method::FdMulti`: forcemap's improved FD-FSM, a weighted harmonic balance of every
 //!   measured harmonic n = 0..N (eq. 11), each real equation weighted by that harmonic's
 //!   measured noise (so noisy high harmonics count little instead of being cut). For models with
-//!   a sgn term, the basis functions are balanced over the slip part of the cycle only; while the
+//!   a friction term (sgn or atan), the basis functions are balanced over the slip part of the cycle only; while the
 //!   element sticks (or reverses) its force is set-valued, so there it is an unknown per step (a
 //!   low-order polynomial per stick interval plus a jump where the element sticks or reverses),
 //!   whose columns are projected out of the step's equations.
@@ -17,9 +17,9 @@ mod cycle;
 mod fd;
 mod td;
 
-pub use cycle::{rebuilt_cycle, Cycle};
+pub use cycle::{Cycle, rebuilt_cycle};
 
-pub use fd::{step_equations, ElementHarmonics, element_harmonics};
+pub use fd::{ElementHarmonics, element_harmonics, step_equations};
 pub use td::td_step_equations;
 
 use nalgebra::{DMatrix, DVector};
@@ -47,9 +47,11 @@ impl Setup {
     pub fn required_channels(&self) -> &'static [Channel] {
         match self {
             Setup::BaseExcited { .. } => &[Channel::RelativeDisplacementM],
-            Setup::DrivePoint { .. } => {
-                &[Channel::RelativeDisplacementM, Channel::DrivePointDisplacementM, Channel::ForceN]
-            }
+            Setup::DrivePoint { .. } => &[
+                Channel::RelativeDisplacementM,
+                Channel::DrivePointDisplacementM,
+                Channel::ForceN,
+            ],
         }
     }
 }
@@ -71,8 +73,12 @@ impl Method {
         match self {
             Method::Fd => "fd".into(),
             Method::FdMulti => "fd-multi".into(),
-            Method::Td { points_per_step: Some(n) } => format!("td-{n}"),
-            Method::Td { points_per_step: None } => "td-all".into(),
+            Method::Td {
+                points_per_step: Some(n),
+            } => format!("td-{n}"),
+            Method::Td {
+                points_per_step: None,
+            } => "td-all".into(),
         }
     }
 }
@@ -84,7 +90,7 @@ pub struct FdMultiOptions {
     /// power of two, at least 16 per harmonic).
     pub grid_points: usize,
     /// Samples with |x'| below this fraction of the step's peak |x'| are taken as stuck (or at
-    /// a velocity reversal) and left out of the basis functions for models with a sgn term.
+    /// a velocity reversal) and left out of the basis functions for models with a friction term.
     pub stick_velocity_fraction: f64,
     /// Margin around the stick intervals, in periods of the highest significant displacement
     /// harmonic (the resolution of the rebuilt velocity).
@@ -168,7 +174,10 @@ pub struct Identification {
 
 impl Identification {
     pub fn value(&self, name: &str) -> Option<f64> {
-        self.parameters.iter().find(|p| p.name == name).map(|p| p.value)
+        self.parameters
+            .iter()
+            .find(|p| p.name == name)
+            .map(|p| p.value)
     }
     pub fn theta(&self) -> Vec<f64> {
         self.parameters.iter().map(|p| p.value).collect()
@@ -176,7 +185,11 @@ impl Identification {
 }
 
 /// Stacks step blocks and solves. Blocks may be weighted already.
-pub fn solve_blocks(model: &Model, method: Method, blocks: &[StepEquations]) -> Result<Identification, IdentifyError> {
+pub fn solve_blocks(
+    model: &Model,
+    method: Method,
+    blocks: &[StepEquations],
+) -> Result<Identification, IdentifyError> {
     if blocks.is_empty() {
         return Err(IdentifyError::NoSteps);
     }
@@ -203,12 +216,19 @@ pub fn solve_blocks(model: &Model, method: Method, blocks: &[StepEquations]) -> 
     // r: each term's share of the RMS transmitted force over the fitting data.
     let contrib: Vec<f64> = (0..p)
         .map(|i| {
-            let ms: f64 = blocks.iter().map(|blk| blk.term_rms[i].powi(2)).sum::<f64>() / blocks.len() as f64;
+            let ms: f64 = blocks
+                .iter()
+                .map(|blk| blk.term_rms[i].powi(2))
+                .sum::<f64>()
+                / blocks.len() as f64;
             (sol.theta[i] * ms.sqrt()).abs()
         })
         .collect();
     let total: f64 = contrib.iter().sum();
-    let mut warnings: Vec<String> = blocks.iter().flat_map(|b| b.notes.iter().cloned()).collect();
+    let mut warnings: Vec<String> = blocks
+        .iter()
+        .flat_map(|b| b.notes.iter().cloned())
+        .collect();
     warnings.extend(sol.warnings.iter().cloned());
     if (independent as usize) < 2 * p {
         warnings.push(format!(
@@ -222,14 +242,28 @@ pub fn solve_blocks(model: &Model, method: Method, blocks: &[StepEquations]) -> 
             .iter()
             .zip(&sol.theta)
             .zip(&std)
-            .map(|((n, v), s)| Parameter { name: n.clone(), value: *v, std: *s })
+            .map(|((n, v), s)| Parameter {
+                name: n.clone(),
+                value: *v,
+                std: *s,
+            })
             .collect(),
-        covariance: (0..p).map(|i| (0..p).map(|j| sol.covariance[(i, j)]).collect()).collect(),
+        covariance: (0..p)
+            .map(|i| (0..p).map(|j| sol.covariance[(i, j)]).collect())
+            .collect(),
         condition_number: sol.condition_number,
         equations: sol.equations,
-        r: names.iter().zip(&contrib).map(|(n, c)| (n.clone(), 100.0 * c / total.max(f64::MIN_POSITIVE))).collect(),
+        r: names
+            .iter()
+            .zip(&contrib)
+            .map(|(n, c)| (n.clone(), 100.0 * c / total.max(f64::MIN_POSITIVE)))
+            .collect(),
         residual_rms: sol.residual_rms,
-        steps_used: blocks.iter().filter(|b| b.a.nrows() > 0).map(|b| b.step).collect(),
+        steps_used: blocks
+            .iter()
+            .filter(|b| b.a.nrows() > 0)
+            .map(|b| b.step)
+            .collect(),
         warnings,
     })
 }
@@ -249,9 +283,12 @@ pub fn identify(
         let blk = match method {
             Method::Fd | Method::FdMulti => step_equations(model, setup, method, an, options)?,
             Method::Td { points_per_step } => {
-                let rec = records.iter().find(|r| r.step == an.step).ok_or_else(|| IdentifyError::Step {
-                    step: an.step,
-                    problem: "no samples for this step (time-domain FSM needs the samples)".into(),
+                let rec = records.iter().find(|r| r.step == an.step).ok_or_else(|| {
+                    IdentifyError::Step {
+                        step: an.step,
+                        problem: "no samples for this step (time-domain FSM needs the samples)"
+                            .into(),
+                    }
                 })?;
                 td_step_equations(model, setup, rec, an, points_per_step)?
             }

@@ -13,7 +13,10 @@ use crate::record::{Channel, Record};
 /// difference of the relative displacement.
 fn relative_velocity(rec: &Record, start: usize, len: usize) -> Option<Vec<f64>> {
     let dt = 1.0 / rec.sample_rate_hz;
-    if let (Some(ao), Some(ai)) = (rec.channel(Channel::MassAccelerationMps2), rec.channel(Channel::BaseAccelerationMps2)) {
+    if let (Some(ao), Some(ai)) = (
+        rec.channel(Channel::MassAccelerationMps2),
+        rec.channel(Channel::BaseAccelerationMps2),
+    ) {
         let a: Vec<f64> = (start..start + len).map(|i| ao[i] - ai[i]).collect();
         let mut v = vec![0.0; len];
         for i in 1..len {
@@ -27,7 +30,11 @@ fn relative_velocity(rec: &Record, start: usize, len: usize) -> Option<Vec<f64>>
         let sxx: f64 = (0..len).map(|i| (i as f64 - tm).powi(2)).sum();
         let sxy: f64 = (0..len).map(|i| (i as f64 - tm) * (v[i] - vm)).sum();
         let slope = sxy / sxx;
-        Some((0..len).map(|i| v[i] - vm - slope * (i as f64 - tm)).collect())
+        Some(
+            (0..len)
+                .map(|i| v[i] - vm - slope * (i as f64 - tm))
+                .collect(),
+        )
     } else {
         let x = rec.channel(Channel::RelativeDisplacementM)?;
         Some(
@@ -77,12 +84,27 @@ pub fn td_step_equations(
         _ => (0..len).collect(),
     };
     let p = model.terms.len();
-    let a = DMatrix::from_fn(idx.len(), p, |r, i| model.terms[i].eval(x[start + idx[r]], v[idx[r]]));
+    let a = DMatrix::from_fn(idx.len(), p, |r, i| {
+        model.terms[i].eval(x[start + idx[r]], v[idx[r]])
+    });
     let b = DVector::from_fn(idx.len(), |r, _| -mass_kg * ao[start + idx[r]]);
     let term_rms = model
         .terms
         .iter()
-        .map(|t| ((0..len).map(|k| t.eval(x[start + k], v[k]).powi(2)).sum::<f64>() / len as f64).sqrt())
+        .map(|t| {
+            ((0..len)
+                .map(|k| t.eval(x[start + k], v[k]).powi(2))
+                .sum::<f64>()
+                / len as f64)
+                .sqrt()
+        })
         .collect();
-    Ok(StepEquations { step, a, b, independent_equations: idx.len() as f64, term_rms, notes: vec![] })
+    Ok(StepEquations {
+        step,
+        a,
+        b,
+        independent_equations: idx.len() as f64,
+        term_rms,
+        notes: vec![],
+    })
 }

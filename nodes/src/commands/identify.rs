@@ -1,8 +1,8 @@
 //! `forcemap identify FILE`: identify a model on a test-bench CSV export.
 
-use anyhow::{bail, Context};
+use anyhow::{Context, bail};
 use forcemap_math::frf::LinearSubstructure;
-use forcemap_math::identify::{rebuilt_cycle, FdMultiOptions, Identification, Method, Setup};
+use forcemap_math::identify::{FdMultiOptions, Identification, Method, Setup, rebuilt_cycle};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::{self, Validation};
@@ -10,23 +10,25 @@ use forcemap_math::record::Excitation;
 use serde_json::json;
 
 use crate::cli::{IdentifyArgs, MethodArg};
-use crate::csv_export::{read_csv, CsvProfile};
-use crate::params::{read_params, Params};
+use crate::csv_export::{CsvProfile, read_csv};
+use crate::params::{Params, read_params};
 use crate::plot::{self, ForceStateStep};
 
 fn method(args: &IdentifyArgs) -> anyhow::Result<Method> {
     Ok(match args.method {
         MethodArg::Fd => Method::Fd,
         MethodArg::FdMulti => Method::FdMulti,
-        MethodArg::Td => Method::Td {
-            points_per_step: if args.td_points == "all" {
-                None
-            } else {
-                Some(args.td_points.parse().ok().filter(|n: &usize| *n > 0).with_context(|| {
+        MethodArg::Td => {
+            Method::Td {
+                points_per_step: if args.td_points == "all" {
+                    None
+                } else {
+                    Some(args.td_points.parse().ok().filter(|n: &usize| *n > 0).with_context(|| {
                     format!("--td-points: '{}' is neither a positive whole number nor 'all'", args.td_points)
                 })?)
-            },
-        },
+                },
+            }
+        }
     })
 }
 
@@ -47,11 +49,18 @@ fn substructure(params: &Params, source: &str) -> anyhow::Result<LinearSubstruct
         );
     };
     if m.is_empty() || m.len() != k.len() || m.len() != c.len() {
-        bail!("{source}: substructure.masses_kg, springs_n_per_m and dampers_n_s_per_m must have the same, non-zero length");
+        bail!(
+            "{source}: substructure.masses_kg, springs_n_per_m and dampers_n_s_per_m must have the same, non-zero length"
+        );
     }
-    let drive = params.opt_usize("substructure.drive_dof")?.unwrap_or(m.len() - 1);
+    let drive = params
+        .opt_usize("substructure.drive_dof")?
+        .unwrap_or(m.len() - 1);
     if drive >= m.len() {
-        bail!("{source}: substructure.drive_dof = {drive} but the chain has {} masses", m.len());
+        bail!(
+            "{source}: substructure.drive_dof = {drive} but the chain has {} masses",
+            m.len()
+        );
     }
     Ok(LinearSubstructure::chain(&m, &k, &c, drive))
 }
@@ -60,13 +69,19 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     let file = args.file.display().to_string();
     let import = read_csv(&args.file)?;
     if !import.ignored_columns.is_empty() {
-        eprintln!("notice: {file}: ignored columns not in the contract: {}", import.ignored_columns.join(", "));
+        eprintln!(
+            "notice: {file}: ignored columns not in the contract: {}",
+            import.ignored_columns.join(", ")
+        );
     }
     let params = match &args.params {
         Some(p) => read_params(p, None)?,
         None => Params::new(),
     };
-    let params_source = args.params.as_ref().map_or("no --params file".to_string(), |p| p.display().to_string());
+    let params_source = args
+        .params
+        .as_ref()
+        .map_or("no --params file".to_string(), |p| p.display().to_string());
     let setup = match import.profile {
         CsvProfile::Rig => {
             let mass_kg = match args.mass_kg {
@@ -80,13 +95,24 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
             }
             Setup::BaseExcited { mass_kg }
         }
-        CsvProfile::DrivePoint => Setup::DrivePoint { substructure: substructure(&params, &params_source)? },
+        CsvProfile::DrivePoint => Setup::DrivePoint {
+            substructure: substructure(&params, &params_source)?,
+        },
     };
     let atan_m = args.atan_m.or(params.opt_f64("atan_m")?);
     let poly = args.poly_order;
-    let model = Model::by_name(&args.model, &ModelOptions { atan_slope_s_per_m: atan_m, polynomial_order: poly })?;
+    let model = Model::by_name(
+        &args.model,
+        &ModelOptions {
+            atan_slope_s_per_m: atan_m,
+            polynomial_order: poly,
+        },
+    )?;
     let method = method(args)?;
-    let phasor_options = PhasorOptions { max_harmonic: args.max_harmonic.unwrap_or(100), ..PhasorOptions::default() };
+    let phasor_options = PhasorOptions {
+        max_harmonic: args.max_harmonic.unwrap_or(100),
+        ..PhasorOptions::default()
+    };
     let (id, analyses) = pipeline::identify_records_with_analyses(
         &model,
         &setup,
@@ -95,13 +121,23 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         &phasor_options,
         &FdMultiOptions::default(),
     )
-    .with_context(|| format!("{file}: identifying model '{}' by {}", model.name, method.name()))?;
+    .with_context(|| {
+        format!(
+            "{file}: identifying model '{}' by {}",
+            model.name,
+            method.name()
+        )
+    })?;
 
     // Validation on the random records (rig only: the model is simulated on the measured base).
     let mut validations = Vec::new();
     if let Setup::BaseExcited { mass_kg } = setup {
         let fitted = IdentifiedModel::new(model.clone(), id.theta());
-        for rec in import.records.iter().filter(|r| matches!(r.excitation, Excitation::Random { .. })) {
+        for rec in import
+            .records
+            .iter()
+            .filter(|r| matches!(r.excitation, Excitation::Random { .. }))
+        {
             validations.push(
                 pipeline::validate_rig(&fitted, mass_kg, rec)
                     .with_context(|| format!("{file}: validating on random record {}", rec.step))?,
@@ -109,10 +145,21 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         }
     }
     if let Some(dir) = &args.plot {
-        write_plots(dir, &setup, &model, &id, &analyses, &import.records, &validations)?;
+        write_plots(
+            dir,
+            &setup,
+            &model,
+            &id,
+            &analyses,
+            &import.records,
+            &validations,
+        )?;
     }
     if args.json {
-        println!("{}", identification_json(&id, &validations, &import.ignored_columns));
+        println!(
+            "{}",
+            identification_json(&id, &validations, &import.ignored_columns)
+        );
     } else {
         print_identification(&file, &id, &validations);
     }
@@ -129,12 +176,18 @@ fn write_plots(
     records: &[forcemap_math::record::Record],
     validations: &[Validation],
 ) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating the plot directory {}", dir.display()))?;
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("creating the plot directory {}", dir.display()))?;
     let theta = id.theta();
     let mut steps = Vec::new();
     for an in analyses {
         let cyc = rebuilt_cycle(setup, an, 256)?;
-        let model_force_n = cyc.displacement_m.iter().zip(&cyc.velocity_mps).map(|(x, v)| model.force(&theta, *x, *v)).collect();
+        let model_force_n = cyc
+            .displacement_m
+            .iter()
+            .zip(&cyc.velocity_mps)
+            .map(|(x, v)| model.force(&theta, *x, *v))
+            .collect();
         steps.push(ForceStateStep {
             label: format!("step {} ({:.2} Hz)", an.step, an.frequency_hz),
             displacement_m: cyc.displacement_m,
@@ -144,21 +197,42 @@ fn write_plots(
         });
     }
     let path = dir.join("force_state.svg");
-    let title = format!("force-state map: measured element force (points) and model {} by {} (lines)", id.model, id.method);
+    let title = format!(
+        "force-state map: measured element force (points) and model {} by {} (lines)",
+        id.model, id.method
+    );
     plot::force_state_map(&path, &title, &steps)?;
     eprintln!("wrote {}", path.display());
     for v in validations {
-        let Some(rec) = records.iter().find(|r| r.step == v.step) else { continue };
-        let t: Vec<f64> = (0..v.measured_mass_acceleration_mps2.len()).map(|i| rec.time_s(i)).collect();
+        let Some(rec) = records.iter().find(|r| r.step == v.step) else {
+            continue;
+        };
+        let t: Vec<f64> = (0..v.measured_mass_acceleration_mps2.len())
+            .map(|i| rec.time_s(i))
+            .collect();
         let path = dir.join(format!("validation_step{}.svg", v.step));
-        let title = format!("record {}: mass acceleration, measured and predicted by the identified model (NMSE {:.2} %)", v.step, v.nmse_percent);
-        plot::time_trace(&path, &title, &t, &v.measured_mass_acceleration_mps2, &v.predicted_mass_acceleration_mps2, "mass acceleration [m/s^2]")?;
+        let title = format!(
+            "record {}: mass acceleration, measured and predicted by the identified model (NMSE {:.2} %)",
+            v.step, v.nmse_percent
+        );
+        plot::time_trace(
+            &path,
+            &title,
+            &t,
+            &v.measured_mass_acceleration_mps2,
+            &v.predicted_mass_acceleration_mps2,
+            "mass acceleration [m/s^2]",
+        )?;
         eprintln!("wrote {}", path.display());
     }
     Ok(())
 }
 
-pub fn identification_json(id: &Identification, validations: &[Validation], ignored: &[String]) -> serde_json::Value {
+pub fn identification_json(
+    id: &Identification,
+    validations: &[Validation],
+    ignored: &[String],
+) -> serde_json::Value {
     json!({
         "model": id.model,
         "method": id.method,
@@ -176,14 +250,29 @@ pub fn identification_json(id: &Identification, validations: &[Validation], igno
 }
 
 fn print_identification(file: &str, id: &Identification, validations: &[Validation]) {
-    println!("{file}: model {} by {} ({} equations from steps {:?})", id.model, id.method, id.equations, id.steps_used);
-    println!("{:<8} {:>16} {:>12} {:>8}", "param", "value", "std", "r [%]");
+    println!(
+        "{file}: model {} by {} ({} equations from steps {:?})",
+        id.model, id.method, id.equations, id.steps_used
+    );
+    println!(
+        "{:<8} {:>16} {:>12} {:>8}",
+        "param", "value", "std", "r [%]"
+    );
     for (p, (_, r)) in id.parameters.iter().zip(&id.r) {
-        println!("{:<8} {:>16.6e} {:>12.3e} {:>8.1}", p.name, p.value, p.std, r);
+        println!(
+            "{:<8} {:>16.6e} {:>12.3e} {:>8.1}",
+            p.name, p.value, p.std, r
+        );
     }
-    println!("condition number {:.3e}, residual RMS {:.3e}", id.condition_number, id.residual_rms);
+    println!(
+        "condition number {:.3e}, residual RMS {:.3e}",
+        id.condition_number, id.residual_rms
+    );
     for v in validations {
-        println!("validation on random record {}: NMSE of mass acceleration {:.2} % (eq. 27)", v.step, v.nmse_percent);
+        println!(
+            "validation on random record {}: NMSE of mass acceleration {:.2} % (eq. 27)",
+            v.step, v.nmse_percent
+        );
     }
     for w in &id.warnings {
         println!("warning: {w}");

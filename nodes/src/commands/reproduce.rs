@@ -7,11 +7,19 @@ use super::{fmt_opt, progress_spinner};
 use crate::cli::ReproduceArgs;
 
 pub fn run(args: &ReproduceArgs) -> anyhow::Result<()> {
-    let tables: Vec<u8> = if args.tables.is_empty() { vec![1, 2, 3, 4] } else { args.tables.clone() };
+    let tables: Vec<u8> = if args.tables.is_empty() {
+        vec![1, 2, 3, 4]
+    } else {
+        args.tables.clone()
+    };
     if let Some(t) = tables.iter().find(|t| !(1..=4).contains(*t)) {
         anyhow::bail!("--tables: there is no Table {t}; the paper has Tables 1 to 4");
     }
-    let settings = Settings { rig_snr_db: args.rig_snr_db, seed: args.seed, ..Settings::default() };
+    let settings = Settings {
+        rig_snr_db: args.rig_snr_db,
+        seed: args.seed,
+        ..Settings::default()
+    };
     let pb = progress_spinner();
     let rows = reproduce::reproduce(&tables, &settings, |m| pb.set_message(m.to_string()))?;
     pb.finish_and_clear();
@@ -41,7 +49,8 @@ fn source_label(r: &Row) -> String {
         "forcemap" => format!(
             "forcemap {}{}",
             r.method.as_deref().unwrap_or(""),
-            r.snr_db.map_or_else(|| " (noise-free)".to_string(), |s| format!(" ({s:.0} dB)"))
+            r.snr_db
+                .map_or_else(|| " (noise-free)".to_string(), |s| format!(" ({s:.0} dB)"))
         ),
         "paper" => format!("paper {}", r.method.as_deref().unwrap_or("")),
         other => other.to_string(),
@@ -55,19 +64,43 @@ fn print_tables(rows: &[Row], settings: &Settings) {
             continue;
         }
         match table {
-            1 => println!("\nTable 1: 3-DOF example (simulated exactly, stick-slip included); true k 8000, c 20, F_d 5, S 3.00e8"),
-            2 => println!("\nTable 2: suspension rig, FD method. Simulated stand-in for the paper's physical rig: truth = the paper's identified Coulomb values (m 36 kg), sensor noise {:.0} dB SNR", settings.rig_snr_db),
-            3 => println!("\nTable 3: suspension rig, atan friction model (same simulated stand-in)"),
-            _ => println!("\nTable 4: suspension rig, time-domain FSM (20 points per frequency, and all points) next to FD (same simulated stand-in)"),
+            1 => println!(
+                "\nTable 1: 3-DOF example (simulated exactly, stick-slip included); true k 8000, c 20, F_d 5, S 3.00e8"
+            ),
+            2 => println!(
+                "\nTable 2: suspension rig, FD method. Simulated stand-in for the paper's physical rig: truth = the paper's identified Coulomb values (m 36 kg), sensor noise {:.0} dB SNR",
+                settings.rig_snr_db
+            ),
+            3 => {
+                println!("\nTable 3: suspension rig, atan friction model (same simulated stand-in)")
+            }
+            _ => println!(
+                "\nTable 4: suspension rig, time-domain FSM (20 points per frequency, and all points) next to FD (same simulated stand-in)"
+            ),
         }
         println!(
             "{:<5} {:<20} {:>7} {:<30} {:>9} {:>8} {:>7} {:>9} {:>7} {:>7}  r [%]",
-            "case", "model", "M", "source", "k [N/m]", "c [Ns/m]", "F_d [N]", "S [1e8]", "NMSE1", "NMSE2"
+            "case",
+            "model",
+            "M",
+            "source",
+            "k [N/m]",
+            "c [Ns/m]",
+            "F_d [N]",
+            "S [1e8]",
+            "NMSE1",
+            "NMSE2"
         );
         for r in t {
-            let r_txt = r.r.as_ref().filter(|_| table == 2).map_or(String::new(), |v| {
-                v.iter().map(|(n, x)| format!("{n} {x:.1}")).collect::<Vec<_>>().join(", ")
-            });
+            let r_txt =
+                r.r.as_ref()
+                    .filter(|_| table == 2)
+                    .map_or(String::new(), |v| {
+                        v.iter()
+                            .map(|(n, x)| format!("{n} {x:.1}"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    });
             println!(
                 "{:<5} {:<20} {:>7} {:<30} {:>9} {:>8} {:>7} {:>9} {:>7} {:>7}  {}",
                 r.case.as_deref().unwrap_or("-"),
@@ -84,6 +117,10 @@ fn print_tables(rows: &[Row], settings: &Settings) {
             );
         }
     }
-    println!("\nNMSE: eq. 27 on the mass acceleration of the band-random records (1.5-2.5 Hz, 2.5-3.5 Hz), %.");
-    println!("On the simulated stand-in the Coulomb model is the true structure, so its NMSE is near the noise floor; the paper's 4.0 / 6.5 % include effects of the physical rig that no model here has.");
+    println!(
+        "\nNMSE: eq. 27 on the mass acceleration of the band-random records (1.5-2.5 Hz, 2.5-3.5 Hz), %."
+    );
+    println!(
+        "On the simulated stand-in the Coulomb model is the true structure, so its NMSE is near the noise floor; the paper's 4.0 / 6.5 % include effects of the physical rig that no model here has."
+    );
 }
