@@ -1,10 +1,9 @@
 //! One period of a step's element state and force, rebuilt from its harmonics: what a
 //! force-state map plots.
 
-use std::f64::consts::TAU;
-
 use num_complex::Complex64;
 
+use super::fd::synthesize_grid;
 use super::{IdentifyError, Setup, element_harmonics};
 use crate::phasor::HarmonicAnalysis;
 
@@ -19,23 +18,6 @@ pub struct Cycle {
     pub force_n: Vec<f64>,
 }
 
-fn synthesize(c: &[Complex64], points: usize, derivative_omega: Option<f64>) -> Vec<f64> {
-    (0..points)
-        .map(|i| {
-            let th = TAU * i as f64 / points as f64;
-            c.iter()
-                .enumerate()
-                .map(|(n, cn)| {
-                    let d = derivative_omega.map_or(Complex64::new(1.0, 0.0), |w| {
-                        Complex64::new(0.0, n as f64 * w)
-                    });
-                    (cn * d * Complex64::from_polar(1.0, n as f64 * th)).re
-                })
-                .sum()
-        })
-        .collect()
-}
-
 /// Rebuilds `points` samples of one period of the step's relative displacement, velocity and
 /// element force (all measured harmonics).
 pub fn rebuilt_cycle(
@@ -44,11 +26,16 @@ pub fn rebuilt_cycle(
     points: usize,
 ) -> Result<Cycle, IdentifyError> {
     let eh = element_harmonics(setup, an, false)?;
+    let one = Complex64::new(1.0, 0.0);
+    // a grid of `points` holds harmonics up to points / 2
+    let points = points.max(2 * eh.harmonics() + 2).next_power_of_two();
     Ok(Cycle {
         step: an.step,
         frequency_hz: an.frequency_hz,
-        displacement_m: synthesize(&eh.displacement, points, None),
-        velocity_mps: synthesize(&eh.displacement, points, Some(eh.omega_rad_s)),
-        force_n: synthesize(&eh.force, points, None),
+        displacement_m: synthesize_grid(&eh.displacement, points, |_| one),
+        velocity_mps: synthesize_grid(&eh.displacement, points, |n| {
+            Complex64::new(0.0, n as f64 * eh.omega_rad_s)
+        }),
+        force_n: synthesize_grid(&eh.force, points, |_| one),
     })
 }

@@ -159,16 +159,25 @@ pub fn element_harmonics(
 
 /// Values over one period on `l` grid points of the signal with one-sided phasors `c` at
 /// harmonic multiplier `scale(n)` (1 for the signal, j n w for its derivative).
-fn synthesize_grid(c: &[Complex64], l: usize, scale: impl Fn(usize) -> Complex64) -> Vec<f64> {
-    (0..l)
-        .map(|i| {
-            let th = TAU * i as f64 / l as f64;
-            c.iter()
-                .enumerate()
-                .map(|(n, cn)| (cn * scale(n) * Complex64::from_polar(1.0, n as f64 * th)).re)
-                .sum()
-        })
-        .collect()
+pub(crate) fn synthesize_grid(
+    c: &[Complex64],
+    l: usize,
+    scale: impl Fn(usize) -> Complex64,
+) -> Vec<f64> {
+    assert!(
+        c.len() <= l / 2 + 1,
+        "{} harmonics do not fit a grid of {l} points",
+        c.len()
+    );
+    // s(theta_i) = Re sum_n C_n scale(n) e^{j n theta_i}: one inverse FFT (e^{+j}, unnormalised).
+    let mut buf = vec![Complex64::new(0.0, 0.0); l];
+    for (n, cn) in c.iter().enumerate() {
+        buf[n] = cn * scale(n);
+    }
+    rustfft::FftPlanner::new()
+        .plan_fft_inverse(l)
+        .process(&mut buf);
+    buf.iter().map(|b| b.re).collect()
 }
 
 /// One-sided first-harmonic phasor of `h` sampled on a uniform grid over one period.
