@@ -93,6 +93,32 @@ fn paper_row(p: &PaperRow) -> Row {
     }
 }
 
+fn truth_row(
+    table: u8,
+    case: Option<&str>,
+    model: &str,
+    [k, c, fd]: [f64; 3],
+    s: Option<f64>,
+) -> Row {
+    Row {
+        table,
+        case: case.map(String::from),
+        model: model.into(),
+        atan_m: None,
+        method: None,
+        source: "truth",
+        snr_db: None,
+        k: Some(k),
+        c: Some(c),
+        fd: Some(fd),
+        s,
+        nmse1: None,
+        nmse2: None,
+        r: None,
+        std: None,
+    }
+}
+
 fn forcemap_row(
     table: u8,
     case: Option<&str>,
@@ -184,23 +210,13 @@ pub fn table1(
             &SimSpec::ThreeDof(noisy_run),
             &format!("3-DOF CASE {case} with noise"),
         )?;
-        rows.push(Row {
-            table: 1,
-            case: Some(case.into()),
-            model: "coulomb-cubic".into(),
-            atan_m: None,
-            method: None,
-            source: "truth",
-            snr_db: None,
-            k: Some(k),
-            c: Some(c),
-            fd: Some(fd),
-            s: Some(s),
-            nmse1: None,
-            nmse2: None,
-            r: None,
-            std: None,
-        });
+        rows.push(truth_row(
+            1,
+            Some(case),
+            "coulomb-cubic",
+            [k, c, fd],
+            Some(s),
+        ));
         for (name, m) in models {
             if let Some(p) = paper::TABLE1
                 .iter()
@@ -315,23 +331,7 @@ pub fn rig_tables(
     let snr = Some(settings.rig_snr_db);
     let data = rig_data(TruthElement::rig_coulomb(), snr, settings.seed)?;
     let (k, c, fd) = paper::RIG_TRUTH;
-    let truth = |table: u8| Row {
-        table,
-        case: None,
-        model: "coulomb".into(),
-        atan_m: None,
-        method: None,
-        source: "truth",
-        snr_db: None,
-        k: Some(k),
-        c: Some(c),
-        fd: Some(fd),
-        s: None,
-        nmse1: None,
-        nmse2: None,
-        r: None,
-        std: None,
-    };
+    let truth = |table: u8| truth_row(table, None, "coulomb", [k, c, fd], None);
     let mut rows = Vec::new();
     if tables.contains(&2) {
         rows.push(truth(2));
