@@ -1,5 +1,6 @@
 //! forcemap_nodes: the `forcemap` command and (later) the ROS 2 nodes, thin adapters around
 //! `forcemap_math`.
+pub mod bag;
 pub mod cli;
 pub mod commands;
 pub mod csv_export;

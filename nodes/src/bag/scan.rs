@@ -1,0 +1,297 @@
+//! A forgiving linear scan of an MCAP file held in memory: walks the records until the footer or
+//! until the first record that is cut off or does not parse, and says where it stopped. Used to
+//! report where a damaged file breaks, by the reader of files without an index, and by recovery.
+use std::collections::{BTreeMap, HashMap};
+use std::io::Read;
+
+use mcap::records::{Record, op};
+
+/// A schema record.
+#[derive(Debug, Clone)]
+pub(crate) struct RawSchema {
+    pub name: String,
+    pub encoding: String,
+    pub data: Vec<u8>,
+}
+
+/// A channel record.
+#[derive(Debug, Clone)]
+pub(crate) struct RawChannel {
+    pub topic: String,
+    pub schema_id: u16,
+    pub metadata: BTreeMap<String, String>,
+}
+
+/// A message record.
+#[derive(Debug, Clone)]
+pub(crate) struct RawMessage {
+    pub channel_id: u16,
+    pub sequence: u32,
+    pub log_time: u64,
+    pub publish_time: u64,
+    pub data: Vec<u8>,
+}
+
+/// Where and why the scan stopped before the footer.
+#[derive(Debug, Clone)]
+pub(crate) struct Stop {
+    /// Offset of the record that is cut off or broken.
+    pub offset: u64,
+    pub reason: String,
+}
+
+/// Everything a scan found, in file order.
+#[derive(Debug, Default)]
+pub(crate) struct Scan {
+    pub schemas: HashMap<u16, RawSchema>,
+    pub channels: HashMap<u16, RawChannel>,
+    pub messages: Vec<RawMessage>,
+    /// None when the footer was reached.
+    pub stop: Option<Stop>,
+    /// Chunks read whole.
+    pub complete_chunks: usize,
+    /// Messages taken from the decompressible prefix of a cut-off chunk.
+    pub partial_chunk_messages: usize,
+}
+
+/// Whether the buffer starts with the MCAP magic.
+pub(crate) fn has_magic(bytes: &[u8]) -> bool {
+    bytes.len() >= mcap::MAGIC.len() && &bytes[..mcap::MAGIC.len()] == mcap::MAGIC
+}
+
+fn u64_at(b: &[u8], at: usize) -> Option<u64> {
+    let s = b.get(at..at.checked_add(8)?)?;
+    Some(u64::from_le_bytes(s.try_into().ok()?))
+}
+
+fn u32_at(b: &[u8], at: usize) -> Option<u32> {
+    let s = b.get(at..at.checked_add(4)?)?;
+    Some(u32::from_le_bytes(s.try_into().ok()?))
+}
+
+/// Scans a whole file (which must start with the magic).
+pub(crate) fn scan(bytes: &[u8]) -> Scan {
+    let mut s = Scan::default();
+    let mut pos = mcap::MAGIC.len();
+    loop {
+        if pos == bytes.len() {
+            s.stop = Some(Stop {
+                offset: pos as u64,
+                reason: "the file ends without a footer".into(),
+            });
+            return s;
+        }
+        let (Some(&opcode), Some(len)) = (bytes.get(pos), u64_at(bytes, pos + 1)) else {
+            s.stop = Some(Stop {
+                offset: pos as u64,
+                reason: "the file ends inside a record header".into(),
+            });
+            return s;
+        };
+        let body_start = pos + 9;
+        let body_end = usize::try_from(len)
+            .ok()
+            .and_then(|l| body_start.checked_add(l))
+            .filter(|&e| e <= bytes.len());
+        let Some(body_end) = body_end else {
+            if opcode == op::CHUNK {
+                s.partial_chunk_messages = partial_chunk(&bytes[body_start..], &mut s);
+                s.stop = Some(Stop {
+                    offset: pos as u64,
+                    reason: format!(
+                        "the file ends inside a chunk ({} complete messages decoded from it)",
+                        s.partial_chunk_messages
+                    ),
+                });
+            } else {
+                s.stop = Some(Stop {
+                    offset: pos as u64,
+                    reason: format!("the file ends inside a record (opcode {opcode:#04x})"),
+                });
+            }
+            return s;
+        };
+        let body = &bytes[body_start..body_end];
+        if opcode == op::FOOTER {
+            return s;
+        }
+        if opcode == 0 {
+            s.stop = Some(Stop {
+                offset: pos as u64,
+                reason: "invalid record opcode 0x00".into(),
+            });
+            return s;
+        }
+        let res = match mcap::parse_record(opcode, body) {
+            Ok(Record::Chunk { header, data }) => {
+                match decompress(&header.compression, &data, Some(header.uncompressed_size)) {
+                    Ok(records) => {
+                        let before = s.messages.len();
+                        match inner_records(&records, &mut s) {
+                            None => {
+                                s.complete_chunks += 1;
+                                Ok(())
+                            }
+                            Some(e) => {
+                                s.messages.truncate(before);
+                                Err(format!("chunk content: {e}"))
+                            }
+                        }
+                    }
+                    Err(e) => Err(format!("chunk does not decompress: {e}")),
+                }
+            }
+            Ok(r) => {
+                take(r, &mut s);
+                Ok(())
+            }
+            Err(e) => Err(format!("record (opcode {opcode:#04x}) does not parse: {e}")),
+        };
+        if let Err(reason) = res {
+            s.stop = Some(Stop {
+                offset: pos as u64,
+                reason,
+            });
+            return s;
+        }
+        pos = body_end;
+    }
+}
+
+/// Keeps schemas, channels and messages.
+fn take(r: Record<'_>, s: &mut Scan) {
+    match r {
+        Record::Schema { header, data } => {
+            s.schemas.insert(
+                header.id,
+                RawSchema {
+                    name: header.name,
+                    encoding: header.encoding,
+                    data: data.into_owned(),
+                },
+            );
+        }
+        Record::Channel(c) => {
+            s.channels.insert(
+                c.id,
+                RawChannel {
+                    topic: c.topic,
+                    schema_id: c.schema_id,
+                    metadata: c.metadata,
+                },
+            );
+        }
+        Record::Message { header, data } => s.messages.push(RawMessage {
+            channel_id: header.channel_id,
+            sequence: header.sequence,
+            log_time: header.log_time,
+            publish_time: header.publish_time,
+            data: data.into_owned(),
+        }),
+        _ => {}
+    }
+}
+
+/// Parses the records of a chunk; stops at the first incomplete or broken one and returns why.
+fn inner_records(b: &[u8], s: &mut Scan) -> Option<String> {
+    let mut pos = 0usize;
+    while pos < b.len() {
+        let (Some(&opcode), Some(len)) = (b.get(pos), u64_at(b, pos + 1)) else {
+            return Some("cut inside a record header".into());
+        };
+        let start = pos + 9;
+        let end = usize::try_from(len)
+            .ok()
+            .and_then(|l| start.checked_add(l))
+            .filter(|&e| e <= b.len());
+        let Some(end) = end else {
+            return Some("cut inside a record".into());
+        };
+        match mcap::parse_record(opcode, &b[start..end]) {
+            Ok(r) => take(r, s),
+            Err(e) => return Some(format!("record does not parse: {e}")),
+        }
+        pos = end;
+    }
+    None
+}
+
+/// Decompresses a chunk's records. With `expected` the whole output must come out; without, as
+/// much as the (cut-off) input yields is returned.
+fn decompress(compression: &str, data: &[u8], expected: Option<u64>) -> Result<Vec<u8>, String> {
+    let mut out = Vec::new();
+    let res = match compression {
+        "" => {
+            out.extend_from_slice(data);
+            Ok(())
+        }
+        "zstd" => match zstd::stream::read::Decoder::new(data) {
+            Ok(d) => read_all(d, &mut out),
+            Err(e) => Err(e.to_string()),
+        },
+        "lz4" => match lz4::Decoder::new(data) {
+            Ok(d) => read_all(d, &mut out),
+            Err(e) => Err(e.to_string()),
+        },
+        other => return Err(format!("unsupported compression '{other}'")),
+    };
+    match expected {
+        Some(n) => {
+            res?;
+            if out.len() as u64 != n {
+                return Err(format!(
+                    "decompressed to {} bytes, the header says {n}",
+                    out.len()
+                ));
+            }
+            Ok(out)
+        }
+        None => Ok(out),
+    }
+}
+
+/// Reads until the end or the first error, keeping what came out before it.
+fn read_all(mut r: impl Read, out: &mut Vec<u8>) -> Result<(), String> {
+    let mut buf = vec![0u8; 64 * 1024];
+    loop {
+        match r.read(&mut buf) {
+            Ok(0) => return Ok(()),
+            Ok(n) => out.extend_from_slice(&buf[..n]),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e.to_string()),
+        }
+    }
+}
+
+/// Takes the complete records out of a chunk the file ends inside. The chunk header may still be
+/// the writer's placeholder (all lengths 0xff..ff). Returns the number of messages taken.
+fn partial_chunk(body: &[u8], s: &mut Scan) -> usize {
+    // message_start_time, message_end_time, uncompressed_size: u64; uncompressed_crc: u32;
+    // compression: u32 length + bytes; records: u64 length + bytes.
+    let Some(name_len) = u32_at(body, 28) else {
+        return 0;
+    };
+    let name_start = 32usize;
+    let Some(name_end) = name_start.checked_add(name_len as usize) else {
+        return 0;
+    };
+    let Some(name) = body
+        .get(name_start..name_end)
+        .and_then(|n| std::str::from_utf8(n).ok())
+    else {
+        return 0;
+    };
+    let Some(records_len) = u64_at(body, name_end) else {
+        return 0;
+    };
+    let data_start = name_end + 8;
+    let avail = body.len().saturating_sub(data_start);
+    let take_len = usize::try_from(records_len).map_or(avail, |l| l.min(avail));
+    let data = &body[data_start..data_start + take_len];
+    let Ok(records) = decompress(name, data, None) else {
+        return 0;
+    };
+    let before = s.messages.len();
+    let _ = inner_records(&records, s);
+    s.messages.len() - before
+}
