@@ -263,6 +263,11 @@ fn python_readers_decode_the_bag() {
     let json = tmp.path().join("expected.json");
     std::fs::write(&json, serde_json::to_string(&expected).unwrap()).unwrap();
     let Ok(python) = std::env::var("FORCEMAP_PYTHON") else {
+        // CI installs the readers (.ci/run): there a missing interpreter is a failure.
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI is set but FORCEMAP_PYTHON is not: the independent readers did not run"
+        );
         println!(
             "skipped: set FORCEMAP_PYTHON to a python with rosbags, mcap and mcap-ros2-support"
         );
