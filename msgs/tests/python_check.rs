@@ -1,0 +1,170 @@
+//! Independent reader: rosbags (Python) decodes the CDR bytes written here and compares the
+//! fields; see tests/python/check_cdr.py. Runs when FORCEMAP_PYTHON names a python with rosbags
+//! installed, otherwise says it skipped. FORCEMAP_CDR_DIR keeps the files in that directory.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use forcemap_math::record::Channel;
+use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
+use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, IdentifiedParameters, RigSample};
+use forcemap_msgs::std_msgs::Header;
+use forcemap_msgs::{MsgDef, RosMessage};
+use serde_json::{Value, json};
+
+struct Cases {
+    dir: PathBuf,
+    cases: Vec<Value>,
+}
+
+impl Cases {
+    fn add<T: RosMessage>(&mut self, name: &str, msg: &T) {
+        let cdr = format!("{name}.cdr");
+        let schema = format!("{name}.schema");
+        std::fs::write(self.dir.join(&cdr), msg.to_cdr()).unwrap();
+        std::fs::write(self.dir.join(&schema), T::schema()).unwrap();
+        self.cases.push(json!({
+            "name": name,
+            "type": T::TYPE_NAME,
+            "cdr": cdr,
+            "schema": schema,
+            // Field names are the .msg names; NaN becomes null.
+            "expected": serde_json::to_value(msg).unwrap(),
+        }));
+    }
+}
+
+fn msg_file(def: &MsgDef, root: &Path) -> Value {
+    let ty = def.type_name();
+    let (pkg, name) = def.name.split_once('/').unwrap();
+    let path = if pkg == "forcemap_msgs" {
+        root.join("msg").join(format!("{name}.msg"))
+    } else {
+        root.join("deps")
+            .join(pkg)
+            .join("msg")
+            .join(format!("{name}.msg"))
+    };
+    assert!(path.exists(), "{}", path.display());
+    json!({"type": ty, "path": path})
+}
+
+fn write_cases(dir: &Path) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut c = Cases {
+        dir: dir.to_path_buf(),
+        cases: vec![],
+    };
+    c.add(
+        "time",
+        &Time {
+            sec: -2,
+            nanosec: 300_000_000,
+        },
+    );
+    c.add("header", &common::header("rig"));
+    c.add("header_unicode", &common::header("präzisions-rig µ"));
+    c.add("key_value", &KeyValue::new("k", "v1"));
+    c.add("diagnostic_status", &common::diagnostic_array().status[0]);
+    c.add("diagnostic_array", &common::diagnostic_array());
+    c.add("diagnostic_array_empty", &DiagnosticArray::default());
+    c.add("rig_sample", &common::rig_sample());
+    c.add("rig_sample_three_dof", &common::three_dof_sample());
+    let mut all = RigSample::new(common::header("ab"), 7);
+    for (i, ch) in Channel::ALL.into_iter().enumerate() {
+        all.set_channel(ch, Some(0.5 + i as f64));
+    }
+    c.add("rig_sample_all_channels", &all);
+    c.add("excitation_sine", &common::excitation_sine());
+    c.add("excitation_random", &common::excitation_random());
+    c.add("harmonic_phasors", &common::harmonic_phasors());
+    c.add("identified_parameters", &common::identified_parameters());
+
+    let defs = [
+        Time::DEFINITION,
+        Header::DEFINITION,
+        KeyValue::DEFINITION,
+        DiagnosticStatus::DEFINITION,
+        DiagnosticArray::DEFINITION,
+        RigSample::DEFINITION,
+        ExcitationState::DEFINITION,
+        HarmonicPhasors::DEFINITION,
+        IdentifiedParameters::DEFINITION,
+    ];
+    let manifest = json!({
+        "msg_files": defs.iter().map(|d| msg_file(d, root)).collect::<Vec<_>>(),
+        "constants": {
+            "forcemap_msgs/msg/RigSample": {
+                "BASE_DISPLACEMENT": RigSample::BASE_DISPLACEMENT,
+                "RELATIVE_DISPLACEMENT": RigSample::RELATIVE_DISPLACEMENT,
+                "MASS_ACCELERATION": RigSample::MASS_ACCELERATION,
+                "MASS_DISPLACEMENT": RigSample::MASS_DISPLACEMENT,
+                "BASE_ACCELERATION": RigSample::BASE_ACCELERATION,
+                "FORCE": RigSample::FORCE,
+                "DRIVE_POINT_DISPLACEMENT": RigSample::DRIVE_POINT_DISPLACEMENT,
+            },
+            "forcemap_msgs/msg/ExcitationState": {
+                "SINE": ExcitationState::SINE,
+                "RANDOM": ExcitationState::RANDOM,
+            },
+            "diagnostic_msgs/msg/DiagnosticStatus": {
+                "OK": DiagnosticStatus::OK,
+                "WARN": DiagnosticStatus::WARN,
+                "ERROR": DiagnosticStatus::ERROR,
+                "STALE": DiagnosticStatus::STALE,
+            },
+        },
+        "cases": c.cases,
+    });
+    std::fs::write(
+        dir.join("manifest.json"),
+        serde_json::to_string_pretty(&manifest).unwrap(),
+    )
+    .unwrap();
+}
+
+#[test]
+fn rosbags_reads_what_rust_writes() {
+    let Some(python) = std::env::var_os("FORCEMAP_PYTHON") else {
+        // CI installs rosbags (.ci/run): there a missing interpreter is a failure.
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI is set but FORCEMAP_PYTHON is not: the independent reader did not run"
+        );
+        println!(
+            "SKIPPED rosbags_reads_what_rust_writes: set FORCEMAP_PYTHON to a python with rosbags \
+             installed (e.g. FORCEMAP_PYTHON=/work/venv-msgs/bin/python)"
+        );
+        return;
+    };
+    let tmp;
+    let dir = match std::env::var_os("FORCEMAP_CDR_DIR") {
+        Some(d) => {
+            std::fs::create_dir_all(&d).unwrap();
+            PathBuf::from(d)
+        }
+        None => {
+            tmp = tempfile::tempdir().unwrap();
+            tmp.path().to_path_buf()
+        }
+    };
+    write_cases(&dir);
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/check_cdr.py");
+    let out = Command::new(&python)
+        .arg(&script)
+        .env("FORCEMAP_CDR_DIR", &dir)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run FORCEMAP_PYTHON={python:?}: {e}"));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    println!("{stdout}");
+    eprintln!("{stderr}");
+    assert!(
+        out.status.success(),
+        "check_cdr.py failed ({}):\n{stdout}\n{stderr}",
+        out.status
+    );
+}
