@@ -24,8 +24,35 @@ pub enum Command {
     Identify(IdentifyArgs),
     /// Simulate the suspension rig or the 3-DOF example and write a test-bench CSV export.
     Simulate(SimulateArgs),
+    /// Inspect or repair rosbag2 MCAP bags.
+    Bag(BagArgs),
     /// List the named models.
     Models,
+}
+
+#[derive(Debug, Args)]
+pub struct BagArgs {
+    #[command(subcommand)]
+    pub command: BagCommand,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BagCommand {
+    /// Summarise a bag directory or a bare .mcap: topics, types, counts, duration.
+    Info {
+        bag: PathBuf,
+        /// One JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Rebuild a bag whose recorder died before writing the footer and summary, keeping every
+    /// complete message.
+    Recover {
+        /// The damaged .mcap file, or the directory holding it.
+        input: PathBuf,
+        /// The new bag directory (must not exist).
+        output: PathBuf,
+    },
 }
 
 #[derive(Debug, Args)]

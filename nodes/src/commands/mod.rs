@@ -1,5 +1,6 @@
 //! One module per `forcemap` subcommand; `dispatch` routes to them.
 
+pub mod bag;
 pub mod identify;
 pub mod reproduce;
 pub mod simulate;
@@ -12,6 +13,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Reproduce(a) => reproduce::run(&a),
         Command::Identify(a) => identify::run(&a),
         Command::Simulate(a) => simulate::run(&a),
+        Command::Bag(a) => bag::run(&a),
         Command::Models => {
             for (name, what) in forcemap_math::model::MODEL_NAMES {
                 println!("{name:<20} {what}");
