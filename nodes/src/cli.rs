@@ -26,6 +26,8 @@ pub enum Command {
     Simulate(SimulateArgs),
     /// Inspect or repair rosbag2 MCAP bags.
     Bag(BagArgs),
+    /// Import data into a bag.
+    Import(ImportArgs),
     /// List the named models.
     Models,
 }
@@ -83,7 +85,7 @@ pub enum MethodArg {
 
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {
-    /// Test-bench CSV export (see the README for the column contract).
+    /// A bag directory, a bare .mcap, or a test-bench CSV export (see the README).
     pub file: PathBuf,
     /// Model name (see `forcemap models`).
     #[arg(long)]
@@ -146,9 +148,35 @@ pub struct SimulateArgs {
     /// Rig: skip the two band-random validation records.
     #[arg(long)]
     pub no_random: bool,
-    /// Write the test-bench CSV export here.
+    /// Write a test-bench CSV export here.
+    #[arg(long, required_unless_present = "bag")]
+    pub csv: Option<PathBuf>,
+    /// Write a rosbag2 bag (MCAP) here: /rig/samples, /rig/excitation, /rig/parameters.
     #[arg(long)]
-    pub csv: PathBuf,
+    pub bag: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct ImportArgs {
+    #[command(subcommand)]
+    pub command: ImportCommand,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum ImportCommand {
+    /// Turn a test-bench CSV export into a bag, with the rig constants from flags or a params file.
+    Csv {
+        file: PathBuf,
+        /// The bag directory to write (must not exist).
+        #[arg(long)]
+        out: PathBuf,
+        /// Mass of the rig [kg], stored in the bag's /rig/parameters.
+        #[arg(long)]
+        mass_kg: Option<f64>,
+        /// ROS 2 params YAML with the rig constants (mass_kg).
+        #[arg(long)]
+        params: Option<PathBuf>,
+    },
 }
 
 fn parse_order(s: &str) -> Result<(u32, u32), String> {

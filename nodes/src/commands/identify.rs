@@ -10,7 +10,7 @@ use forcemap_math::record::Excitation;
 use serde_json::json;
 
 use crate::cli::{IdentifyArgs, MethodArg};
-use crate::csv_export::{CsvProfile, read_csv};
+use crate::csv_export::CsvProfile;
 use crate::params::{Params, read_params};
 use crate::plot::{self, ForceStateStep};
 
@@ -67,7 +67,7 @@ fn substructure(params: &Params, source: &str) -> anyhow::Result<LinearSubstruct
 
 pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     let file = args.file.display().to_string();
-    let import = read_csv(&args.file)?;
+    let import = crate::input::load(&args.file)?;
     if !import.ignored_columns.is_empty() {
         eprintln!(
             "notice: {file}: ignored columns not in the contract: {}",
@@ -84,11 +84,16 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         .map_or("no --params file".to_string(), |p| p.display().to_string());
     let setup = match import.profile {
         CsvProfile::Rig => {
-            let mass_kg = match args.mass_kg {
-                Some(m) => m,
-                None => params.opt_f64("mass_kg")?.with_context(|| {
-                    format!("{file}: the rig's mass is needed: give --mass-kg 36 or mass_kg in a --params file ({params_source})")
-                })?,
+            // flag, then params file, then the constants the bag carries
+            let mass_kg = match (
+                args.mass_kg,
+                params.opt_f64("mass_kg")?,
+                import.parameters.get("mass_kg"),
+            ) {
+                (Some(m), _, _) | (None, Some(m), _) | (None, None, Some(&m)) => m,
+                (None, None, None) => bail!(
+                    "{file}: the rig's mass is needed: give --mass-kg 36 or mass_kg in a --params file ({params_source})"
+                ),
             };
             if !(mass_kg > 0.0 && mass_kg.is_finite()) {
                 bail!("mass_kg = {mass_kg}: the rig's mass must be a positive number of kg");

@@ -2,6 +2,7 @@
 
 pub mod bag;
 pub mod identify;
+pub mod import;
 pub mod reproduce;
 pub mod simulate;
 
@@ -14,6 +15,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Identify(a) => identify::run(&a),
         Command::Simulate(a) => simulate::run(&a),
         Command::Bag(a) => bag::run(&a),
+        Command::Import(a) => import::run(&a),
         Command::Models => {
             for (name, what) in forcemap_math::model::MODEL_NAMES {
                 println!("{name:<20} {what}");

@@ -5,6 +5,7 @@ use forcemap_math::sim::{self, RigRun, SimSpec, ThreeDofRun, TruthElement};
 
 use crate::cli::{CaseArg, SimulateArgs, SystemArg};
 use crate::csv_export::{CsvProfile, write_csv};
+use crate::rig_bag::{DEFAULT_RUN_START, write_rig_bag};
 
 pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     let (spec, profile) = match args.system {
@@ -40,13 +41,31 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         }
     };
     let records = sim::simulate(&spec)?;
-    write_csv(&args.csv, &records, profile)?;
-    eprintln!(
-        "wrote {} ({} records, {} samples, {} profile)",
-        args.csv.display(),
+    let what = format!(
+        "{} records, {} samples, {} profile",
         records.len(),
         records.iter().map(|r| r.len()).sum::<usize>(),
         profile
     );
+    if let Some(csv) = &args.csv {
+        write_csv(csv, &records, profile)?;
+        eprintln!("wrote {} ({what})", csv.display());
+    }
+    if let Some(bag) = &args.bag {
+        let mass = [("mass_kg", forcemap_math::sim::rig::PAPER_RIG_MASS_KG)];
+        let parameters: &[(&str, f64)] = if profile == CsvProfile::Rig {
+            &mass
+        } else {
+            &[]
+        };
+        let dir = write_rig_bag(
+            bag,
+            &records,
+            profile.driven_channel(),
+            parameters,
+            DEFAULT_RUN_START,
+        )?;
+        eprintln!("wrote {} ({what})", dir.display());
+    }
     Ok(())
 }

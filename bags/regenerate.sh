@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Regenerates the committed sample bags from the simulators (seeded, so the messages are
+# identical every time). Usage: bash bags/regenerate.sh [OUT_DIR]   (default: bags/)
+# FORCEMAP may name the forcemap binary; otherwise it is built with cargo.
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+out="${1:-$here}"
+if [ -z "${FORCEMAP:-}" ]; then
+  cargo build --release --quiet -p forcemap_nodes --bin forcemap --manifest-path "$here/../Cargo.toml"
+  FORCEMAP="$here/../target/release/forcemap"
+fi
+mkdir -p "$out"
+rm -rf "$out/rig_40db" "$out/three_dof_case_i" "$out/three_dof_case_ii"
+# The suspension-rig stand-in: 10 stepped-sine steps (identification) then two band-random
+# records (validation), 40 dB SNR.
+"$FORCEMAP" simulate --system rig --snr-db 40 --seed 1 --bag "$out/rig_40db"
+# The 3-DOF example, noise-free, as in the paper's Table 1.
+"$FORCEMAP" simulate --system three-dof --case i --bag "$out/three_dof_case_i"
+"$FORCEMAP" simulate --system three-dof --case ii --bag "$out/three_dof_case_ii"
