@@ -6,7 +6,8 @@
 //! fields in `.msg` order, so it is published as is by `ros2-client` (RustDDS) and encodes to
 //! the same CDR bytes as any other ROS 2 implementation:
 //!
-//! - [`msg`]: `forcemap_msgs/msg/{RigSample, ExcitationState, HarmonicPhasors, IdentifiedParameters}`;
+//! - [`msg`]: `forcemap_msgs/msg/{RigSample, ExcitationState, HarmonicPhasors, IdentifiedParameters,
+//!   AxisSample}`;
 //! - [`builtin_interfaces`], [`std_msgs`], [`diagnostic_msgs`]: mirrors of the upstream types
 //!   the messages and the `/diagnostics` topic use.
 //!
@@ -76,7 +77,9 @@ pub(crate) use ros_message;
 mod ros2_client_impls {
     use crate::builtin_interfaces::Time;
     use crate::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
-    use crate::msg::{ExcitationState, HarmonicPhasors, IdentifiedParameters, RigSample};
+    use crate::msg::{
+        AxisSample, ExcitationState, HarmonicPhasors, IdentifiedParameters, RigSample,
+    };
     use crate::std_msgs::Header;
 
     impl ros2_client::Message for Time {}
@@ -88,4 +91,5 @@ mod ros2_client_impls {
     impl ros2_client::Message for ExcitationState {}
     impl ros2_client::Message for HarmonicPhasors {}
     impl ros2_client::Message for IdentifiedParameters {}
+    impl ros2_client::Message for AxisSample {}
 }

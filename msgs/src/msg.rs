@@ -28,13 +28,19 @@ pub const IDENTIFIED_PARAMETERS_DEF: MsgDef = MsgDef {
     text: include_str!("../msg/IdentifiedParameters.msg"),
     deps: &[HEADER_DEF],
 };
+pub const AXIS_SAMPLE_DEF: MsgDef = MsgDef {
+    name: "forcemap_msgs/AxisSample",
+    text: include_str!("../msg/AxisSample.msg"),
+    deps: &[HEADER_DEF],
+};
 
 /// The definitions of all `forcemap_msgs` messages.
-pub const ALL: [MsgDef; 4] = [
+pub const ALL: [MsgDef; 5] = [
     RIG_SAMPLE_DEF,
     EXCITATION_STATE_DEF,
     HARMONIC_PHASORS_DEF,
     IDENTIFIED_PARAMETERS_DEF,
+    AXIS_SAMPLE_DEF,
 ];
 
 /// `forcemap_msgs/msg/RigSample`: one sample of the measured channels. A channel that is not
@@ -263,5 +269,41 @@ impl IdentifiedParameters {
             return None;
         }
         self.covariance.get(i * n + j).copied()
+    }
+}
+
+/// `forcemap_msgs/msg/AxisSample`: one sample of a single driven axis (e.g. the EMPS
+/// benchmark). Quantities that were not measured are NaN.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AxisSample {
+    pub header: Header,
+    /// Measured position q [m].
+    pub position_m: f64,
+    /// Velocity q' [m/s]; NaN when not measured.
+    pub velocity_mps: f64,
+    /// Acceleration q'' [m/s^2]; NaN when not measured.
+    pub acceleration_mps2: f64,
+    /// Reference position of the position controller [m]; NaN if none.
+    pub reference_position_m: f64,
+    /// Drive force [N] (= gain * drive_input).
+    pub force_n: f64,
+    /// The drive's input signal in the drive's unit (EMPS: vir [V]).
+    pub drive_input: f64,
+}
+
+ros_message!(AxisSample, "forcemap_msgs/msg/AxisSample", AXIS_SAMPLE_DEF);
+
+impl AxisSample {
+    /// A sample with every quantity NaN (not measured).
+    pub fn new(header: Header) -> AxisSample {
+        AxisSample {
+            header,
+            position_m: f64::NAN,
+            velocity_mps: f64::NAN,
+            acceleration_mps2: f64::NAN,
+            reference_position_m: f64::NAN,
+            force_n: f64::NAN,
+            drive_input: f64::NAN,
+        }
     }
 }

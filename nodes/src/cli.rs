@@ -177,6 +177,14 @@ pub enum ImportCommand {
         #[arg(long)]
         params: Option<PathBuf>,
     },
+    /// Turn an EMPS benchmark file (MATLAB v5 .mat: t, qm, qg, vir, gtau, kp, kv) into a bag:
+    /// /emps/axis (forcemap_msgs/msg/AxisSample) and /emps/parameters (the gains).
+    Emps {
+        file: PathBuf,
+        /// The bag directory to write (must not exist).
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 fn parse_order(s: &str) -> Result<(u32, u32), String> {

@@ -4,6 +4,7 @@ pub mod bag;
 pub mod cli;
 pub mod commands;
 pub mod csv_export;
+pub mod emps;
 pub mod input;
 pub mod params;
 pub mod plot;

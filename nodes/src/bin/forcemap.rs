@@ -3,10 +3,23 @@
 use clap::Parser;
 use forcemap_nodes::cli::Cli;
 
+/// The error and its causes on one line, each cause once (some errors already quote theirs).
+fn describe(e: &anyhow::Error) -> String {
+    let mut text = e.to_string();
+    for cause in e.chain().skip(1) {
+        let c = cause.to_string();
+        if !text.contains(&c) {
+            text.push_str(": ");
+            text.push_str(&c);
+        }
+    }
+    text
+}
+
 fn main() {
     let cli = Cli::parse();
     if let Err(e) = forcemap_nodes::commands::dispatch(cli.command) {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", describe(&e));
         std::process::exit(1);
     }
 }

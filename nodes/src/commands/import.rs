@@ -1,4 +1,4 @@
-//! `forcemap import csv FILE --out BAG`.
+//! `forcemap import csv|emps FILE --out BAG`.
 
 use anyhow::bail;
 
@@ -48,6 +48,25 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
                     ", no rig constants: give --mass-kg to store them"
                 } else {
                     ""
+                }
+            );
+            Ok(())
+        }
+        ImportCommand::Emps { file, out } => {
+            let s = crate::emps::import_emps(file, out)?;
+            eprintln!(
+                "wrote {} ({} samples at {:.1} Hz over {:.2} s; gains gtau {} N/V, kp {}, kv {} on /emps/parameters{})",
+                s.bag.display(),
+                s.samples,
+                s.sample_rate_hz,
+                s.duration_s,
+                s.gtau,
+                s.kp,
+                s.kv,
+                if s.extra_variables.is_empty() {
+                    String::new()
+                } else {
+                    format!(", with {}", s.extra_variables.join(", "))
                 }
             );
             Ok(())
