@@ -197,3 +197,24 @@ fn random_and_damaged_input_never_panics() {
         let _ = recover(&f, &out);
     }
 }
+
+/// Found by fuzzing (fuzz/regressions/bag_read): a damaged QoS string with a DEL character made
+/// `recover` write a metadata.yaml that no YAML reader accepts. The recovered bag must open.
+#[test]
+fn recovered_bag_with_control_characters_in_its_strings_opens_again() {
+    let input = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fuzz/regressions/bag_read/recovered-metadata-yaml-unreadable-0x7f.mcap");
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("recovered");
+    let report = forcemap_nodes::bag::recover(&input, &out).expect("recovers");
+    let reader = forcemap_nodes::bag::BagReader::open(&out).expect("the recovered bag opens");
+    assert_eq!(reader.summary().message_count, report.messages);
+    let qos: Vec<String> = reader
+        .topics()
+        .map(|t| t.offered_qos_profiles.clone())
+        .collect();
+    assert!(
+        qos.iter().any(|q| q.contains('\u{7f}')),
+        "the DEL survives the round trip: {qos:?}"
+    );
+}
