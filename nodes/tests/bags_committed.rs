@@ -161,6 +161,25 @@ fn identification_on_the_committed_bags_finds_their_truth() {
 }
 
 #[test]
+fn bag_info_lists_the_steps() {
+    let path = bags_dir().join("rig_40db");
+    let o = forcemap(&["bag", "info", path.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let steps = v["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 12);
+    assert_eq!(steps[0]["kind"], "sine");
+    assert_eq!(steps[0]["frequency_hz"], 1.6);
+    assert_eq!(steps[9]["frequency_hz"], 3.4);
+    assert_eq!(steps[10]["kind"], "random");
+    assert_eq!(steps[0]["driven_channel"], "base_displacement_m");
+    // 1300 samples at 100 Hz per step
+    let dt =
+        steps[1]["start_time_s"].as_f64().unwrap() - steps[0]["start_time_s"].as_f64().unwrap();
+    assert!((dt - 13.0).abs() < 1e-6, "{dt}");
+}
+
+#[test]
 fn a_bag_without_the_samples_topic_or_with_another_type_is_refused_by_name() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("other");

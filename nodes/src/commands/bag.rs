@@ -1,6 +1,40 @@
 //! `forcemap bag info|recover`: summarise a bag; rebuild one whose recorder died.
 
 use crate::bag::{BagReader, recover};
+use crate::rig_bag::EXCITATION_TOPIC;
+use forcemap_msgs::RosMessage;
+use forcemap_msgs::msg::ExcitationState;
+
+/// The excitation steps of a rig bag, from `/rig/excitation` (empty when the bag has none).
+fn steps(reader: &BagReader) -> anyhow::Result<Vec<ExcitationState>> {
+    if reader.topic(EXCITATION_TOPIC).is_err() {
+        return Ok(Vec::new());
+    }
+    let mut out = Vec::new();
+    for (i, m) in reader.messages_on(&[EXCITATION_TOPIC])?.enumerate() {
+        let m = m?;
+        let s = ExcitationState::from_cdr(&m.data)
+            .map_err(|e| anyhow::anyhow!("{EXCITATION_TOPIC}, message {i}: {e}"))?;
+        out.push(s);
+    }
+    Ok(out)
+}
+
+fn describe_step(s: &ExcitationState) -> String {
+    match s.kind {
+        ExcitationState::SINE => format!(
+            "sine {:.3} Hz, amplitude {:.4e} ({})",
+            s.frequency_hz, s.amplitude, s.driven_channel
+        ),
+        _ if s.band_low_hz.is_nan() => {
+            format!("random, RMS {:.4e} ({})", s.amplitude, s.driven_channel)
+        }
+        _ => format!(
+            "random {:.2}-{:.2} Hz, RMS {:.4e} ({})",
+            s.band_low_hz, s.band_high_hz, s.amplitude, s.driven_channel
+        ),
+    }
+}
 use crate::cli::{BagArgs, BagCommand};
 
 pub fn run(args: &BagArgs) -> anyhow::Result<()> {
@@ -8,6 +42,7 @@ pub fn run(args: &BagArgs) -> anyhow::Result<()> {
         BagCommand::Info { bag, json } => {
             let reader = BagReader::open(bag)?;
             let s = reader.summary();
+            let steps = steps(&reader)?;
             if *json {
                 let topics: Vec<_> = s
                     .topics
@@ -24,6 +59,14 @@ pub fn run(args: &BagArgs) -> anyhow::Result<()> {
                         "duration_s": s.duration_ns as f64 * 1e-9,
                         "ros_distro": s.ros_distro,
                         "topics": topics,
+                        "steps": steps.iter().map(|st| serde_json::json!({
+                            "step": st.step,
+                            "kind": if st.kind == ExcitationState::SINE { "sine" } else { "random" },
+                            "frequency_hz": st.frequency_hz,
+                            "amplitude": st.amplitude,
+                            "driven_channel": st.driven_channel,
+                            "start_time_s": st.start_time.as_secs_f64(),
+                        })).collect::<Vec<_>>(),
                     })
                 );
             } else {
@@ -44,6 +87,13 @@ pub fn run(args: &BagArgs) -> anyhow::Result<()> {
                         "  {:<32} {:<40} {:>8} msgs",
                         t.name, t.type_name, t.message_count
                     );
+                }
+                if let Some(first) = steps.first() {
+                    println!("steps:");
+                    for st in &steps {
+                        let at = st.start_time.secs_since(first.start_time);
+                        println!("  {:>4}  at {at:>9.3} s  {}", st.step, describe_step(st));
+                    }
                 }
             }
             Ok(())
