@@ -133,3 +133,62 @@ fn existing_output_is_refused_and_left_alone() {
     assert!(err.to_string().contains("already exists"), "{err}");
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0);
 }
+
+/// The EMPS bag decodes identically with rosbags (types from the embedded schemas only) and with
+/// mcap + mcap-ros2-support (tests/python/bag_check.py).
+#[test]
+fn python_readers_decode_the_emps_bag() {
+    let Some(dir) = data_dir() else { return };
+    let Ok(python) = std::env::var("FORCEMAP_PYTHON") else {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI is set but FORCEMAP_PYTHON is not"
+        );
+        println!(
+            "skipped: set FORCEMAP_PYTHON to a python with rosbags, mcap and mcap-ros2-support"
+        );
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("emps_bag");
+    emps::import_emps(&dir.join("DATA_EMPS.mat"), &out).unwrap();
+    let reader = BagReader::open(&out).unwrap();
+    let mut expected = Vec::new();
+    for m in reader.messages().unwrap() {
+        let m = m.unwrap();
+        let mut f = serde_json::Map::new();
+        if m.topic.name == AXIS_TOPIC {
+            let s = AxisSample::from_cdr(&m.data).unwrap();
+            for (k, v) in [
+                ("position_m", s.position_m),
+                ("reference_position_m", s.reference_position_m),
+                ("force_n", s.force_n),
+                ("drive_input", s.drive_input),
+            ] {
+                f.insert(k.into(), v.into());
+            }
+        } else {
+            f.insert(
+                "level".into(),
+                DiagnosticStatus::from_cdr(&m.data).unwrap().level.into(),
+            );
+        }
+        expected
+            .push(serde_json::json!({"topic": m.topic.name, "log_time": m.log_time, "fields": f}));
+    }
+    let json = tmp.path().join("expected.json");
+    std::fs::write(&json, serde_json::Value::Array(expected).to_string()).unwrap();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/bag_check.py");
+    let o = std::process::Command::new(python)
+        .arg(&script)
+        .arg(&out)
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
