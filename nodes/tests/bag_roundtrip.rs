@@ -1,5 +1,7 @@
 //! Bag round trip: write messages on three topics, read them back from the bag directory and
 //! from the bare .mcap, check metadata.yaml; optionally check with independent Python readers.
+
+mod common;
 use std::path::Path;
 
 use forcemap_nodes::bag::{
@@ -260,27 +262,5 @@ fn python_readers_decode_the_bag() {
             serde_json::json!({"topic": m.topic, "log_time": m.log_time, "fields": fields})
         })
         .collect();
-    let json = tmp.path().join("expected.json");
-    std::fs::write(&json, serde_json::to_string(&expected).unwrap()).unwrap();
-    let Ok(python) = std::env::var("FORCEMAP_PYTHON") else {
-        // CI installs the readers (.ci/run): there a missing interpreter is a failure.
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI is set but FORCEMAP_PYTHON is not: the independent readers did not run"
-        );
-        println!(
-            "skipped: set FORCEMAP_PYTHON to a python with rosbags, mcap and mcap-ros2-support"
-        );
-        return;
-    };
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/bag_check.py");
-    let out = std::process::Command::new(python)
-        .arg(&script)
-        .arg(&dir)
-        .arg(&json)
-        .output()
-        .unwrap();
-    println!("{}", String::from_utf8_lossy(&out.stdout));
-    eprintln!("{}", String::from_utf8_lossy(&out.stderr));
-    assert!(out.status.success(), "bag_check.py failed");
+    common::python_bag_check(&dir, &serde_json::Value::Array(expected));
 }

@@ -1,6 +1,8 @@
 //! The committed sample bags in bags/: regenerating them gives identical messages, independent
 //! readers decode them, and identification on them finds the truth of their simulation.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -85,34 +87,9 @@ fn expected_fields(bag: &Path) -> serde_json::Value {
 
 #[test]
 fn python_readers_decode_every_committed_bag() {
-    let Ok(python) = std::env::var("FORCEMAP_PYTHON") else {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI is set but FORCEMAP_PYTHON is not"
-        );
-        println!(
-            "skipped: set FORCEMAP_PYTHON to a python with rosbags, mcap and mcap-ros2-support"
-        );
-        return;
-    };
-    let tmp = tempfile::tempdir().unwrap();
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/bag_check.py");
     for name in BAGS {
         let bag = bags_dir().join(name);
-        let json = tmp.path().join(format!("{name}.json"));
-        std::fs::write(&json, expected_fields(&bag).to_string()).unwrap();
-        let o = Command::new(&python)
-            .arg(&script)
-            .arg(&bag)
-            .arg(&json)
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "{name}: {}\n{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        );
+        common::python_bag_check(&bag, &expected_fields(&bag));
     }
 }
 

@@ -1,6 +1,8 @@
 //! Imports the real EMPS benchmark files (../shared/real/emps, not in the repository) into
 //! bags, reads them back with BagReader and checks every sample. Skips with a notice where the
 //! data is absent.
+
+mod common;
 use std::path::{Path, PathBuf};
 
 use forcemap_msgs::RosMessage;
@@ -139,16 +141,6 @@ fn existing_output_is_refused_and_left_alone() {
 #[test]
 fn python_readers_decode_the_emps_bag() {
     let Some(dir) = data_dir() else { return };
-    let Ok(python) = std::env::var("FORCEMAP_PYTHON") else {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI is set but FORCEMAP_PYTHON is not"
-        );
-        println!(
-            "skipped: set FORCEMAP_PYTHON to a python with rosbags, mcap and mcap-ros2-support"
-        );
-        return;
-    };
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("emps_bag");
     emps::import_emps(&dir.join("DATA_EMPS.mat"), &out).unwrap();
@@ -176,19 +168,5 @@ fn python_readers_decode_the_emps_bag() {
         expected
             .push(serde_json::json!({"topic": m.topic.name, "log_time": m.log_time, "fields": f}));
     }
-    let json = tmp.path().join("expected.json");
-    std::fs::write(&json, serde_json::Value::Array(expected).to_string()).unwrap();
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/bag_check.py");
-    let o = std::process::Command::new(python)
-        .arg(&script)
-        .arg(&out)
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "{}\n{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
+    common::python_bag_check(&out, &serde_json::Value::Array(expected));
 }
