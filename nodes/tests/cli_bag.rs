@@ -107,3 +107,27 @@ fn recover_restores_every_flushed_message_of_a_truncated_bag() {
     ]);
     assert_eq!(o.status.code(), Some(1));
 }
+
+/// Found by fuzzing (fuzz/regressions/bag_read): a 156-byte file whose header claims a 4 GiB
+/// string. Under a 2 GB address-space limit the reader must answer with an error, not abort on
+/// the allocation.
+#[test]
+fn a_huge_length_in_a_tiny_file_is_an_error_not_an_allocation() {
+    let input = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fuzz/regressions/bag_read/oom-header-string-len-4GiB.mcap");
+    let o = Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 2000000; exec '{}' bag info '{}'",
+            env!("CARGO_BIN_EXE_forcemap"),
+            input.display()
+        ))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.starts_with("error:") && !e.contains("memory allocation"),
+        "{e}"
+    );
+}

@@ -70,6 +70,110 @@ fn u32_at(b: &[u8], at: usize) -> Option<u32> {
 }
 
 /// Scans a whole file (which must start with the magic).
+/// A field of an MCAP record, as far as its size is concerned.
+#[derive(Clone, Copy)]
+enum Field {
+    /// Fixed size in bytes.
+    Fixed(usize),
+    /// u32 length, then that many bytes (String, and Bytes with a u32 length).
+    Len32,
+    /// u64 length, then that many bytes.
+    Len64,
+    /// u32 byte length of a map of String to String.
+    StrMap,
+}
+
+/// The fields of each record type with length prefixes (MCAP specification); records of fixed
+/// size or with unprefixed trailing data have none to check.
+fn prefixed_layout(opcode: u8) -> &'static [Field] {
+    use Field::*;
+    match opcode {
+        op::HEADER => &[Len32, Len32],
+        op::SCHEMA => &[Fixed(2), Len32, Len32, Len32],
+        op::CHANNEL => &[Fixed(4), Len32, Len32, StrMap],
+        op::CHUNK => &[Fixed(28), Len32, Len64],
+        op::MESSAGE_INDEX => &[Fixed(2), Len32],
+        op::CHUNK_INDEX => &[Fixed(32), Len32, Fixed(8), Len32, Fixed(16)],
+        op::ATTACHMENT => &[Fixed(16), Len32, Len32, Len64, Fixed(4)],
+        op::ATTACHMENT_INDEX => &[Fixed(40), Len32, Len32],
+        op::STATISTICS => &[Fixed(42), Len32],
+        op::METADATA => &[Len32, StrMap],
+        op::METADATA_INDEX => &[Fixed(16), Len32],
+        _ => &[],
+    }
+}
+
+/// Checks every length prefix of a record against its body before the mcap crate parses it:
+/// its parser reserves memory for a length before reading, so a damaged length made it reserve
+/// 4 GiB for a 156-byte file (found by fuzzing).
+fn check_lengths(opcode: u8, body: &[u8]) -> Result<(), String> {
+    let bad = |what: &str, at: usize| {
+        Err(format!(
+            "record (opcode {opcode:#04x}): {what} at byte {at} runs past the record's {} bytes",
+            body.len()
+        ))
+    };
+    let len_at = |at: usize, width: usize| -> Option<u64> {
+        let b = body.get(at..at + width)?;
+        Some(if width == 4 {
+            u32::from_le_bytes(b.try_into().ok()?) as u64
+        } else {
+            u64::from_le_bytes(b.try_into().ok()?)
+        })
+    };
+    let mut pos = 0usize;
+    for f in prefixed_layout(opcode) {
+        let (width, is_map) = match *f {
+            Field::Fixed(n) => {
+                if pos + n > body.len() {
+                    return bad("a fixed field", pos);
+                }
+                pos += n;
+                continue;
+            }
+            Field::Len32 => (4, false),
+            Field::Len64 => (8, false),
+            Field::StrMap => (4, true),
+        };
+        let Some(len) = len_at(pos, width) else {
+            return bad("a length", pos);
+        };
+        let start = pos + width;
+        let Some(end) = usize::try_from(len)
+            .ok()
+            .and_then(|l| start.checked_add(l))
+            .filter(|e| *e <= body.len())
+        else {
+            return bad("a length-prefixed field", pos);
+        };
+        if is_map {
+            // entries: String key, String value, each with a u32 length
+            let mut p = start;
+            while p < end {
+                let Some(l) = len_at(p, 4) else {
+                    return bad("a map entry", p);
+                };
+                match usize::try_from(l)
+                    .ok()
+                    .and_then(|l| (p + 4).checked_add(l))
+                    .filter(|e| *e <= end)
+                {
+                    Some(e) => p = e,
+                    None => return bad("a map entry", p),
+                }
+            }
+        }
+        pos = end;
+    }
+    Ok(())
+}
+
+/// `mcap::parse_record` after [`check_lengths`].
+fn parse_checked(opcode: u8, body: &[u8]) -> Result<Record<'_>, String> {
+    check_lengths(opcode, body)?;
+    mcap::parse_record(opcode, body).map_err(|e| e.to_string())
+}
+
 pub(crate) fn scan(bytes: &[u8]) -> Scan {
     let mut s = Scan::default();
     let mut pos = mcap::MAGIC.len();
@@ -122,7 +226,7 @@ pub(crate) fn scan(bytes: &[u8]) -> Scan {
             });
             return s;
         }
-        let res = match mcap::parse_record(opcode, body) {
+        let res = match parse_checked(opcode, body) {
             Ok(Record::Chunk { header, data }) => {
                 match decompress(&header.compression, &data, Some(header.uncompressed_size)) {
                     Ok(records) => {
@@ -207,7 +311,7 @@ fn inner_records(b: &[u8], s: &mut Scan) -> Option<String> {
         let Some(end) = end else {
             return Some("cut inside a record".into());
         };
-        match mcap::parse_record(opcode, &b[start..end]) {
+        match parse_checked(opcode, &b[start..end]) {
             Ok(r) => take(r, s),
             Err(e) => return Some(format!("record does not parse: {e}")),
         }
@@ -294,4 +398,34 @@ fn partial_chunk(body: &[u8], s: &mut Scan) -> usize {
     let before = s.messages.len();
     let _ = inner_records(&records, s);
     s.messages.len() - before
+}
+
+#[cfg(test)]
+mod length_tests {
+    use super::*;
+
+    fn string(s: &str) -> Vec<u8> {
+        let mut b = (s.len() as u32).to_le_bytes().to_vec();
+        b.extend_from_slice(s.as_bytes());
+        b
+    }
+
+    #[test]
+    fn lengths_inside_the_record_pass_and_a_huge_one_is_refused_before_parsing() {
+        let header = [string("ros2"), string("forcemap")].concat();
+        assert!(check_lengths(op::HEADER, &header).is_ok());
+        assert!(parse_checked(op::HEADER, &header).is_ok());
+        let mut huge = header.clone();
+        huge[..4].copy_from_slice(&0xFFFF_0000u32.to_le_bytes());
+        let e = parse_checked(op::HEADER, &huge).err().expect("refused");
+        assert!(e.contains("runs past"), "{e}");
+        // a channel whose metadata map holds a string longer than the map
+        let mut channel = vec![1, 0, 1, 0];
+        channel.extend(string("/rig/samples"));
+        channel.extend(string("cdr"));
+        let entry = [string("k"), 0xFFFF_FFF0u32.to_le_bytes().to_vec()].concat();
+        channel.extend((entry.len() as u32).to_le_bytes());
+        channel.extend(entry);
+        assert!(check_lengths(op::CHANNEL, &channel).is_err());
+    }
 }
