@@ -417,7 +417,7 @@ mod length_tests {
         assert!(parse_checked(op::HEADER, &header).is_ok());
         let mut huge = header.clone();
         huge[..4].copy_from_slice(&0xFFFF_0000u32.to_le_bytes());
-        let e = parse_checked(op::HEADER, &huge).err().expect("refused");
+        let e = parse_checked(op::HEADER, &huge).expect_err("refused");
         assert!(e.contains("runs past"), "{e}");
         // a channel whose metadata map holds a string longer than the map
         let mut channel = vec![1, 0, 1, 0];
