@@ -148,12 +148,43 @@ pub struct SimulateArgs {
     /// Rig: skip the two band-random validation records.
     #[arg(long)]
     pub no_random: bool,
+    #[command(flatten)]
+    pub effects: EffectArgs,
     /// Write a test-bench CSV export here.
     #[arg(long, required_unless_present = "bag")]
     pub csv: Option<PathBuf>,
     /// Write a rosbag2 bag (MCAP) here: /rig/samples, /rig/excitation, /rig/parameters.
     #[arg(long)]
     pub bag: Option<PathBuf>,
+}
+
+/// Effects planted in the truth model (the "real rig" a simpler model may miss).
+#[derive(Debug, Args, Default)]
+pub struct EffectArgs {
+    /// Cubic stiffness S of the element [N/m^3] (force S x^3).
+    #[arg(long)]
+    pub cubic_stiffness_n_per_m3: Option<f64>,
+    /// Asymmetric (quadratic) stiffness [N/m^2] (force k2 x|x|).
+    #[arg(long)]
+    pub quadratic_stiffness_n_per_m2: Option<f64>,
+    /// Quadratic damping [N s^2/m^2] (force c2 x'|x'|).
+    #[arg(long)]
+    pub quadratic_damping_n_s2_per_m2: Option<f64>,
+    /// Stribeck friction: breakaway force [N] above the Coulomb level at low speed.
+    #[arg(long)]
+    pub stribeck_breakaway_n: Option<f64>,
+    /// Stribeck velocity [m/s] of the decay from breakaway to the Coulomb level.
+    #[arg(long, default_value_t = 0.01)]
+    pub stribeck_velocity_mps: f64,
+    /// Rig only: the element sees the base motion this much later than it is measured [s].
+    #[arg(long)]
+    pub exciter_delay_s: Option<f64>,
+    /// Rig only: first-order low-pass of this cutoff [Hz] on every measured channel.
+    #[arg(long)]
+    pub sensor_lowpass_hz: Option<f64>,
+    /// Rig only: the true mass is the nominal 36 kg times this factor.
+    #[arg(long)]
+    pub mass_factor: Option<f64>,
 }
 
 #[derive(Debug, Args)]

@@ -421,3 +421,73 @@ fn plots_are_written_as_svg_with_one_series_per_step() {
             .ends_with(".tmp"))
     );
 }
+
+fn identify_values(csv: &Path, model: &str) -> Vec<f64> {
+    let o = forcemap(&[
+        "identify",
+        csv.to_str().unwrap(),
+        "--model",
+        model,
+        "--mass-kg",
+        "36",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    v["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["value"].as_f64().unwrap())
+        .collect()
+}
+
+#[test]
+fn planted_mass_error_scales_every_parameter_by_the_nominal_over_the_true_mass() {
+    // m_true x_o'' = -g, analysed with m = 36 kg: the force seen is g * 36 / m_true
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("heavy.csv");
+    let o = forcemap(&[
+        "simulate",
+        "--mass-factor",
+        "1.1",
+        "--no-random",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let theta = identify_values(&csv, "coulomb");
+    for (v, truth) in theta.iter().zip([6380.0, 184.0, 12.3]) {
+        assert!((v * 1.1 / truth - 1.0).abs() < 0.005, "{theta:?}");
+    }
+}
+
+#[test]
+fn planted_cubic_stiffness_is_recovered_and_rig_effects_are_refused_on_the_three_dof() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("cubic.csv");
+    let o = forcemap(&[
+        "simulate",
+        "--cubic-stiffness-n-per-m3",
+        "3e6",
+        "--no-random",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let theta = identify_values(&csv, "coulomb-cubic");
+    for (v, truth) in theta.iter().zip([6380.0, 184.0, 12.3, 3e6]) {
+        assert!((v / truth - 1.0).abs() < 0.03, "{theta:?}");
+    }
+    let o = forcemap(&[
+        "simulate",
+        "--system",
+        "three-dof",
+        "--mass-factor",
+        "1.1",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--mass-factor"), "{}", stderr(&o));
+}
