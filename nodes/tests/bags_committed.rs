@@ -3,6 +3,8 @@
 
 mod common;
 
+use common::forcemap;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -15,13 +17,6 @@ const BAGS: [&str; 3] = ["rig_40db", "three_dof_case_i", "three_dof_case_ii"];
 
 fn bags_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../bags")
-}
-
-fn forcemap(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_forcemap"))
-        .args(args)
-        .output()
-        .expect("forcemap runs")
 }
 
 #[test]
@@ -93,37 +88,18 @@ fn python_readers_decode_every_committed_bag() {
     }
 }
 
-fn identify(bag: &str, extra: &[&str]) -> Vec<f64> {
-    let path = bags_dir().join(bag);
-    let mut args = vec!["identify", path.to_str().unwrap(), "--json"];
-    args.extend_from_slice(extra);
-    let o = forcemap(&args);
-    assert!(
-        o.status.success(),
-        "{bag}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    v["parameters"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|p| p["value"].as_f64().unwrap())
-        .collect()
-}
-
 #[test]
 fn identification_on_the_committed_bags_finds_their_truth() {
     // the rig bag carries its mass on /rig/parameters: no --mass-kg needed
-    let theta = identify("rig_40db", &["--model", "coulomb"]);
+    let theta = common::identified_values(&bags_dir().join("rig_40db"), &["--model", "coulomb"]);
     for (v, t) in theta.iter().zip([6380.0, 184.0, 12.3]) {
         assert!((v / t - 1.0).abs() < 0.02, "rig: {theta:?}");
     }
     let params =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch_configs/three_dof.params.yaml");
     for (bag, tol) in [("three_dof_case_i", 0.02), ("three_dof_case_ii", 0.005)] {
-        let theta = identify(
-            bag,
+        let theta = common::identified_values(
+            &bags_dir().join(bag),
             &[
                 "--model",
                 "coulomb-cubic",

@@ -1,15 +1,12 @@
 //! The `forcemap` command at the process boundary: outputs a user or a script relies on, and
 //! bad input giving a clear error, a non-zero exit, and nothing half-written.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn forcemap(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_forcemap"))
-        .args(args)
-        .output()
-        .expect("forcemap runs")
-}
+use common::forcemap;
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -422,26 +419,6 @@ fn plots_are_written_as_svg_with_one_series_per_step() {
     );
 }
 
-fn identify_values(csv: &Path, model: &str) -> Vec<f64> {
-    let o = forcemap(&[
-        "identify",
-        csv.to_str().unwrap(),
-        "--model",
-        model,
-        "--mass-kg",
-        "36",
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    v["parameters"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|p| p["value"].as_f64().unwrap())
-        .collect()
-}
-
 #[test]
 fn planted_mass_error_scales_every_parameter_by_the_nominal_over_the_true_mass() {
     // m_true x_o'' = -g, analysed with m = 36 kg: the force seen is g * 36 / m_true
@@ -456,7 +433,7 @@ fn planted_mass_error_scales_every_parameter_by_the_nominal_over_the_true_mass()
         csv.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let theta = identify_values(&csv, "coulomb");
+    let theta = common::identified_values(&csv, &["--model", "coulomb", "--mass-kg", "36"]);
     for (v, truth) in theta.iter().zip([6380.0, 184.0, 12.3]) {
         assert!((v * 1.1 / truth - 1.0).abs() < 0.005, "{theta:?}");
     }
@@ -475,7 +452,7 @@ fn planted_cubic_stiffness_is_recovered_and_rig_effects_are_refused_on_the_three
         csv.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let theta = identify_values(&csv, "coulomb-cubic");
+    let theta = common::identified_values(&csv, &["--model", "coulomb-cubic", "--mass-kg", "36"]);
     for (v, truth) in theta.iter().zip([6380.0, 184.0, 12.3, 3e6]) {
         assert!((v / truth - 1.0).abs() < 0.03, "{theta:?}");
     }

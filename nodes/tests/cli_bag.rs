@@ -1,15 +1,12 @@
 //! `forcemap bag info|recover` at the process boundary.
 
+mod common;
+
+use common::forcemap;
+
 use std::process::Command;
 
 use forcemap_nodes::bag::{BagWriter, BagWriterOptions, TopicSpec};
-
-fn forcemap(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_forcemap"))
-        .args(args)
-        .output()
-        .expect("forcemap runs")
-}
 
 fn value_cdr(v: f64) -> Vec<u8> {
     let mut b = vec![0, 1, 0, 0];
