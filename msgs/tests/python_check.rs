@@ -10,7 +10,9 @@ use std::process::Command;
 use forcemap_math::record::Channel;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
-use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, IdentifiedParameters, RigSample};
+use forcemap_msgs::msg::{
+    AxisSample, ExcitationState, HarmonicPhasors, IdentifiedParameters, RigSample,
+};
 use forcemap_msgs::std_msgs::Header;
 use forcemap_msgs::{MsgDef, RosMessage};
 use serde_json::{Value, json};
@@ -52,6 +54,46 @@ fn msg_file(def: &MsgDef, root: &Path) -> Value {
     json!({"type": ty, "path": path})
 }
 
+/// AxisSample as the EMPS importer writes it (velocity and acceleration not measured: NaN), with
+/// every field finite, and with values whose bits a careless decoder would change (-0.0, the
+/// smallest subnormal, the largest finite, values that are not short decimals).
+fn axis_samples() -> Vec<(&'static str, AxisSample)> {
+    let stamp = Time {
+        sec: 1_541_462_400,
+        nanosec: 999_999_999,
+    };
+    let emps = AxisSample {
+        position_m: 0.031_415_926_535,
+        reference_position_m: 0.03,
+        force_n: -12.5 * 35.155_6,
+        drive_input: -12.5,
+        ..AxisSample::new(Header::new(stamp, "emps"))
+    };
+    let finite = AxisSample {
+        header: Header::new(stamp, "axis µ"),
+        position_m: -0.25,
+        velocity_mps: 0.1,
+        acceleration_mps2: -9.806_65,
+        reference_position_m: 1.0 / 3.0,
+        force_n: 70.0,
+        drive_input: 2.0,
+    };
+    let edges = AxisSample {
+        header: Header::new(Time { sec: 0, nanosec: 0 }, ""),
+        position_m: -0.0,
+        velocity_mps: f64::from_bits(1),
+        acceleration_mps2: f64::MAX,
+        reference_position_m: f64::MIN_POSITIVE,
+        force_n: -f64::MAX,
+        drive_input: 1e-300,
+    };
+    vec![
+        ("axis_sample_emps", emps),
+        ("axis_sample_finite", finite),
+        ("axis_sample_edges", edges),
+    ]
+}
+
 fn write_cases(dir: &Path) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut c = Cases {
@@ -82,6 +124,9 @@ fn write_cases(dir: &Path) {
     c.add("excitation_random", &common::excitation_random());
     c.add("harmonic_phasors", &common::harmonic_phasors());
     c.add("identified_parameters", &common::identified_parameters());
+    for (name, sample) in axis_samples() {
+        c.add(name, &sample);
+    }
 
     let defs = [
         Time::DEFINITION,
@@ -93,6 +138,7 @@ fn write_cases(dir: &Path) {
         ExcitationState::DEFINITION,
         HarmonicPhasors::DEFINITION,
         IdentifiedParameters::DEFINITION,
+        AxisSample::DEFINITION,
     ];
     let manifest = json!({
         "msg_files": defs.iter().map(|d| msg_file(d, root)).collect::<Vec<_>>(),

@@ -15,6 +15,7 @@ Prints 'N passed, M failed' and exits 1 on any failure.
 import json
 import math
 import os
+import struct
 import sys
 from pathlib import Path
 
@@ -68,7 +69,8 @@ def same(expected, actual, path: str) -> list[str]:
     if isinstance(expected, bool):
         return [] if actual is expected or actual == expected else [f"{path}: {expected!r} != {actual!r}"]
     if isinstance(expected, float):
-        ok = isinstance(actual, float) and actual == expected
+        # Bit for bit: -0.0 and 0.0 differ, and so does any lost last digit.
+        ok = isinstance(actual, float) and struct.pack("<d", actual) == struct.pack("<d", expected)
         return [] if ok else [f"{path}: {expected!r} != {actual!r}"]
     return [] if expected == actual and type(actual) is not float else [f"{path}: {expected!r} != {actual!r}"]
 
