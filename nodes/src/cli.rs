@@ -185,6 +185,34 @@ pub struct EffectArgs {
     /// Rig only: the true mass is the nominal 36 kg times this factor.
     #[arg(long)]
     pub mass_factor: Option<f64>,
+    /// Asymmetric damping: extra damping [N s/m] in rebound (relative velocity > 0), added to
+    /// the element's; negative down to minus the element's damping.
+    #[arg(long, allow_negative_numbers = true)]
+    pub rebound_damping_n_s_per_m: Option<f64>,
+    /// Asymmetric damping: extra damping [N s/m] in compression (relative velocity < 0).
+    #[arg(long, allow_negative_numbers = true)]
+    pub compression_damping_n_s_per_m: Option<f64>,
+    /// Free-play: total width [m] of the gap (|x| <= gap/2) where the free-play spring is slack.
+    #[arg(long, allow_negative_numbers = true)]
+    pub free_play_gap_m: Option<f64>,
+    /// Free-play: stiffness [N/m] of the spring outside the gap, force k (x - sgn(x) gap/2).
+    #[arg(long, allow_negative_numbers = true)]
+    pub free_play_stiffness_n_per_m: Option<f64>,
+    /// Bouc-Wen hysteresis: force alpha z [N/m], z' = a x' - beta |x'| |z|^(n-1) z - gamma x' |z|^n.
+    #[arg(long, allow_negative_numbers = true)]
+    pub bouc_wen_alpha_n_per_m: Option<f64>,
+    /// Bouc-Wen: a (dimensionless; default 1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub bouc_wen_a: Option<f64>,
+    /// Bouc-Wen: beta [1/m^n].
+    #[arg(long, allow_negative_numbers = true)]
+    pub bouc_wen_beta_per_m_pow_n: Option<f64>,
+    /// Bouc-Wen: gamma [1/m^n].
+    #[arg(long, allow_negative_numbers = true)]
+    pub bouc_wen_gamma_per_m_pow_n: Option<f64>,
+    /// Bouc-Wen: exponent n (dimensionless; default 1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub bouc_wen_n: Option<f64>,
 }
 
 #[derive(Debug, Args)]
