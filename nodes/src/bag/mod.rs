@@ -9,6 +9,7 @@
 //! - [`BagReader`] reads a bag directory or a bare `.mcap` in log-time order;
 //! - [`recover`] rebuilds a bag from the MCAP file of a recorder that died.
 mod error;
+mod guard;
 mod metadata;
 mod reader;
 mod recover;

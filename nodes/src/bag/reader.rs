@@ -10,6 +10,7 @@ use mcap::sans_io::{
     SummaryReaderOptions,
 };
 
+use super::guard::{self, SummaryCheck};
 use super::metadata::BagMetadata;
 use super::scan::{self, Scan};
 use super::{BagError, QOS_METADATA_KEY, SCHEMA_ENCODING};
@@ -188,7 +189,21 @@ impl BagReader {
     pub fn open(path: impl AsRef<Path>) -> Result<Self, BagError> {
         let (mcap_path, metadata) = locate(path.as_ref())?;
         let mut file = open_mcap(&mcap_path)?;
-        let summary = read_summary(&mcap_path, &mut file)?;
+        let size = file
+            .metadata()
+            .map_err(|e| BagError::io(&mcap_path, e))?
+            .len();
+        // The summary is used only when it holds up against the file (guard.rs); otherwise the
+        // file is scanned as if it had none.
+        let summary = match guard::check_summary(&mut file, size, RECORD_LIMIT as u64) {
+            SummaryCheck::Untrusted(_) => None,
+            SummaryCheck::NoSummary => read_summary(&mcap_path, &mut file)?,
+            SummaryCheck::Summary { summary_start } => {
+                read_summary(&mcap_path, &mut file)?.filter(|s| {
+                    guard::check_chunk_indexes(s, summary_start, RECORD_LIMIT as u64).is_ok()
+                })
+            }
+        };
         match summary {
             Some(s)
                 if !s.chunk_indexes.is_empty()

@@ -106,7 +106,7 @@ fn prefixed_layout(opcode: u8) -> &'static [Field] {
 /// Checks every length prefix of a record against its body before the mcap crate parses it:
 /// its parser reserves memory for a length before reading, so a damaged length made it reserve
 /// 4 GiB for a 156-byte file (found by fuzzing).
-fn check_lengths(opcode: u8, body: &[u8]) -> Result<(), String> {
+pub(crate) fn check_lengths(opcode: u8, body: &[u8]) -> Result<(), String> {
     let bad = |what: &str, at: usize| {
         Err(format!(
             "record (opcode {opcode:#04x}): {what} at byte {at} runs past the record's {} bytes",
@@ -320,9 +320,23 @@ fn inner_records(b: &[u8], s: &mut Scan) -> Option<String> {
     None
 }
 
+/// Most bytes a chunk may decompress to (the reader's record limit).
+const DECOMPRESSED_LIMIT: u64 = 1 << 30;
+
 /// Decompresses a chunk's records. With `expected` the whole output must come out; without, as
-/// much as the (cut-off) input yields is returned.
+/// much as the (cut-off) input yields is returned. Memory grows with what the decompressor
+/// produces, never with a declared size, and stops one byte past `expected` (or past
+/// [`DECOMPRESSED_LIMIT`]), so neither a false size nor a decompression bomb can make it grow
+/// further.
 fn decompress(compression: &str, data: &[u8], expected: Option<u64>) -> Result<Vec<u8>, String> {
+    if let Some(n) = expected
+        && n > DECOMPRESSED_LIMIT
+    {
+        return Err(format!(
+            "the chunk declares {n} bytes uncompressed, more than the {DECOMPRESSED_LIMIT} accepted"
+        ));
+    }
+    let cap = expected.unwrap_or(DECOMPRESSED_LIMIT);
     let mut out = Vec::new();
     let res = match compression {
         "" => {
@@ -330,15 +344,18 @@ fn decompress(compression: &str, data: &[u8], expected: Option<u64>) -> Result<V
             Ok(())
         }
         "zstd" => match zstd::stream::read::Decoder::new(data) {
-            Ok(d) => read_all(d, &mut out),
+            Ok(d) => read_all(d.take(cap + 1), &mut out),
             Err(e) => Err(e.to_string()),
         },
         "lz4" => match lz4::Decoder::new(data) {
-            Ok(d) => read_all(d, &mut out),
+            Ok(d) => read_all(d.take(cap + 1), &mut out),
             Err(e) => Err(e.to_string()),
         },
         other => return Err(format!("unsupported compression '{other}'")),
     };
+    if expected.is_none() && out.len() as u64 > cap {
+        return Err(format!("decompresses to more than {cap} bytes"));
+    }
     match expected {
         Some(n) => {
             res?;
