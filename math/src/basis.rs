@@ -67,6 +67,24 @@ pub struct SignedSquareVelocity;
 #[derive(Debug, Clone, Copy)]
 pub struct AbsVelocity;
 
+/// x^2: the asymmetric part of a quadratic stiffness (stiffer in tension than in compression
+/// or the reverse), coefficient k2a [N/m^2]. Even in x: it shows in DC and the even harmonics, in
+/// phase with x^2.
+#[derive(Debug, Clone, Copy)]
+pub struct SquareDisplacement;
+/// x - clamp(x, -gap/2, gap/2): a spring that engages only outside a free-play gap of total
+/// width `gap_m`, coefficient kfp [N/m].
+#[derive(Debug, Clone, Copy)]
+pub struct DeadZone {
+    pub gap_m: f64,
+}
+/// sgn(x') exp(-(x'/vs)^2): the Stribeck excess of static over kinetic friction, decaying with
+/// speed (the law of `element::Friction`), coefficient fs [N] = breakaway - kinetic level.
+#[derive(Debug, Clone, Copy)]
+pub struct StribeckVelocity {
+    pub velocity_mps: f64,
+}
+
 impl Term for Displacement {
     fn symbol(&self) -> String {
         "k".into()
@@ -196,6 +214,50 @@ impl Term for AbsVelocity {
     }
     fn eval(&self, _x: f64, v: f64) -> f64 {
         v.abs()
+    }
+}
+
+impl Term for SquareDisplacement {
+    fn symbol(&self) -> String {
+        "k2a".into()
+    }
+    fn formula(&self) -> String {
+        "x^2".into()
+    }
+    fn eval(&self, x: f64, _v: f64) -> f64 {
+        x * x
+    }
+}
+
+impl Term for DeadZone {
+    fn symbol(&self) -> String {
+        "kfp".into()
+    }
+    fn formula(&self) -> String {
+        format!("x - clamp(x, +/-{} / 2)", self.gap_m)
+    }
+    fn eval(&self, x: f64, _v: f64) -> f64 {
+        let half = 0.5 * self.gap_m;
+        x - x.clamp(-half, half)
+    }
+}
+
+impl Term for StribeckVelocity {
+    fn symbol(&self) -> String {
+        "fs".into()
+    }
+    fn formula(&self) -> String {
+        format!("sgn(x') exp(-(x'/{})^2)", self.velocity_mps)
+    }
+    fn eval(&self, _x: f64, v: f64) -> f64 {
+        if v == 0.0 {
+            0.0
+        } else {
+            v.signum() * (-(v / self.velocity_mps).powi(2)).exp()
+        }
+    }
+    fn jumps_at_zero_velocity(&self) -> bool {
+        true
     }
 }
 

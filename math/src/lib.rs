@@ -12,6 +12,7 @@
 //!   so `|C_1|` is the amplitude of the fundamental and `C_0` is the mean.
 
 pub mod basis;
+pub mod diagnose;
 pub mod element;
 pub mod frf;
 pub mod identify;

@@ -28,6 +28,11 @@ pub enum Command {
     Bag(BagArgs),
     /// Import data into a bag.
     Import(ImportArgs),
+    /// Diagnose the gap between a baseline model and measured data: how large, where, which
+    /// unmodelled effect causes it and how far it shrinks once that effect is added.
+    Diagnose(DiagnoseArgs),
+    /// Check the gap diagnosis on simulated cases with withheld planted effects.
+    DiagnoseEval(DiagnoseEvalArgs),
     /// List the named models.
     Models,
 }
@@ -253,4 +258,58 @@ fn parse_order(s: &str) -> Result<(u32, u32), String> {
         p.trim().parse().map_err(|_| bad())?,
         q.trim().parse().map_err(|_| bad())?,
     ))
+}
+
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// A bag directory, a bare .mcap or a test-bench CSV export (sine steps are fitted, random
+    /// records held out).
+    #[arg(required_unless_present = "demo")]
+    pub data: Option<PathBuf>,
+    /// The baseline model (see `forcemap models`).
+    #[arg(long, required_unless_present = "demo")]
+    pub model: Option<String>,
+    /// More held-out data (same forms as DATA).
+    #[arg(long)]
+    pub validate: Option<PathBuf>,
+    /// Sine steps to hold out as well, e.g. 3,7.
+    #[arg(long, value_delimiter = ',')]
+    pub holdout_steps: Vec<usize>,
+    /// Mass of the rig [kg] (overrides the params file and the bag).
+    #[arg(long)]
+    pub mass_kg: Option<f64>,
+    /// Rig constants in a ROS 2 params YAML.
+    #[arg(long)]
+    pub params: Option<PathBuf>,
+    /// Slope M [s/m] of the atan friction term (coulomb-atan baselines).
+    #[arg(long)]
+    pub atan_m: Option<f64>,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+    /// Write an HTML report with SVG plots into this new directory.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// The built-in demo: the linear "sim" against simulated rig data with Coulomb friction.
+    #[arg(long, conflicts_with_all = ["data", "validate"])]
+    pub demo: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct DiagnoseEvalArgs {
+    /// Number of generated cases.
+    #[arg(long, default_value_t = 40)]
+    pub cases: usize,
+    /// Seed of the case generator.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// The lower measurement SNR [dB]; half of the cases are 10 dB cleaner.
+    #[arg(long, default_value_t = 30.0)]
+    pub snr_db: f64,
+    /// Worker threads.
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
+    /// One JSON object (summary and cases) instead of tables.
+    #[arg(long)]
+    pub json: bool,
 }

@@ -1,6 +1,8 @@
 //! One module per `forcemap` subcommand; `dispatch` routes to them.
 
 pub mod bag;
+pub mod diagnose;
+pub mod diagnose_eval;
 pub mod identify;
 pub mod import;
 pub mod reproduce;
@@ -16,6 +18,8 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Simulate(a) => simulate::run(&a),
         Command::Bag(a) => bag::run(&a),
         Command::Import(a) => import::run(&a),
+        Command::Diagnose(a) => diagnose::run(&a),
+        Command::DiagnoseEval(a) => diagnose_eval::run(&a),
         Command::Models => {
             for (name, what) in forcemap_math::model::MODEL_NAMES {
                 println!("{name:<20} {what}");

@@ -1,0 +1,253 @@
+//! One period of each settled sine step (element state and force, rebuilt from the harmonics),
+//! the channel transformations of the candidate effects, and the Bouc-Wen state over a cycle.
+
+use std::f64::consts::TAU;
+
+use num_complex::Complex64;
+
+use crate::identify::{IdentifyError, Setup, element_harmonics};
+use crate::phasor::HarmonicAnalysis;
+use crate::record::Channel;
+
+/// One period of a settled sine step on a uniform grid.
+#[derive(Debug, Clone)]
+pub struct StepCycle {
+    pub step: usize,
+    pub frequency_hz: f64,
+    /// First-harmonic amplitude of the relative displacement [m].
+    pub amplitude_m: f64,
+    pub displacement_m: Vec<f64>,
+    pub velocity_mps: Vec<f64>,
+    /// Element force from the measurements [N].
+    pub force_n: Vec<f64>,
+    /// Noise of the rebuilt force per grid point [N] (from the per-harmonic noise), floored at
+    /// 1e-4 of the force RMS so noise-free data are not weighted by round-off.
+    pub force_noise_n: f64,
+    /// Harmonics in the rebuilt force.
+    pub harmonics: usize,
+    /// Noise of each force harmonic n = 0..=harmonics [N] (complex magnitude).
+    pub force_harmonic_noise_n: Vec<f64>,
+}
+
+/// Grid points per period.
+pub const CYCLE_POINTS: usize = 256;
+
+/// Values over one period on `l` points of the signal with one-sided phasors `c`, each scaled
+/// by `scale(n)`.
+pub fn synthesize(c: &[Complex64], l: usize, scale: impl Fn(usize) -> Complex64) -> Vec<f64> {
+    let mut buf = vec![Complex64::new(0.0, 0.0); l];
+    for (n, cn) in c.iter().enumerate().take(l / 2) {
+        buf[n] = cn * scale(n);
+    }
+    rustfft::FftPlanner::new()
+        .plan_fft_inverse(l)
+        .process(&mut buf);
+    buf.iter().map(|b| b.re).collect()
+}
+
+/// One-sided harmonics 0..=n of a periodic signal sampled on a uniform grid over one period.
+pub fn harmonics_of(h: &[f64], n: usize) -> Vec<Complex64> {
+    let l = h.len();
+    let mut buf: Vec<Complex64> = h.iter().map(|v| Complex64::new(*v, 0.0)).collect();
+    rustfft::FftPlanner::new()
+        .plan_fft_forward(l)
+        .process(&mut buf);
+    (0..=n.min(l / 2 - 1))
+        .map(|k| buf[k] * if k == 0 { 1.0 } else { 2.0 } / l as f64)
+        .collect()
+}
+
+/// Highest harmonic that stands out of its noise (3 sigma); above it a rebuilt velocity would
+/// carry noise amplified by n w and no information.
+fn significant(c: &[Complex64], noise: &[f64]) -> usize {
+    (1..c.len())
+        .rev()
+        .find(|&n| c[n].norm() > 3.0 * noise[n])
+        .unwrap_or(1)
+}
+
+/// The analysis with every channel's phasors divided by a first-order low-pass
+/// `1 / (1 + j f / fc)`: what the channels were before a sensor low-pass of cutoff `fc`.
+pub fn unfiltered(an: &HarmonicAnalysis, cutoff_hz: f64) -> HarmonicAnalysis {
+    let mut out = an.clone();
+    for ch in &mut out.channels {
+        for (n, (c, s)) in ch.phasors.iter_mut().zip(&mut ch.noise_std).enumerate() {
+            let inv = Complex64::new(1.0, n as f64 * an.frequency_hz / cutoff_hz);
+            *c *= inv;
+            *s *= inv.norm();
+        }
+    }
+    out
+}
+
+/// The step's cycle; `lowpass_hz` undoes a sensor low-pass first, `mass_factor` scales the
+/// element force (true mass = nominal * factor).
+pub fn step_cycle(
+    setup: &Setup,
+    an: &HarmonicAnalysis,
+    lowpass_hz: Option<f64>,
+    mass_factor: f64,
+) -> Result<StepCycle, IdentifyError> {
+    let owned;
+    let an = match lowpass_hz {
+        Some(fc) => {
+            owned = unfiltered(an, fc);
+            &owned
+        }
+        None => an,
+    };
+    let eh = element_harmonics(setup, an, false)?;
+    let nh = eh.harmonics();
+    let l = CYCLE_POINTS.max(4 * (nh + 1)).next_power_of_two();
+    let nx = significant(&eh.displacement, &eh.displacement_noise);
+    let w = eh.omega_rad_s;
+    let one = |_| Complex64::new(1.0, 0.0);
+    let x = synthesize(&eh.displacement[..=nx], l, one);
+    let v = synthesize(&eh.displacement[..=nx], l, |n| {
+        Complex64::new(0.0, n as f64 * w)
+    });
+    let g: Vec<f64> = synthesize(&eh.force, l, one)
+        .into_iter()
+        .map(|g| g * mass_factor)
+        .collect();
+    let noise = mass_factor
+        * (eh.force_noise[0].powi(2)
+            + eh.force_noise[1..].iter().map(|s| s * s / 2.0).sum::<f64>())
+        .sqrt();
+    let g_rms = (g.iter().map(|v| v * v).sum::<f64>() / l as f64).sqrt();
+    Ok(StepCycle {
+        step: an.step,
+        frequency_hz: an.frequency_hz,
+        amplitude_m: eh.displacement.get(1).map_or(0.0, |c| c.norm()),
+        displacement_m: x,
+        velocity_mps: v,
+        force_n: g,
+        force_noise_n: if noise.is_finite() {
+            noise.max(1e-4 * g_rms)
+        } else {
+            g_rms
+        },
+        harmonics: nh,
+        force_harmonic_noise_n: eh.force_noise.iter().map(|s| s * mass_factor).collect(),
+    })
+}
+
+/// Bouc-Wen state over one period of steady motion with velocity `v` on a uniform grid of
+/// period `period_s`: z' = v - (|v| z + v |z|) / (2 zy) (a = 1, n = 1, beta = gamma =
+/// 1 / (2 zy)), so z rises like x after a reversal and saturates at +/- zy. Three periods are
+/// integrated and the last one returned (the cycle has settled by then).
+pub fn bouc_wen_cycle(velocity_mps: &[f64], period_s: f64, yield_m: f64) -> Vec<f64> {
+    let l = velocity_mps.len();
+    let dt = period_s / l as f64;
+    let sub = 8;
+    let h = dt / sub as f64;
+    let rate = |z: f64, v: f64| v - (v.abs() * z + v * z.abs()) / (2.0 * yield_m);
+    let mut z = 0.0;
+    let mut out = vec![0.0; l];
+    for pass in 0..3 {
+        for i in 0..l {
+            if pass == 2 {
+                out[i] = z;
+            }
+            let (v0, v1) = (velocity_mps[i], velocity_mps[(i + 1) % l]);
+            for s in 0..sub {
+                let a = s as f64 / sub as f64;
+                let b = (s as f64 + 0.5) / sub as f64;
+                let c = (s as f64 + 1.0) / sub as f64;
+                let va = v0 + (v1 - v0) * a;
+                let vb = v0 + (v1 - v0) * b;
+                let vc = v0 + (v1 - v0) * c;
+                // RK4 with the velocity interpolated linearly over the grid interval.
+                let k1 = rate(z, va);
+                let k2 = rate(z + 0.5 * h * k1, vb);
+                let k3 = rate(z + 0.5 * h * k2, vb);
+                let k4 = rate(z + h * k3, vc);
+                z += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            }
+        }
+    }
+    out
+}
+
+/// Exciter delay estimated from the kinematic identity x_o - x = x_i on the first harmonic of
+/// each step (x_o from the mass acceleration, -A_1 / w^2): the element sees the base as
+/// X_i e^{-j w d}. Returns (delay [s], standard deviation [s]) from a weighted least-squares
+/// fit of the phases, or None without the base and mass-acceleration channels.
+pub fn estimate_exciter_delay(analyses: &[HarmonicAnalysis]) -> Option<(f64, f64)> {
+    let (mut swx, mut sww, mut count) = (0.0, 0.0, 0usize);
+    let mut terms = Vec::new();
+    for an in analyses {
+        let w = TAU * an.frequency_hz;
+        let xi = an.channel(Channel::BaseDisplacementM)?;
+        let rel = an.channel(Channel::RelativeDisplacementM)?;
+        let acc = an.channel(Channel::MassAccelerationMps2)?;
+        let (xi1, rel1, a1) = (xi.phasors[1], rel.phasors[1], acc.phasors[1]);
+        if xi1.norm() == 0.0 {
+            continue;
+        }
+        let xo1 = -a1 / (w * w);
+        let r = (xo1 - rel1) / xi1;
+        let noise = (acc.noise_std[1] / (w * w))
+            .hypot(rel.noise_std[1])
+            .hypot(xi.noise_std[1])
+            / xi1.norm();
+        // phase noise ~ noise / |r|; d = -arg(r) / w
+        let sd = (noise / r.norm().max(1e-12)).max(1e-9) / w;
+        let d = -r.arg() / w;
+        let wt = 1.0 / (sd * sd);
+        swx += wt * d;
+        sww += wt;
+        count += 1;
+        terms.push((d, wt));
+    }
+    if count == 0 || sww <= 0.0 {
+        return None;
+    }
+    let d = swx / sww;
+    // Scatter-based standard deviation when it exceeds the noise-based one (other effects).
+    let chi2: f64 = terms.iter().map(|(di, wt)| wt * (di - d).powi(2)).sum();
+    let scale = if count > 1 {
+        (chi2 / (count - 1) as f64).max(1.0)
+    } else {
+        1.0
+    };
+    Some((d, (scale / sww).sqrt()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bouc_wen_saturates_at_the_yield_displacement() {
+        let l = 512;
+        let period = 0.5;
+        let amp = 0.01;
+        let w = TAU / period;
+        let v: Vec<f64> = (0..l)
+            .map(|i| -amp * w * (TAU * i as f64 / l as f64).sin())
+            .collect();
+        let z = bouc_wen_cycle(&v, period, 0.001);
+        let zmax = z.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+        assert!((zmax - 0.001).abs() < 2e-5, "{zmax}");
+        // far from saturation (yield >> amplitude) z follows x - mean
+        let z = bouc_wen_cycle(&v, period, 10.0);
+        let x0 = z[0] - z[l / 2];
+        assert!((x0 - 2.0 * amp).abs() < 1e-4 * amp * 100.0, "{x0}");
+    }
+
+    #[test]
+    fn synthesis_and_harmonics_are_inverse() {
+        let c = vec![
+            Complex64::new(0.2, 0.0),
+            Complex64::new(1.0, -0.5),
+            Complex64::new(0.0, 0.1),
+        ];
+        let s = synthesize(&c, 64, |_| Complex64::new(1.0, 0.0));
+        let h = harmonics_of(&s, 3);
+        for n in 0..3 {
+            assert!((h[n] - c[n]).norm() < 1e-12);
+        }
+        assert!(h[3].norm() < 1e-12);
+    }
+}

@@ -1,0 +1,322 @@
+//! The library of candidate effects: what each one adds to a baseline model, the values its
+//! nonlinear parameter is searched over, and the signature that tells it apart from the others.
+
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+use crate::basis::{
+    AbsVelocity, Cubic, DeadZone, SignVelocity, SignedSquareDisplacement, SignedSquareVelocity,
+    SquareDisplacement, StribeckVelocity, Term,
+};
+use crate::model::Model;
+
+/// A candidate unmodelled effect, named as the issue names them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Effect {
+    CoulombFriction,
+    StribeckFriction,
+    QuadraticDamping,
+    CubicStiffness,
+    QuadraticStiffness,
+    AsymmetricDamping,
+    FreePlay,
+    Hysteresis,
+    ExciterDelay,
+    SensorLowpass,
+    MassError,
+}
+
+impl Effect {
+    pub const ALL: [Effect; 11] = [
+        Effect::CoulombFriction,
+        Effect::StribeckFriction,
+        Effect::QuadraticDamping,
+        Effect::CubicStiffness,
+        Effect::QuadraticStiffness,
+        Effect::AsymmetricDamping,
+        Effect::FreePlay,
+        Effect::Hysteresis,
+        Effect::ExciterDelay,
+        Effect::SensorLowpass,
+        Effect::MassError,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Effect::CoulombFriction => "coulomb_friction",
+            Effect::StribeckFriction => "stribeck_friction",
+            Effect::QuadraticDamping => "quadratic_damping",
+            Effect::CubicStiffness => "cubic_stiffness",
+            Effect::QuadraticStiffness => "quadratic_stiffness",
+            Effect::AsymmetricDamping => "asymmetric_damping",
+            Effect::FreePlay => "free_play",
+            Effect::Hysteresis => "hysteresis",
+            Effect::ExciterDelay => "exciter_delay",
+            Effect::SensorLowpass => "sensor_lowpass",
+            Effect::MassError => "mass_error",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Effect> {
+        Effect::ALL.into_iter().find(|e| e.name() == name)
+    }
+
+    /// What is added to the baseline, as a formula.
+    pub fn added(self) -> &'static str {
+        match self {
+            Effect::CoulombFriction => "fd sgn(x')",
+            Effect::StribeckFriction => {
+                "fs sgn(x') exp(-(x'/vs)^2), vs searched (plus fd sgn(x') if the baseline has no friction)"
+            }
+            Effect::QuadraticDamping => "c2 x'|x'|",
+            Effect::CubicStiffness => "s x^3",
+            Effect::QuadraticStiffness => "k2 x|x| + k2a x^2",
+            Effect::AsymmetricDamping => "ca |x'|  (rebound c + ca, compression c - ca)",
+            Effect::FreePlay => "kfp (x - clamp(x, +/- gap/2)), gap searched",
+            Effect::Hysteresis => {
+                "alpha z, Bouc-Wen z' = x' - |x'| z / (2 zy) - x' |z| / (2 zy), yield zy searched"
+            }
+            Effect::ExciterDelay => {
+                "the element sees the measured base motion delayed by d (fitted from the kinematic identity x_o - x = x_i)"
+            }
+            Effect::SensorLowpass => {
+                "every measured channel passed a first-order low-pass of cutoff fc, searched"
+            }
+            Effect::MassError => "the true mass is the nominal one times f, searched",
+        }
+    }
+
+    /// How the effect shows in the data: the signature that tells it apart from the others.
+    pub fn signature(self) -> &'static str {
+        match self {
+            Effect::CoulombFriction => {
+                "force jumps at velocity reversals (state plane: near zero velocity); odd harmonics in phase with velocity; relatively largest at low amplitude"
+            }
+            Effect::StribeckFriction => {
+                "extra friction only at low speed: residual near zero velocity, largest at low amplitude and low frequency"
+            }
+            Effect::QuadraticDamping => {
+                "odd harmonics in phase with velocity, growing with speed (high amplitude, high frequency); no jump at reversals"
+            }
+            Effect::CubicStiffness => {
+                "odd harmonics in phase with displacement, growing with amplitude squared; residual at large displacement"
+            }
+            Effect::QuadraticStiffness => {
+                "in phase with displacement; the symmetric part x|x| puts ~20 % of its first harmonic into the 3rd (x^3: 33 %) and grows linearly with amplitude; the asymmetric part x^2 puts DC and the 2nd harmonic in phase with x^2 (not with x'^2 as asymmetric damping does)"
+            }
+            Effect::AsymmetricDamping => {
+                "DC and even harmonics in phase with x'^2: rebound differs from compression; first-harmonic phasors cannot see it"
+            }
+            Effect::FreePlay => {
+                "stiffness missing near x = 0 (state plane: small displacement); odd harmonics in phase with displacement that shrink, relative to the fundamental, at large amplitude"
+            }
+            Effect::Hysteresis => {
+                "a force that lags the displacement after each reversal and saturates over a yield displacement: like friction but rounded, no jump at reversal"
+            }
+            Effect::ExciterDelay => {
+                "the base channel leads the motion the element sees: the relative displacement disagrees with mass minus base displacement by a phase growing with frequency; the element's force law itself is intact"
+            }
+            Effect::SensorLowpass => {
+                "every channel lags by atan(f / fc); consistent between channels, so it shows only through the nonlinear terms and in prediction"
+            }
+            Effect::MassError => {
+                "with every element parameter fitted, a mass error scales the fitted force law and the prediction is unchanged (only theta / m is identifiable); it can only show when parameters are held fixed"
+            }
+        }
+    }
+}
+
+/// What a candidate adds: extra element terms, a hysteresis state, or a transformation of the
+/// measured channels.
+#[derive(Debug, Clone, Default)]
+pub struct Structure {
+    pub effects: Vec<Effect>,
+    /// Extra basis terms of the element force.
+    pub terms: Vec<Arc<dyn Term>>,
+    /// Bouc-Wen hysteresis with this yield displacement zy [m] (force alpha z, alpha fitted).
+    pub hysteresis_yield_m: Option<f64>,
+    pub transform: Transform,
+    /// The searched (nonlinear) parameter, name and value, e.g. ("gap_m", 0.004).
+    pub searched: Vec<(String, f64)>,
+    /// Parameters this structure adds to the baseline (fitted coefficients and searched values).
+    pub extra_parameters: usize,
+}
+
+/// A transformation of the measured channels.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Transform {
+    /// The element sees the base motion this much later than it is measured [s].
+    pub delay_s: f64,
+    /// Cutoff of a first-order low-pass on every measured channel [Hz].
+    pub lowpass_hz: Option<f64>,
+    /// True mass / nominal mass.
+    pub mass_factor: f64,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Transform {
+            delay_s: 0.0,
+            lowpass_hz: None,
+            mass_factor: 1.0,
+        }
+    }
+}
+
+impl Structure {
+    /// The union of two structures (a pair of effects).
+    pub fn combine(&self, other: &Structure) -> Structure {
+        let mut terms = self.terms.clone();
+        terms.extend(other.terms.iter().cloned());
+        let mut searched = self.searched.clone();
+        searched.extend(other.searched.iter().cloned());
+        let mut effects = self.effects.clone();
+        effects.extend(other.effects.iter().copied());
+        Structure {
+            effects,
+            terms,
+            hysteresis_yield_m: self.hysteresis_yield_m.or(other.hysteresis_yield_m),
+            transform: Transform {
+                delay_s: self.transform.delay_s + other.transform.delay_s,
+                lowpass_hz: self.transform.lowpass_hz.or(other.transform.lowpass_hz),
+                mass_factor: self.transform.mass_factor * other.transform.mass_factor,
+            },
+            searched,
+            extra_parameters: self.extra_parameters + other.extra_parameters,
+        }
+    }
+}
+
+/// Free-play gaps searched, relative to the largest relative displacement amplitude.
+pub const FREE_PLAY_GAP_FRACTIONS: [f64; 7] = [0.1, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0];
+/// Hysteresis yield displacements searched, relative to the largest amplitude.
+pub const HYSTERESIS_YIELD_FRACTIONS: [f64; 6] = [0.02, 0.05, 0.1, 0.2, 0.4, 0.8];
+/// Stribeck velocities searched, relative to the largest velocity amplitude.
+pub const STRIBECK_VELOCITY_FRACTIONS: [f64; 6] = [0.01, 0.02, 0.05, 0.1, 0.2, 0.4];
+/// Sensor low-pass cutoffs searched, as multiples of the highest excitation frequency.
+pub const LOWPASS_CUTOFF_MULTIPLES: [f64; 9] = [0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 9.0, 15.0];
+/// Mass factors searched.
+pub const MASS_FACTORS: [f64; 6] = [0.8, 0.9, 0.95, 1.05, 1.1, 1.25];
+
+/// The scales the searches are relative to.
+#[derive(Debug, Clone, Copy)]
+pub struct Scales {
+    pub max_displacement_m: f64,
+    pub max_velocity_mps: f64,
+    pub max_frequency_hz: f64,
+}
+
+fn one(effect: Effect, terms: Vec<Arc<dyn Term>>) -> Structure {
+    let n = terms.len();
+    Structure {
+        effects: vec![effect],
+        terms,
+        extra_parameters: n,
+        ..Structure::default()
+    }
+}
+
+/// Whether the baseline already holds the effect (then it is not a candidate).
+pub fn baseline_has(baseline: &Model, effect: Effect) -> bool {
+    let has = |sym: &str| baseline.terms.iter().any(|t| t.symbol() == sym);
+    match effect {
+        Effect::CoulombFriction => baseline.has_friction(),
+        Effect::StribeckFriction => has("fs"),
+        Effect::QuadraticDamping => has("c2"),
+        Effect::CubicStiffness => has("s") || has("p30"),
+        Effect::QuadraticStiffness => has("k2"),
+        Effect::AsymmetricDamping => has("ca"),
+        Effect::FreePlay => has("kfp"),
+        _ => false,
+    }
+}
+
+/// The structures to try for `effect` (one per value of its searched parameter). Exciter delay
+/// has a closed-form estimate instead (see `cycles::estimate_exciter_delay`), so it is built by
+/// the caller.
+pub fn structures(baseline: &Model, effect: Effect, scales: &Scales) -> Vec<Structure> {
+    let has_friction = baseline.has_friction();
+    match effect {
+        Effect::CoulombFriction => vec![one(effect, vec![Arc::new(SignVelocity)])],
+        Effect::StribeckFriction => STRIBECK_VELOCITY_FRACTIONS
+            .iter()
+            .map(|f| {
+                let vs = f * scales.max_velocity_mps;
+                let mut terms: Vec<Arc<dyn Term>> =
+                    vec![Arc::new(StribeckVelocity { velocity_mps: vs })];
+                if !has_friction {
+                    terms.insert(0, Arc::new(SignVelocity));
+                }
+                let mut s = one(effect, terms);
+                s.extra_parameters += 1;
+                s.searched.push(("stribeck_velocity_mps".into(), vs));
+                s
+            })
+            .collect(),
+        Effect::QuadraticDamping => vec![one(effect, vec![Arc::new(SignedSquareVelocity)])],
+        Effect::CubicStiffness => vec![one(effect, vec![Arc::new(Cubic)])],
+        Effect::QuadraticStiffness => vec![one(
+            effect,
+            vec![
+                Arc::new(SignedSquareDisplacement),
+                Arc::new(SquareDisplacement),
+            ],
+        )],
+        Effect::AsymmetricDamping => vec![one(effect, vec![Arc::new(AbsVelocity)])],
+        Effect::FreePlay => FREE_PLAY_GAP_FRACTIONS
+            .iter()
+            .map(|f| {
+                let gap = f * scales.max_displacement_m;
+                let mut s = one(effect, vec![Arc::new(DeadZone { gap_m: gap })]);
+                s.extra_parameters += 1;
+                s.searched.push(("gap_m".into(), gap));
+                s
+            })
+            .collect(),
+        Effect::Hysteresis => HYSTERESIS_YIELD_FRACTIONS
+            .iter()
+            .map(|f| {
+                let zy = f * scales.max_displacement_m;
+                Structure {
+                    effects: vec![effect],
+                    hysteresis_yield_m: Some(zy),
+                    searched: vec![("yield_m".into(), zy)],
+                    extra_parameters: 2,
+                    ..Structure::default()
+                }
+            })
+            .collect(),
+        Effect::SensorLowpass => LOWPASS_CUTOFF_MULTIPLES
+            .iter()
+            .map(|m| {
+                let fc = m * scales.max_frequency_hz;
+                Structure {
+                    effects: vec![effect],
+                    transform: Transform {
+                        lowpass_hz: Some(fc),
+                        ..Transform::default()
+                    },
+                    searched: vec![("cutoff_hz".into(), fc)],
+                    extra_parameters: 1,
+                    ..Structure::default()
+                }
+            })
+            .collect(),
+        Effect::MassError => MASS_FACTORS
+            .iter()
+            .map(|f| Structure {
+                effects: vec![effect],
+                transform: Transform {
+                    mass_factor: *f,
+                    ..Transform::default()
+                },
+                searched: vec![("mass_factor".into(), *f)],
+                extra_parameters: 1,
+                ..Structure::default()
+            })
+            .collect(),
+        Effect::ExciterDelay => Vec::new(),
+    }
+}

@@ -1,0 +1,554 @@
+//! Checked on withheld effects: seeded cases from the rig simulator, each with an effect
+//! planted that the diagnosis is not told, and the scores (top-1 hit rate, false alarms, wrong
+//! names on out-of-library cases, predicted against true shrink, confusion matrix).
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use super::effects::{Effect, Transform};
+use super::score::predict_record;
+use super::{DiagnoseError, DiagnoseOptions, Verdict, diagnose};
+use crate::element::{Element, Friction};
+use crate::identify::Setup;
+use crate::model::{Model, ModelOptions};
+use crate::record::{Excitation, Record};
+use crate::sim::excitation::{
+    PAPER_RIG_RANDOM_BANDS_HZ, PAPER_RIG_RANDOM_RMS_M, paper_rig_random_step,
+};
+use crate::sim::noise::add_noise;
+use crate::sim::rig::PAPER_RIG_MASS_KG;
+use crate::sim::{
+    AsymmetricDamping, BoucWen, FreePlay, RigEffects, RigRun, SimError, TruthElement, simulate_rig,
+};
+
+/// What is planted in a case.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Planted {
+    None,
+    /// One library effect at severity 1 (mild) to 3 (strong).
+    One {
+        effect: Effect,
+        severity: u8,
+    },
+    /// Two library effects at severity 2.
+    Two {
+        effects: [Effect; 2],
+    },
+    /// Out of the library: the damper's oil is compressible, so its force lags (a spring
+    /// `oil_stiffness_n_per_m` in series with the damper): a frequency-dependent stiffness
+    /// and damping.
+    CompressibleOil {
+        oil_stiffness_n_per_m: f64,
+    },
+}
+
+impl Planted {
+    pub fn label(&self) -> String {
+        match self {
+            Planted::None => "none".into(),
+            Planted::One { effect, .. } => effect.name().into(),
+            Planted::Two { effects } => format!("{}+{}", effects[0].name(), effects[1].name()),
+            Planted::CompressibleOil { .. } => "out_of_library".into(),
+        }
+    }
+}
+
+/// One generated case.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CaseSpec {
+    pub index: usize,
+    pub seed: u64,
+    pub planted: Planted,
+    pub snr_db: f64,
+}
+
+/// The paper's rig values: k [N/m] and c [N s/m] (the Coulomb level is that of `TruthElement::rig_coulomb`).
+const RIG_K: f64 = 6380.0;
+const RIG_C: f64 = 184.0;
+
+/// Severity-scaled magnitude of an effect.
+fn magnitude(effect: Effect, severity: u8) -> f64 {
+    let i = (severity.clamp(1, 3) - 1) as usize;
+    let table: [f64; 3] = match effect {
+        Effect::CoulombFriction => [4.0, 8.0, 12.3],
+        Effect::StribeckFriction => [4.0, 8.0, 14.0],
+        Effect::QuadraticDamping => [800.0, 1600.0, 3200.0],
+        Effect::CubicStiffness => [3e7, 6e7, 1.2e8],
+        Effect::QuadraticStiffness => [2.5e5, 5e5, 1e6],
+        Effect::AsymmetricDamping => [40.0, 80.0, 140.0],
+        Effect::FreePlay => [2000.0, 4000.0, 8000.0],
+        Effect::Hysteresis => [6000.0, 12000.0, 24000.0],
+        Effect::ExciterDelay => [0.006, 0.012, 0.024],
+        Effect::SensorLowpass => [12.0, 7.0, 4.0],
+        Effect::MassError => [1.05, 1.1, 1.2],
+    };
+    table[i]
+}
+
+/// Free-play gap [m], hysteresis yield [m] and Stribeck velocity [m/s] of the planted effects.
+const FREE_PLAY_GAP_M: f64 = 0.004;
+const HYSTERESIS_YIELD_M: f64 = 0.001;
+const STRIBECK_VELOCITY_MPS: f64 = 0.015;
+
+/// The truth: element, rig-level effects and the baseline model the diagnosis is given.
+#[derive(Debug, Clone)]
+pub struct Truth {
+    pub element: TruthElement,
+    pub effects: RigEffects,
+    /// Series oil stiffness of the out-of-library case.
+    pub oil_stiffness_n_per_m: Option<f64>,
+    pub baseline: &'static str,
+}
+
+fn plant(truth: &mut Truth, effect: Effect, m: f64) {
+    let e = &mut truth.element;
+    match effect {
+        Effect::CoulombFriction => e.friction = Some(Friction::coulomb(m)),
+        Effect::StribeckFriction => {
+            if let Some(f) = e.friction.as_mut() {
+                f.breakaway_n = f.kinetic_n + m;
+                f.stribeck_velocity_mps = STRIBECK_VELOCITY_MPS;
+            }
+        }
+        Effect::QuadraticDamping => e.quadratic_damping_n_s2_per_m2 = m,
+        Effect::CubicStiffness => e.cubic_stiffness_n_per_m3 = m,
+        Effect::QuadraticStiffness => e.quadratic_stiffness_n_per_m2 = m,
+        Effect::AsymmetricDamping => {
+            e.asymmetric_damping = Some(AsymmetricDamping {
+                rebound_n_s_per_m: m,
+                compression_n_s_per_m: -m,
+            })
+        }
+        Effect::FreePlay => {
+            e.free_play = Some(FreePlay {
+                gap_m: FREE_PLAY_GAP_M,
+                stiffness_n_per_m: m,
+            })
+        }
+        Effect::Hysteresis => {
+            e.bouc_wen = Some(BoucWen {
+                alpha_n_per_m: m,
+                a: 1.0,
+                beta: 0.5 / HYSTERESIS_YIELD_M,
+                gamma: 0.5 / HYSTERESIS_YIELD_M,
+                n: 1.0,
+            })
+        }
+        Effect::ExciterDelay => truth.effects.exciter_delay_s = m,
+        Effect::SensorLowpass => truth.effects.sensor_lowpass_hz = Some(m),
+        Effect::MassError => truth.effects.mass_factor = m,
+    }
+}
+
+/// The truth of a case. Coulomb friction is planted on the linear rig against the linear
+/// baseline (the paper's story); every other effect on the paper's Coulomb rig against the
+/// Coulomb baseline (the "sim" already has the friction).
+pub fn truth_of(planted: &Planted) -> Truth {
+    let involves_coulomb = match planted {
+        Planted::One { effect, .. } => *effect == Effect::CoulombFriction,
+        Planted::Two { effects } => effects.contains(&Effect::CoulombFriction),
+        _ => false,
+    };
+    let mut t = Truth {
+        element: if involves_coulomb {
+            TruthElement::linear(RIG_K, RIG_C)
+        } else {
+            TruthElement::rig_coulomb()
+        },
+        effects: RigEffects::default(),
+        oil_stiffness_n_per_m: None,
+        baseline: if involves_coulomb {
+            "linear"
+        } else {
+            "coulomb"
+        },
+    };
+    match planted {
+        Planted::None => {}
+        Planted::One { effect, severity } => plant(&mut t, *effect, magnitude(*effect, *severity)),
+        Planted::Two { effects } => {
+            for e in effects {
+                plant(&mut t, *e, magnitude(*e, 2));
+            }
+        }
+        Planted::CompressibleOil {
+            oil_stiffness_n_per_m,
+        } => t.oil_stiffness_n_per_m = Some(*oil_stiffness_n_per_m),
+    }
+    t
+}
+
+/// A damper whose oil is compressible: the viscous force f obeys f' = k_oil (x' - f / c)
+/// (internal state f), plus the rest of a truth element without its own viscous term.
+#[derive(Debug, Clone)]
+pub struct CompressibleOilDamper {
+    pub rest: TruthElement,
+    pub damping_n_s_per_m: f64,
+    pub oil_stiffness_n_per_m: f64,
+}
+
+impl Element for CompressibleOilDamper {
+    fn smooth_force(&self, x: f64, v: f64, z: &[f64]) -> f64 {
+        self.rest.smooth_force(x, v, &z[1..]) + z[0]
+    }
+    fn friction(&self) -> Option<Friction> {
+        self.rest.friction()
+    }
+    fn internal_states(&self) -> usize {
+        1 + self.rest.internal_states()
+    }
+    fn internal_rates(&self, x: f64, v: f64, z: &[f64], dz: &mut [f64]) {
+        dz[0] = self.oil_stiffness_n_per_m * (v - z[0] / self.damping_n_s_per_m);
+        self.rest.internal_rates(x, v, &z[1..], &mut dz[1..]);
+    }
+}
+
+fn truth_element(t: &Truth) -> Box<dyn Element> {
+    match t.oil_stiffness_n_per_m {
+        Some(k) => Box::new(CompressibleOilDamper {
+            rest: TruthElement {
+                damping_n_s_per_m: 0.0,
+                ..t.element.clone()
+            },
+            damping_n_s_per_m: t.element.damping_n_s_per_m,
+            oil_stiffness_n_per_m: k,
+        }),
+        None => Box::new(t.element.clone()),
+    }
+}
+
+/// Simulates a case: the paper's stepped sine and its two band-random records, with noise.
+pub fn simulate_case(case: &CaseSpec) -> Result<(Truth, Vec<Record>), SimError> {
+    let truth = truth_of(&case.planted);
+    let mut run = RigRun {
+        seed: case.seed,
+        effects: truth.effects,
+        ..RigRun::paper_sine(truth.element.clone())
+    };
+    for band in PAPER_RIG_RANDOM_BANDS_HZ {
+        run.steps
+            .push(paper_rig_random_step(band, PAPER_RIG_RANDOM_RMS_M));
+    }
+    let element = truth_element(&truth);
+    let mut out = simulate_rig(
+        element.as_ref(),
+        run.nominal_mass_kg,
+        &run.program(),
+        &run.effects,
+        run.initial,
+        &run.solver,
+    )?;
+    add_noise(
+        &mut out.records,
+        Some(case.snr_db),
+        crate::sim::excitation::derive_seed(case.seed, 1),
+    );
+    Ok((truth, out.records))
+}
+
+/// What one case gave.
+#[derive(Debug, Clone, Serialize)]
+pub struct CaseResult {
+    pub case: CaseSpec,
+    pub label: String,
+    pub verdict: Verdict,
+    /// The named effect, or "adequate"/"unexplained".
+    pub named: String,
+    pub gap_before_percent: f64,
+    pub gap_after_percent: f64,
+    /// Held-out NMSE of the true model (the truth simulated on the measured base) [%].
+    pub truth_nmse_percent: f64,
+    pub noise_floor_percent: f64,
+    /// The runner-up effect.
+    pub second: Option<String>,
+}
+
+/// Runs the diagnosis on one case.
+pub fn run_case(case: &CaseSpec) -> Result<CaseResult, DiagnoseError> {
+    let (truth, records) =
+        simulate_case(case).map_err(|source| DiagnoseError::Simulation { step: 0, source })?;
+    let baseline = Model::by_name(truth.baseline, &ModelOptions::default())
+        .expect("eval baselines are known models");
+    let setup = Setup::BaseExcited {
+        mass_kg: PAPER_RIG_MASS_KG,
+    };
+    let options = DiagnoseOptions {
+        pairs: false,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&setup, &baseline, &records, &[], &options)?.diagnosis;
+    let element = truth_element(&truth);
+    let transform = Transform {
+        delay_s: truth.effects.exciter_delay_s,
+        lowpass_hz: truth.effects.sensor_lowpass_hz,
+        mass_factor: truth.effects.mass_factor,
+    };
+    let mut truth_nmse = 0.0;
+    let random: Vec<&Record> = records
+        .iter()
+        .filter(|r| matches!(r.excitation, Excitation::Random { .. }))
+        .collect();
+    for r in &random {
+        truth_nmse += predict_record(element.as_ref(), PAPER_RIG_MASS_KG, r, &transform)
+            .map_err(|source| DiagnoseError::Simulation {
+                step: r.step,
+                source,
+            })?
+            .nmse_percent;
+    }
+    truth_nmse /= random.len().max(1) as f64;
+    let named = match (d.verdict, d.top_effect) {
+        (Verdict::Explained, Some(e)) => e.name().to_string(),
+        (v, _) => v.name().to_string(),
+    };
+    Ok(CaseResult {
+        case: *case,
+        label: case.planted.label(),
+        verdict: d.verdict,
+        named,
+        gap_before_percent: d.gap_before_percent,
+        gap_after_percent: d.gap_after_percent,
+        truth_nmse_percent: truth_nmse,
+        noise_floor_percent: d.noise_floor_percent,
+        second: d.ranked_effects.get(1).map(|r| r.effect.name().to_string()),
+    })
+}
+
+/// Seeded cases: 15 % without an effect, 60 % with one (effect and severity drawn), 10 % with
+/// two, 15 % out of the library; half at `snr_db`, half 10 dB cleaner.
+pub fn generate_cases(n: usize, seed: u64, snr_db: f64) -> Vec<CaseSpec> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|index| {
+            let u: f64 = rng.random();
+            let planted = if u < 0.15 {
+                Planted::None
+            } else if u < 0.75 {
+                let e = Effect::ALL[rng.random_range(0..Effect::ALL.len())];
+                Planted::One {
+                    effect: e,
+                    severity: rng.random_range(1..=3u8),
+                }
+            } else if u < 0.85 {
+                let a = rng.random_range(0..Effect::ALL.len());
+                let mut b = rng.random_range(0..Effect::ALL.len() - 1);
+                if b >= a {
+                    b += 1;
+                }
+                Planted::Two {
+                    effects: [Effect::ALL[a], Effect::ALL[b]],
+                }
+            } else {
+                Planted::CompressibleOil {
+                    oil_stiffness_n_per_m: [3000.0, 6000.0, 12000.0][rng.random_range(0..3usize)],
+                }
+            };
+            CaseSpec {
+                index,
+                seed: rng.random(),
+                planted,
+                snr_db: if rng.random::<bool>() {
+                    snr_db
+                } else {
+                    snr_db + 10.0
+                },
+            }
+        })
+        .collect()
+}
+
+/// Runs `cases` on `threads` threads; `progress` is called after each case (from any thread).
+pub fn run_cases(
+    cases: &[CaseSpec],
+    threads: usize,
+    progress: &(dyn Fn(&CaseResult) + Sync),
+) -> Vec<Result<CaseResult, String>> {
+    let next = AtomicUsize::new(0);
+    let mut out: Vec<Option<Result<CaseResult, String>>> = vec![None; cases.len()];
+    let slots: Vec<std::sync::Mutex<Option<Result<CaseResult, String>>>> = (0..cases.len())
+        .map(|_| std::sync::Mutex::new(None))
+        .collect();
+    std::thread::scope(|s| {
+        for _ in 0..threads.max(1) {
+            s.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= cases.len() {
+                        break;
+                    }
+                    let r = run_case(&cases[i]).map_err(|e| format!("case {i}: {e}"));
+                    if let Ok(ok) = &r {
+                        progress(ok);
+                    }
+                    *slots[i].lock().expect("no panics while holding the lock") = Some(r);
+                }
+            });
+        }
+    });
+    for (o, s) in out.iter_mut().zip(slots) {
+        *o = s.into_inner().expect("no panics while holding the lock");
+    }
+    out.into_iter()
+        .map(|o| o.expect("every case ran"))
+        .collect()
+}
+
+/// A fraction with its counts.
+#[derive(Debug, Clone, Serialize)]
+pub struct Rate {
+    pub hits: usize,
+    pub of: usize,
+    pub percent: f64,
+}
+
+fn rate(hits: usize, of: usize) -> Rate {
+    Rate {
+        hits,
+        of,
+        percent: if of == 0 {
+            f64::NAN
+        } else {
+            100.0 * hits as f64 / of as f64
+        },
+    }
+}
+
+/// Held-out NMSE an effect must cause alone to count towards the top-1 target [%].
+pub const QUALIFYING_GAP_PERCENT: f64 = 2.0;
+
+/// The scores of an evaluation.
+#[derive(Debug, Clone, Serialize)]
+pub struct EvalSummary {
+    pub cases: usize,
+    pub failed: Vec<String>,
+    /// Single effects whose gap before is at least 2 % at the lower SNR, named first.
+    pub top1: Rate,
+    /// The same at every SNR.
+    pub top1_all_snr: Rate,
+    /// No-effect cases given anything but "adequate".
+    pub false_alarms: Rate,
+    /// Out-of-library cases given a library name.
+    pub out_of_library_named: Rate,
+    /// Single effects with a gap below 2 % (their best answer is "adequate"): how many were
+    /// called adequate.
+    pub below_threshold_adequate: Rate,
+    /// Two-effect cases whose top effect is one of the two.
+    pub pairs_one_named: Rate,
+    /// Mean |predicted shrink - true shrink| over explained single-effect cases [%-points],
+    /// and the mean true shrink for scale.
+    pub shrink_mean_abs_error_percent: f64,
+    pub shrink_mean_true_percent: f64,
+    /// Rows: planted; columns: named ("adequate", "unexplained" or an effect); counts.
+    pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
+    pub lower_snr_db: f64,
+}
+
+/// Scores the results.
+pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> EvalSummary {
+    let ok: Vec<&CaseResult> = results.iter().filter_map(|r| r.as_ref().ok()).collect();
+    let failed = results
+        .iter()
+        .filter_map(|r| r.as_ref().err().cloned())
+        .collect();
+    let single = |r: &&CaseResult| matches!(r.case.planted, Planted::One { .. });
+    let qualifying: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| single(r) && r.gap_before_percent >= QUALIFYING_GAP_PERCENT)
+        .collect();
+    let hit = |r: &&&CaseResult| r.named == r.label;
+    let low: Vec<&&&CaseResult> = qualifying
+        .iter()
+        .filter(|r| (r.case.snr_db - lower_snr_db).abs() < 1e-9)
+        .collect();
+    let none: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| matches!(r.case.planted, Planted::None))
+        .collect();
+    let ool: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| matches!(r.case.planted, Planted::CompressibleOil { .. }))
+        .collect();
+    let below: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| single(r) && r.gap_before_percent < QUALIFYING_GAP_PERCENT)
+        .collect();
+    let pairs: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| matches!(r.case.planted, Planted::Two { .. }))
+        .collect();
+    let explained: Vec<&&&CaseResult> = qualifying
+        .iter()
+        .filter(|r| r.verdict == Verdict::Explained)
+        .collect();
+    let (mut err, mut tru) = (0.0, 0.0);
+    for r in &explained {
+        let predicted = r.gap_before_percent - r.gap_after_percent;
+        let truth = r.gap_before_percent - r.truth_nmse_percent;
+        err += (predicted - truth).abs();
+        tru += truth;
+    }
+    let ne = explained.len().max(1) as f64;
+    let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
+    for r in &ok {
+        if matches!(r.case.planted, Planted::Two { .. }) {
+            continue;
+        }
+        let row = if single(r) && r.gap_before_percent < QUALIFYING_GAP_PERCENT {
+            format!("{} (<2 %)", r.label)
+        } else {
+            r.label.clone()
+        };
+        *confusion
+            .entry(row)
+            .or_default()
+            .entry(r.named.clone())
+            .or_default() += 1;
+    }
+    EvalSummary {
+        cases: results.len(),
+        failed,
+        top1: rate(low.iter().filter(|r| hit(r)).count(), low.len()),
+        top1_all_snr: rate(
+            qualifying.iter().filter(|r| hit(r)).count(),
+            qualifying.len(),
+        ),
+        false_alarms: rate(
+            none.iter()
+                .filter(|r| r.verdict != Verdict::Adequate)
+                .count(),
+            none.len(),
+        ),
+        out_of_library_named: rate(
+            ool.iter()
+                .filter(|r| r.verdict == Verdict::Explained)
+                .count(),
+            ool.len(),
+        ),
+        below_threshold_adequate: rate(
+            below
+                .iter()
+                .filter(|r| r.verdict == Verdict::Adequate)
+                .count(),
+            below.len(),
+        ),
+        pairs_one_named: rate(
+            pairs
+                .iter()
+                .filter(|r| match r.case.planted {
+                    Planted::Two { effects } => effects.iter().any(|e| e.name() == r.named),
+                    _ => false,
+                })
+                .count(),
+            pairs.len(),
+        ),
+        shrink_mean_abs_error_percent: err / ne,
+        shrink_mean_true_percent: tru / ne,
+        confusion,
+        lower_snr_db,
+    }
+}

@@ -1,0 +1,322 @@
+//! Fitting a baseline plus a candidate structure to the step cycles (weighted least squares on
+//! the rebuilt periods), leave-one-step-out cross-validation, and the fitted element that the
+//! rig simulator can run.
+
+use std::sync::Arc;
+
+use nalgebra::{DMatrix, DVector};
+
+use super::cycles::{StepCycle, bouc_wen_cycle};
+use super::effects::{Structure, Transform};
+use crate::basis::Term;
+use crate::element::{Element, Friction};
+use crate::lstsq::{self, LstsqError};
+use crate::model::Model;
+
+/// Grid points with |x'| below this fraction of the step's peak |x'| are left out of fits and
+/// scores, for every model alike: near a reversal a friction force is set-valued (stick) and
+/// the rebuilt waveforms ring (a jump rebuilt from ~15 harmonics), so no model can be judged
+/// there. The displacement extremes lose at most 0.5 % of the amplitude.
+pub const REVERSAL_BAND: f64 = 0.1;
+
+/// A fitted baseline + structure.
+#[derive(Debug, Clone)]
+pub struct Fitted {
+    pub structure: Structure,
+    pub terms: Vec<Arc<dyn Term>>,
+    /// Symbols of the coefficients: the terms', then "alpha" for hysteresis.
+    pub names: Vec<String>,
+    pub theta: Vec<f64>,
+    pub std: Vec<f64>,
+    /// Number of baseline coefficients (the first ones).
+    pub baseline_parameters: usize,
+    /// 100 * weighted RMS residual / weighted RMS force over the fitted points [%].
+    pub residual_percent: f64,
+}
+
+fn columns(
+    terms: &[Arc<dyn Term>],
+    hysteresis_yield_m: Option<f64>,
+    c: &StepCycle,
+) -> Vec<Vec<f64>> {
+    let mut cols: Vec<Vec<f64>> = terms
+        .iter()
+        .map(|t| {
+            c.displacement_m
+                .iter()
+                .zip(&c.velocity_mps)
+                .map(|(x, v)| t.eval(*x, *v))
+                .collect()
+        })
+        .collect();
+    if let Some(zy) = hysteresis_yield_m {
+        cols.push(bouc_wen_cycle(&c.velocity_mps, 1.0 / c.frequency_hz, zy));
+    }
+    cols
+}
+
+fn kept(c: &StepCycle) -> Vec<bool> {
+    let vmax = c.velocity_mps.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    c.velocity_mps
+        .iter()
+        .map(|v| v.abs() >= REVERSAL_BAND * vmax)
+        .collect()
+}
+
+/// The element terms of baseline + structure.
+pub fn all_terms(baseline: &Model, s: &Structure) -> Vec<Arc<dyn Term>> {
+    let mut t = baseline.terms.clone();
+    t.extend(s.terms.iter().cloned());
+    t
+}
+
+/// Fits baseline + structure on `cycles` (skipping the step at index `skip`).
+pub fn fit(
+    baseline: &Model,
+    s: &Structure,
+    cycles: &[StepCycle],
+    skip: Option<usize>,
+) -> Result<Fitted, LstsqError> {
+    let terms = all_terms(baseline, s);
+    let mut names: Vec<String> = terms.iter().map(|t| t.symbol()).collect();
+    if s.hysteresis_yield_m.is_some() {
+        names.push("alpha".into());
+    }
+    let p = names.len();
+    let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
+    let mut independent = 0.0;
+    for (k, c) in cycles.iter().enumerate() {
+        if Some(k) == skip {
+            continue;
+        }
+        let cols = columns(&terms, s.hysteresis_yield_m, c);
+        let wt = 1.0 / c.force_noise_n;
+        for (i, keep) in kept(c).iter().enumerate() {
+            if *keep {
+                rows.push((
+                    cols.iter().map(|col| col[i] * wt).collect(),
+                    c.force_n[i] * wt,
+                ));
+            }
+        }
+        independent += (2 * c.harmonics + 1) as f64;
+    }
+    let a = DMatrix::from_fn(rows.len(), p, |r, i| rows[r].0[i]);
+    let b = DVector::from_fn(rows.len(), |r, _| rows[r].1);
+    // Grid points are not independent equations: 2N+1 harmonics made each period.
+    let scale = if independent > p as f64 {
+        ((rows.len() as f64 - p as f64) / (independent - p as f64)).max(1.0)
+    } else {
+        1.0
+    };
+    let sol = lstsq::solve(&a, &b, &names, scale)?;
+    let res = &a * DVector::from_vec(sol.theta.clone()) - &b;
+    let residual_percent =
+        100.0 * (res.norm_squared() / b.norm_squared().max(f64::MIN_POSITIVE)).sqrt();
+    Ok(Fitted {
+        structure: s.clone(),
+        std: sol.std(),
+        theta: sol.theta,
+        names,
+        terms,
+        baseline_parameters: baseline.terms.len(),
+        residual_percent,
+    })
+}
+
+impl Fitted {
+    /// The model's element force over the cycle.
+    pub fn predict(&self, c: &StepCycle) -> Vec<f64> {
+        let cols = columns(&self.terms, self.structure.hysteresis_yield_m, c);
+        (0..c.force_n.len())
+            .map(|i| {
+                cols.iter()
+                    .zip(&self.theta)
+                    .map(|(col, th)| col[i] * th)
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// The force the structure adds (everything but the baseline terms) over the cycle.
+    pub fn added_force(&self, c: &StepCycle) -> Vec<f64> {
+        let cols = columns(&self.terms, self.structure.hysteresis_yield_m, c);
+        (0..c.force_n.len())
+            .map(|i| {
+                cols.iter()
+                    .zip(&self.theta)
+                    .skip(self.baseline_parameters)
+                    .map(|(col, th)| col[i] * th)
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// The element the simulators can run.
+    pub fn element(&self) -> FittedElement {
+        FittedElement {
+            terms: self.terms.clone(),
+            theta: self.theta[..self.terms.len()].to_vec(),
+            hysteresis: self
+                .structure
+                .hysteresis_yield_m
+                .map(|zy| (self.theta[self.terms.len()], zy)),
+        }
+    }
+
+    pub fn transform(&self) -> Transform {
+        self.structure.transform
+    }
+
+    /// (name, value, std) of the parameters the structure added.
+    pub fn added_parameters(&self) -> Vec<(String, f64, f64)> {
+        let mut out: Vec<(String, f64, f64)> = self
+            .names
+            .iter()
+            .zip(&self.theta)
+            .zip(&self.std)
+            .skip(self.baseline_parameters)
+            .map(|((n, v), s)| (n.clone(), *v, *s))
+            .collect();
+        // Searched values have no least-squares std; the search grid sets their resolution.
+        out.extend(
+            self.structure
+                .searched
+                .iter()
+                .map(|(n, v)| (n.clone(), *v, f64::NAN)),
+        );
+        if self.structure.transform.delay_s != 0.0 {
+            out.push(("delay_s".into(), self.structure.transform.delay_s, f64::NAN));
+        }
+        out
+    }
+}
+
+/// Weighted residual of `fitted` on one cycle over the kept points: (sum w^2 r^2, sum w^2 g^2).
+pub fn residual_sums(fitted: &Fitted, c: &StepCycle) -> (f64, f64) {
+    let pred = fitted.predict(c);
+    let wt2 = c.force_noise_n.powi(-2);
+    let mut num = 0.0;
+    let mut den = 0.0;
+    for ((p, g), k) in pred.iter().zip(&c.force_n).zip(kept(c)) {
+        if k {
+            num += wt2 * (g - p).powi(2);
+            den += wt2 * g * g;
+        }
+    }
+    (num, den)
+}
+
+/// Leave-one-step-out cross-validation: each step predicted by a fit to the others;
+/// 100 * sqrt(sum of weighted squared residuals / sum of weighted squared forces) [%].
+pub fn cross_validated_percent(
+    baseline: &Model,
+    s: &Structure,
+    cycles: &[StepCycle],
+) -> Option<f64> {
+    if cycles.len() < 3 {
+        return None;
+    }
+    let (mut num, mut den) = (0.0, 0.0);
+    for k in 0..cycles.len() {
+        let f = fit(baseline, s, cycles, Some(k)).ok()?;
+        let (n, d) = residual_sums(&f, &cycles[k]);
+        num += n;
+        den += d;
+    }
+    Some(100.0 * (num / den.max(f64::MIN_POSITIVE)).sqrt())
+}
+
+/// A fitted model as an element: smooth terms, Coulomb/Stribeck friction from the sgn-like
+/// terms (kinetic level from sgn, breakaway excess from the Stribeck term), and Bouc-Wen
+/// hysteresis with one internal state.
+#[derive(Debug, Clone)]
+pub struct FittedElement {
+    pub terms: Vec<Arc<dyn Term>>,
+    pub theta: Vec<f64>,
+    /// (alpha [N/m], yield displacement [m]).
+    pub hysteresis: Option<(f64, f64)>,
+}
+
+impl Element for FittedElement {
+    fn smooth_force(&self, x: f64, v: f64, z: &[f64]) -> f64 {
+        let mut f: f64 = self
+            .terms
+            .iter()
+            .zip(&self.theta)
+            .filter(|(t, _)| !t.jumps_at_zero_velocity())
+            .map(|(t, th)| th * t.eval(x, v))
+            .sum();
+        if let (Some((alpha, _)), Some(zz)) = (self.hysteresis, z.first()) {
+            f += alpha * zz;
+        }
+        f
+    }
+
+    fn friction(&self) -> Option<Friction> {
+        let mut kinetic = 0.0;
+        let mut excess = 0.0;
+        let mut vs = 1.0;
+        let mut any = false;
+        for (t, th) in self.terms.iter().zip(&self.theta) {
+            if !t.jumps_at_zero_velocity() {
+                continue;
+            }
+            any = true;
+            if t.symbol() == "fs" {
+                excess += th;
+                // sgn(v) exp(-(v/vs)^2) at v = vs is e^-1 sgn(v): recover vs from the term.
+                vs = stribeck_velocity(t.as_ref());
+            } else {
+                kinetic += th;
+            }
+        }
+        any.then(|| {
+            let kinetic = kinetic.max(0.0);
+            Friction {
+                breakaway_n: kinetic + excess.max(0.0),
+                kinetic_n: kinetic,
+                stribeck_velocity_mps: vs,
+                asymmetry: 0.0,
+            }
+        })
+    }
+
+    fn internal_states(&self) -> usize {
+        usize::from(self.hysteresis.is_some())
+    }
+
+    fn internal_rates(&self, _x: f64, v: f64, z: &[f64], dz: &mut [f64]) {
+        if let (Some((_, zy)), Some(&zz), Some(d)) = (self.hysteresis, z.first(), dz.first_mut()) {
+            *d = v - (v.abs() * zz + v * zz.abs()) / (2.0 * zy);
+        }
+    }
+}
+
+/// The Stribeck velocity of a sgn(v) exp(-(v/vs)^2) term, found from its value at one point.
+fn stribeck_velocity(t: &dyn Term) -> f64 {
+    // h(v) = exp(-(v/vs)^2) for v > 0: vs = v / sqrt(-ln h), probed where h is well inside (0, 1).
+    let mut v = 1e-7;
+    while v < 1e3 {
+        let h = t.eval(0.0, v);
+        if h > 0.0 && h < 0.9 {
+            return v / (-h.ln()).sqrt();
+        }
+        v *= 2.0;
+    }
+    1.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::basis::StribeckVelocity;
+
+    #[test]
+    fn stribeck_velocity_is_recovered_from_the_term() {
+        let t = StribeckVelocity {
+            velocity_mps: 0.004,
+        };
+        assert!((stribeck_velocity(&t) - 0.004).abs() < 1e-12);
+    }
+}

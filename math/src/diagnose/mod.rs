@@ -1,0 +1,479 @@
+//! Sim-to-real gap diagnosis: how large the gap between a baseline model and the data is, where
+//! it lies, which unmodelled effect causes it, and how far it shrinks once that effect is added.
+//!
+//! # Steps ([`diagnose`])
+//! 1. **Gap.** The baseline is fitted on the sine steps (weighted least squares on one rebuilt
+//!    period per step, see [`fit`]); the gap is its held-out NMSE of the mass acceleration
+//!    (eq. 27) on the random records (and any steps held out), the model simulated on the
+//!    measured base motion; per step, the phasor mismatch of the element force.
+//! 2. **Where.** [`locate`]: per step (frequency, amplitude), per harmonic order (DC, 1st,
+//!    2nd, ...), and over the state plane (bins of displacement and velocity; regions such as
+//!    near zero velocity or large displacement).
+//! 3. **Which effect.** Every candidate of [`effects::Effect`] not already in the baseline is
+//!    added, its searched parameter (gap, yield, Stribeck velocity, cutoff, mass factor)
+//!    chosen by leave-one-step-out cross-validation on the sine steps, the exciter delay
+//!    estimated from the kinematic identity; the model is refitted and simulated on the
+//!    held-out records. Score: held-out NMSE times `N^(p/N)` (BIC with the effective number
+//!    of independent held-out samples `N = 2 B T`, `p` the added parameters; see
+//!    [`score::penalised`]). Candidates are ranked by score; the best pair of the top four is
+//!    tried too.
+//! 4. **Verdict** ([`verdict`]), with `floor` the noise floor estimated from the data:
+//!    - a candidate's shrink is *significant* when its score beats the baseline's and it
+//!      removes more than `max(floor, 10 % of the gap, 0.2 %-points)`;
+//!    - **explained** when the top candidate is significant and leaves at most half of the
+//!      excess gap (`gap_after - floor <= 0.5 (gap_before - floor)`);
+//!    - **unexplained** when the gap exceeds `max(3 floor, 1 %)` but no candidate is
+//!      significant, or the top one removes less than half of the excess;
+//!    - **adequate** otherwise.
+//!
+//! The phasor-only variant for a live stream of harmonic analyses is [`PhasorDiagnosis`].
+
+pub mod cycles;
+pub mod effects;
+pub mod eval;
+
+pub mod fit;
+pub mod locate;
+pub mod phasor;
+pub mod score;
+pub mod search;
+
+use serde::Serialize;
+use thiserror::Error;
+
+pub use effects::Effect;
+pub use locate::Located;
+pub use phasor::{PhasorDiagnosis, PhasorFindings};
+
+use crate::identify::{IdentifyError, Setup};
+use crate::lstsq::LstsqError;
+use crate::model::Model;
+use crate::phasor::{HarmonicAnalysis, PhasorError, PhasorOptions, analyse_record};
+use crate::record::{Channel, Excitation, Record};
+use crate::sim::SimError;
+use fit::Fitted;
+use score::{HeldOut, effective_samples, penalised, predict_record};
+
+#[derive(Debug, Error)]
+pub enum DiagnoseError {
+    #[error(
+        "no settled sine steps to fit the baseline on (the diagnosis fits on stepped-sine records)"
+    )]
+    NoSineSteps,
+    #[error(
+        "no held-out records: the data hold no random records and no steps were held out; give validation data (--validate) or name steps to hold out"
+    )]
+    NoHeldOut,
+    #[error("step {step} was named to hold out but the data have no such record")]
+    UnknownStep { step: usize },
+    #[error(
+        "the diagnosis needs the base-excited rig (mass acceleration, base and relative displacement); this data set is {0}"
+    )]
+    NotRig(String),
+    #[error(transparent)]
+    Phasor(#[from] PhasorError),
+    #[error(transparent)]
+    Identify(#[from] IdentifyError),
+    #[error("fitting the baseline: {0}")]
+    Lstsq(#[from] LstsqError),
+    #[error("predicting held-out record {step}: {source}")]
+    Simulation { step: usize, source: SimError },
+}
+
+/// Options of [`diagnose`].
+#[derive(Debug, Clone)]
+pub struct DiagnoseOptions {
+    /// Sine steps to hold out (scored like the random records, not fitted).
+    pub holdout_steps: Vec<usize>,
+    /// Candidate effects to try (default: all).
+    pub effects: Vec<Effect>,
+    /// Whether to try the best pair of the top four single effects.
+    pub pairs: bool,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            holdout_steps: Vec::new(),
+            effects: Effect::ALL.to_vec(),
+            pairs: true,
+        }
+    }
+}
+
+/// Phasor options of the diagnosis: as many harmonics as the sampling allows (the even
+/// harmonics and DC carry the asymmetric effects).
+pub fn phasor_options() -> PhasorOptions {
+    PhasorOptions {
+        max_harmonic: 100,
+        ..PhasorOptions::default()
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    Adequate,
+    Explained,
+    Unexplained,
+}
+
+impl Verdict {
+    pub fn name(self) -> &'static str {
+        match self {
+            Verdict::Adequate => "adequate",
+            Verdict::Explained => "explained",
+            Verdict::Unexplained => "unexplained",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ParameterValue {
+    pub name: String,
+    pub value: f64,
+    /// Least-squares standard deviation (null for searched parameters).
+    pub std: Option<f64>,
+}
+
+fn parameter_values(list: Vec<(String, f64, f64)>) -> Vec<ParameterValue> {
+    list.into_iter()
+        .map(|(name, value, std)| ParameterValue {
+            name,
+            value,
+            std: std.is_finite().then_some(std),
+        })
+        .collect()
+}
+
+/// One candidate's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct RankedEffect {
+    pub effect: Effect,
+    /// Held-out NMSE with the effect added [%].
+    pub gap_after_percent: f64,
+    /// `gap_before - gap_after` [%-points].
+    pub shrink_percent: f64,
+    /// Penalised score (lower is better) [%].
+    pub score_percent: f64,
+    /// Leave-one-step-out cross-validated element-force error on the sine steps [%].
+    pub phasor_cv_percent: Option<f64>,
+    pub extra_parameters: usize,
+    pub added_parameters: Vec<ParameterValue>,
+    pub significant: bool,
+    pub added: String,
+    pub signature: String,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PairResult {
+    pub effects: [Effect; 2],
+    pub gap_after_percent: f64,
+    pub score_percent: f64,
+    pub added_parameters: Vec<ParameterValue>,
+}
+
+/// The diagnosis.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    pub verdict: Verdict,
+    pub top_effect: Option<Effect>,
+    pub gap_before_percent: f64,
+    /// Held-out NMSE with the top effect (or, if none is explained, with the best candidate).
+    pub gap_after_percent: f64,
+    /// Held-out NMSE the measurement noise alone would leave (estimate) [%].
+    pub noise_floor_percent: f64,
+    pub baseline_model: String,
+    pub baseline_parameters: Vec<ParameterValue>,
+    pub fit_steps: Vec<usize>,
+    pub heldout_records: Vec<usize>,
+    /// Held-out NMSE of the baseline per held-out record [%].
+    pub gap_before_by_record_percent: Vec<f64>,
+    pub ranked_effects: Vec<RankedEffect>,
+    pub best_pair: Option<PairResult>,
+    pub located: Located,
+    pub baseline_phasor_cv_percent: Option<f64>,
+    /// Exciter delay from the kinematic identity [s] and its standard deviation.
+    pub kinematic_delay_s: Option<[f64; 2]>,
+    pub rule: String,
+    /// What the user should know (candidates left out, ...).
+    pub notes: Vec<String>,
+}
+
+/// The diagnosis with what the plots need.
+#[derive(Debug, Clone)]
+pub struct DiagnosisDetail {
+    pub diagnosis: Diagnosis,
+    pub search: search::PhasorSearch,
+    pub baseline_heldout: Vec<HeldOut>,
+    /// Held-out predictions with the top (or best) candidate.
+    pub after_heldout: Vec<HeldOut>,
+    /// The top (or best) candidate's fit.
+    pub after_fit: Option<Fitted>,
+    /// Where the residual lies with the top (or best) candidate added.
+    pub after_located: Option<Located>,
+}
+
+/// The verdict rule (see the module docs).
+pub const RULE: &str = "significant: score below the baseline's and shrink > max(floor, 10 % of the gap, 0.2 %-points); explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor); unexplained: gap_before > max(3 floor, 1 %) and not explained; adequate: otherwise";
+
+/// Whether a candidate's shrink is beyond what the noise explains.
+pub fn significant(
+    gap_before: f64,
+    floor: f64,
+    gap_after: f64,
+    score: f64,
+    baseline_score: f64,
+) -> bool {
+    score < baseline_score && gap_before - gap_after > floor.max(0.1 * gap_before).max(0.2)
+}
+
+/// The verdict from the gap, the floor and the top candidate (gap_after, significant).
+pub fn verdict(gap_before: f64, floor: f64, top: Option<(f64, bool)>) -> Verdict {
+    if let Some((after, true)) = top
+        && after - floor <= 0.5 * (gap_before - floor)
+    {
+        return Verdict::Explained;
+    }
+    if gap_before > (3.0 * floor).max(1.0) {
+        Verdict::Unexplained
+    } else {
+        Verdict::Adequate
+    }
+}
+
+fn mass_of(setup: &Setup) -> Result<f64, DiagnoseError> {
+    match setup {
+        Setup::BaseExcited { mass_kg } => Ok(*mass_kg),
+        Setup::DrivePoint { .. } => Err(DiagnoseError::NotRig(
+            "a drive-point (force-driven) structure".into(),
+        )),
+    }
+}
+
+fn heldout_all(
+    fitted: &Fitted,
+    mass_kg: f64,
+    records: &[&Record],
+) -> Result<Vec<HeldOut>, DiagnoseError> {
+    let element = fitted.element();
+    records
+        .iter()
+        .map(|r| {
+            predict_record(&element, mass_kg, r, &fitted.transform()).map_err(|source| {
+                DiagnoseError::Simulation {
+                    step: r.step,
+                    source,
+                }
+            })
+        })
+        .collect()
+}
+
+fn mean_nmse(h: &[HeldOut]) -> f64 {
+    h.iter().map(|h| h.nmse_percent).sum::<f64>() / h.len().max(1) as f64
+}
+
+/// Noise floor of the held-out NMSE: the measured acceleration's own noise (per-sample residual
+/// of the periodic fit of the sine steps) counted twice (once in the measurement, once, through
+/// the noisy measured base, in the prediction), relative to the held-out variance.
+fn noise_floor_percent(analyses: &[HarmonicAnalysis], heldout: &[&Record]) -> f64 {
+    let s2: Vec<f64> = analyses
+        .iter()
+        .filter_map(|a| a.channel(Channel::MassAccelerationMps2))
+        .map(|c| c.residual_rms.powi(2))
+        .collect();
+    let noise2 = s2.iter().sum::<f64>() / s2.len().max(1) as f64;
+    let var: Vec<f64> = heldout
+        .iter()
+        .filter_map(|r| r.channel(Channel::MassAccelerationMps2))
+        .map(|a| {
+            let m = a.iter().sum::<f64>() / a.len() as f64;
+            a.iter().map(|v| (v - m).powi(2)).sum::<f64>() / a.len() as f64
+        })
+        .collect();
+    let var = var.iter().sum::<f64>() / var.len().max(1) as f64;
+    100.0 * 2.0 * noise2 / var.max(f64::MIN_POSITIVE)
+}
+
+/// Diagnoses the gap between `baseline` and `records` (fit on the sine steps, score on the
+/// random records, the steps in `options.holdout_steps` and `validation`).
+pub fn diagnose(
+    setup: &Setup,
+    baseline: &Model,
+    records: &[Record],
+    validation: &[Record],
+    options: &DiagnoseOptions,
+) -> Result<DiagnosisDetail, DiagnoseError> {
+    let mass_kg = mass_of(setup)?;
+    for s in &options.holdout_steps {
+        if !records.iter().any(|r| r.step == *s) {
+            return Err(DiagnoseError::UnknownStep { step: *s });
+        }
+    }
+    let is_sine = |r: &Record| matches!(r.excitation, Excitation::Sine { .. });
+    let fit_records: Vec<&Record> = records
+        .iter()
+        .filter(|r| is_sine(r) && !options.holdout_steps.contains(&r.step))
+        .collect();
+    let heldout: Vec<&Record> = records
+        .iter()
+        .filter(|r| !is_sine(r) || options.holdout_steps.contains(&r.step))
+        .chain(validation.iter())
+        .collect();
+    if fit_records.is_empty() {
+        return Err(DiagnoseError::NoSineSteps);
+    }
+    if heldout.is_empty() {
+        return Err(DiagnoseError::NoHeldOut);
+    }
+    for r in &heldout {
+        for c in [
+            Channel::BaseDisplacementM,
+            Channel::RelativeDisplacementM,
+            Channel::MassAccelerationMps2,
+        ] {
+            if r.channel(c).is_none() {
+                return Err(DiagnoseError::NotRig(format!(
+                    "missing channel {} in record {}",
+                    c.name(),
+                    r.step
+                )));
+            }
+        }
+    }
+    let popts = phasor_options();
+    let analyses: Vec<HarmonicAnalysis> = fit_records
+        .iter()
+        .map(|r| analyse_record(r, &popts))
+        .collect::<Result<_, _>>()?;
+    let search = search::search(setup, baseline, &analyses, &options.effects)?;
+    let floor = noise_floor_percent(&analyses, &heldout);
+    let n_eff = effective_samples(&heldout);
+    let baseline_heldout = heldout_all(&search.baseline, mass_kg, &heldout)?;
+    let gap_before = mean_nmse(&baseline_heldout);
+    let baseline_score = penalised(gap_before, 0, n_eff);
+
+    let mut ranked = Vec::new();
+    let mut fits: Vec<(Fitted, Vec<HeldOut>)> = Vec::new();
+    let mut notes = Vec::new();
+    let mut cand_idx = Vec::new();
+    for (ci, c) in search.candidates.iter().enumerate() {
+        // A candidate whose fitted model cannot be simulated (e.g. an unstable negative
+        // stiffness) explains nothing: it is left out, with a note.
+        let h = match heldout_all(&c.fitted, mass_kg, &heldout) {
+            Ok(h) => h,
+            Err(e) => {
+                notes.push(format!("{}: left out: {e}", c.effect.name()));
+                continue;
+            }
+        };
+        let after = mean_nmse(&h);
+        let extra = c.structure.extra_parameters;
+        let score = penalised(after, extra, n_eff);
+        ranked.push(RankedEffect {
+            effect: c.effect,
+            gap_after_percent: after,
+            shrink_percent: gap_before - after,
+            score_percent: score,
+            phasor_cv_percent: c.cv_percent,
+            extra_parameters: extra,
+            added_parameters: parameter_values(c.fitted.added_parameters()),
+            significant: significant(gap_before, floor, after, score, baseline_score),
+            added: c.effect.added().into(),
+            signature: c.effect.signature().into(),
+        });
+        fits.push((c.fitted.clone(), h));
+        cand_idx.push(ci);
+    }
+    let mut order: Vec<usize> = (0..ranked.len()).collect();
+    order.sort_by(|&a, &b| ranked[a].score_percent.total_cmp(&ranked[b].score_percent));
+    let ranked: Vec<RankedEffect> = order.iter().map(|&i| ranked[i].clone()).collect();
+    let mut fits: Vec<Option<(Fitted, Vec<HeldOut>)>> = fits.into_iter().map(Some).collect();
+    let top_fit = order.first().and_then(|&i| fits[i].take());
+
+    let best_pair = if options.pairs && ranked.len() >= 2 {
+        let top: Vec<&search::PhasorCandidate> = order
+            .iter()
+            .take(4)
+            .map(|&i| &search.candidates[cand_idx[i]])
+            .collect();
+        let mut best: Option<PairResult> = None;
+        for i in 0..top.len() {
+            for j in i + 1..top.len() {
+                let s = top[i].structure.combine(&top[j].structure);
+                let cycles = search::cycles_for(setup, &analyses, &s.transform)?;
+                let Ok(f) = fit::fit(baseline, &s, &cycles, None) else {
+                    continue;
+                };
+                let Ok(h) = heldout_all(&f, mass_kg, &heldout) else {
+                    continue;
+                };
+                let after = mean_nmse(&h);
+                let score = penalised(after, s.extra_parameters, n_eff);
+                if best.as_ref().is_none_or(|b| score < b.score_percent) {
+                    best = Some(PairResult {
+                        effects: [top[i].effect, top[j].effect],
+                        gap_after_percent: after,
+                        score_percent: score,
+                        added_parameters: parameter_values(f.added_parameters()),
+                    });
+                }
+            }
+        }
+        best
+    } else {
+        None
+    };
+
+    let top = ranked.first().map(|r| (r.gap_after_percent, r.significant));
+    let v = verdict(gap_before, floor, top);
+    let located = locate::locate(&search.baseline, &search.cycles);
+    let diagnosis = Diagnosis {
+        verdict: v,
+        top_effect: (v == Verdict::Explained).then(|| ranked[0].effect),
+        gap_before_percent: gap_before,
+        gap_after_percent: ranked.first().map_or(gap_before, |r| r.gap_after_percent),
+        noise_floor_percent: floor,
+        baseline_model: baseline.name.clone(),
+        baseline_parameters: parameter_values(
+            search
+                .baseline
+                .names
+                .iter()
+                .zip(&search.baseline.theta)
+                .zip(&search.baseline.std)
+                .map(|((n, v), s)| (n.clone(), *v, *s))
+                .collect(),
+        ),
+        fit_steps: fit_records.iter().map(|r| r.step).collect(),
+        heldout_records: heldout.iter().map(|r| r.step).collect(),
+        gap_before_by_record_percent: baseline_heldout.iter().map(|h| h.nmse_percent).collect(),
+        ranked_effects: ranked,
+        best_pair,
+        located,
+        baseline_phasor_cv_percent: search.baseline_cv_percent,
+        kinematic_delay_s: search.exciter_delay.map(|(d, s)| [d, s]),
+        rule: RULE.into(),
+        notes,
+    };
+    let (after_fit, after_heldout) = match top_fit {
+        Some((f, h)) => (Some(f), h),
+        None => (None, Vec::new()),
+    };
+    let after_located = match &after_fit {
+        Some(f) => Some(locate::locate(
+            f,
+            &search::cycles_for(setup, &analyses, &f.transform())?,
+        )),
+        None => None,
+    };
+    Ok(DiagnosisDetail {
+        diagnosis,
+        search,
+        baseline_heldout,
+        after_heldout,
+        after_fit,
+        after_located,
+    })
+}

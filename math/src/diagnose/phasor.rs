@@ -1,0 +1,167 @@
+//! The phasor-only diagnosis for a live stream of harmonic analyses (what a diagnoser node
+//! wraps): no time samples, no held-out random records; the evidence is the element-force
+//! residual of each step, cross-validated over steps.
+
+use serde::Serialize;
+
+use super::effects::Effect;
+use super::locate::{Located, locate};
+use super::score::penalised;
+use super::search::search;
+use super::{DiagnoseError, ParameterValue, Verdict, parameter_values, verdict};
+use crate::identify::Setup;
+use crate::model::Model;
+use crate::phasor::HarmonicAnalysis;
+
+/// Fewest steps before [`PhasorDiagnosis::findings`] can cross-validate.
+pub const MIN_STEPS: usize = 3;
+
+/// One candidate in the live findings.
+#[derive(Debug, Clone, Serialize)]
+pub struct PhasorEffect {
+    pub effect: Effect,
+    /// Leave-one-step-out cross-validated element-force error with the effect [%].
+    pub cv_percent: f64,
+    /// Penalised score (lower is better) [%].
+    pub score_percent: f64,
+    pub added_parameters: Vec<ParameterValue>,
+    pub significant: bool,
+}
+
+/// What the live diagnosis finds after the steps so far.
+#[derive(Debug, Clone, Serialize)]
+pub struct PhasorFindings {
+    pub steps: usize,
+    pub verdict: Verdict,
+    pub top_effect: Option<Effect>,
+    /// Cross-validated element-force error of the baseline [%].
+    pub gap_before_percent: f64,
+    /// The same with the top candidate [%].
+    pub gap_after_percent: f64,
+    /// What the force noise alone would leave [%].
+    pub noise_floor_percent: f64,
+    pub ranked_effects: Vec<PhasorEffect>,
+    pub located: Located,
+    /// Exciter delay from the kinematic identity x_o - x = x_i [s] and its std, when the
+    /// channels allow it. A delay is named when it stands out of its noise (4 std) and
+    /// exceeds a tenth of a sample interval-free threshold of 0.5 ms; the force fit cannot
+    /// see it (the element's own channels are consistent).
+    pub kinematic_delay_s: Option<[f64; 2]>,
+}
+
+/// Live gap diagnosis from harmonic analyses, one step at a time.
+///
+/// ```
+/// use forcemap_math::diagnose::PhasorDiagnosis;
+/// use forcemap_math::identify::Setup;
+/// use forcemap_math::model::{Model, ModelOptions};
+///
+/// let baseline = Model::by_name("linear", &ModelOptions::default()).unwrap();
+/// let mut live = PhasorDiagnosis::new(Setup::BaseExcited { mass_kg: 36.0 }, baseline);
+/// // for each settled step: live.push(analysis); then live.findings()
+/// assert_eq!(live.steps(), 0);
+/// assert!(live.findings().is_err()); // needs at least MIN_STEPS steps
+/// ```
+///
+/// Feed [`push`](Self::push) each step's [`HarmonicAnalysis`] (from
+/// `phasor::analyse_record`, or the identifier node's stream) as it settles; a step with the
+/// number of an earlier one replaces it. [`findings`](Self::findings) refits everything (a
+/// few milliseconds per step: the baseline and each candidate are least-squares fits on one
+/// rebuilt period per step, cross-validated by leaving each step out) and returns the
+/// verdict, the ranked candidates and where the residual lies. The verdict rule is that of
+/// [`super::verdict`], applied to the cross-validated element-force error instead of the
+/// held-out NMSE; its floor is what the force noise alone leaves.
+#[derive(Debug, Clone)]
+pub struct PhasorDiagnosis {
+    setup: Setup,
+    baseline: Model,
+    analyses: Vec<HarmonicAnalysis>,
+    effects: Vec<Effect>,
+}
+
+impl PhasorDiagnosis {
+    pub fn new(setup: Setup, baseline: Model) -> PhasorDiagnosis {
+        PhasorDiagnosis {
+            setup,
+            baseline,
+            analyses: Vec::new(),
+            // Mass error cannot show without held-out prediction (see its signature).
+            effects: Effect::ALL
+                .into_iter()
+                .filter(|e| *e != Effect::MassError)
+                .collect(),
+        }
+    }
+
+    /// Adds (or replaces, by step number) one step's analysis.
+    pub fn push(&mut self, analysis: HarmonicAnalysis) {
+        match self.analyses.iter_mut().find(|a| a.step == analysis.step) {
+            Some(a) => *a = analysis,
+            None => self.analyses.push(analysis),
+        }
+    }
+
+    pub fn steps(&self) -> usize {
+        self.analyses.len()
+    }
+
+    /// Forgets every step (e.g. when the rig or the baseline changes).
+    pub fn clear(&mut self) {
+        self.analyses.clear();
+    }
+
+    /// The current findings; an error until [`MIN_STEPS`] steps are in.
+    pub fn findings(&self) -> Result<PhasorFindings, DiagnoseError> {
+        if self.analyses.len() < MIN_STEPS {
+            return Err(DiagnoseError::NoSineSteps);
+        }
+        let s = search(&self.setup, &self.baseline, &self.analyses, &self.effects)?;
+        let floor = s.noise_cv_percent;
+        let before = s.baseline_cv_percent.unwrap_or(s.baseline.residual_percent);
+        let n_eff = s.equations;
+        // The CV error is an RMS ratio; the penalty applies to its square (a variance).
+        let pen = |e: f64, p: usize| penalised(e * e, p, n_eff).sqrt();
+        let base_score = pen(before, 0);
+        let mut ranked: Vec<PhasorEffect> = s
+            .candidates
+            .iter()
+            .filter(|c| c.effect != Effect::ExciterDelay)
+            .map(|c| {
+                let cv = c.cv_percent.unwrap_or(c.fitted.residual_percent);
+                let score = pen(cv, c.structure.extra_parameters);
+                PhasorEffect {
+                    effect: c.effect,
+                    cv_percent: cv,
+                    score_percent: score,
+                    added_parameters: parameter_values(c.fitted.added_parameters()),
+                    significant: super::significant(before, floor, cv, score, base_score),
+                }
+            })
+            .collect();
+        ranked.sort_by(|a, b| a.score_percent.total_cmp(&b.score_percent));
+        let delay_named = s
+            .exciter_delay
+            .is_some_and(|(d, sd)| d > 4.0 * sd && d > 5e-4);
+        let mut v = verdict(
+            before,
+            floor,
+            ranked.first().map(|r| (r.cv_percent, r.significant)),
+        );
+        let mut top = (v == Verdict::Explained).then(|| ranked[0].effect);
+        if delay_named && v != Verdict::Explained {
+            v = Verdict::Explained;
+            top = Some(Effect::ExciterDelay);
+        }
+        Ok(PhasorFindings {
+            steps: self.analyses.len(),
+            verdict: v,
+            top_effect: top,
+            gap_before_percent: before,
+            gap_after_percent: ranked.first().map_or(before, |r| r.cv_percent),
+            noise_floor_percent: floor,
+            located: locate(&s.baseline, &s.cycles),
+            ranked_effects: ranked,
+            kinematic_delay_s: s.exciter_delay.map(|(d, sd)| [d, sd]),
+        })
+    }
+}

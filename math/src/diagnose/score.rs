@@ -1,0 +1,208 @@
+//! Scoring on held-out records: the fitted model, with its channel transformation, simulated on
+//! the measured base motion, against the measured mass acceleration (eq. 27); and the penalty
+//! for extra parameters.
+
+use std::f64::consts::TAU;
+
+use super::effects::Transform;
+use crate::element::Element;
+use crate::pipeline::{VALIDATION_BASE_LOWPASS_HZ, nmse_percent};
+use crate::record::{Channel, Record};
+use crate::sim::rig::zero_phase_lowpass;
+use crate::sim::{ReplayOptions, RigInitial, SimError, simulate_on_sampled_base};
+
+/// The prediction of one held-out record.
+#[derive(Debug, Clone)]
+pub struct HeldOut {
+    pub step: usize,
+    pub nmse_percent: f64,
+    pub measured_mps2: Vec<f64>,
+    pub predicted_mps2: Vec<f64>,
+    pub relative_displacement_m: Vec<f64>,
+    /// Relative velocity of the measured data (central differences of the relative
+    /// displacement) [m/s], for the state-plane residual.
+    pub relative_velocity_mps: Vec<f64>,
+}
+
+/// Samples of `x` at times shifted by `-delay_s` (Catmull-Rom cubic interpolation, ends held).
+pub fn delayed(x: &[f64], sample_rate_hz: f64, delay_s: f64) -> Vec<f64> {
+    let n = x.len();
+    let at = |i: isize| x[i.clamp(0, n as isize - 1) as usize];
+    let shift = delay_s * sample_rate_hz;
+    (0..n)
+        .map(|i| {
+            let t = i as f64 - shift;
+            let i0 = t.floor() as isize;
+            let u = t - i0 as f64;
+            let (p0, p1, p2, p3) = (at(i0 - 1), at(i0), at(i0 + 1), at(i0 + 2));
+            p1 + 0.5
+                * u
+                * (p2 - p0
+                    + u * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + u * (3.0 * (p1 - p2) + p3 - p0)))
+        })
+        .collect()
+}
+
+/// Central-difference derivative.
+fn derivative(x: &[f64], sample_rate_hz: f64) -> Vec<f64> {
+    let n = x.len();
+    (0..n)
+        .map(|i| {
+            let lo = i.saturating_sub(1);
+            let hi = (i + 1).min(n - 1);
+            (x[hi] - x[lo]) * sample_rate_hz / (hi - lo).max(1) as f64
+        })
+        .collect()
+}
+
+/// First-order low-pass y' = wc (u - y), exact for input held linear between samples, starting
+/// at rest on the first sample.
+fn first_order_lowpass(u: &[f64], sample_rate_hz: f64, cutoff_hz: f64) -> Vec<f64> {
+    let a = (-TAU * cutoff_hz / sample_rate_hz).exp();
+    // Exact discretisation for a piecewise-linear input (first-order hold).
+    let wdt = TAU * cutoff_hz / sample_rate_hz;
+    let b1 = 1.0 - (1.0 - a) / wdt;
+    let b0 = (1.0 - a) / wdt - a;
+    let mut y = Vec::with_capacity(u.len());
+    let mut prev = u.first().copied().unwrap_or(0.0);
+    let mut yi = prev;
+    for &ui in u {
+        yi = a * yi + b0 * prev + b1 * ui;
+        prev = ui;
+        y.push(yi);
+    }
+    y
+}
+
+/// Simulates `element` on the record's measured base motion and compares the mass
+/// acceleration (eq. 27). The transform says what the candidate believes happened between the
+/// element and the channels: a delay of the base motion the element sees, a low-pass on every
+/// channel (undone on the base input, applied to the prediction), a mass factor.
+pub fn predict_record(
+    element: &dyn Element,
+    nominal_mass_kg: f64,
+    record: &Record,
+    transform: &Transform,
+) -> Result<HeldOut, SimError> {
+    let missing = |c: Channel| {
+        SimError::InvalidSpec(format!(
+            "record {}: channel {} is missing",
+            record.step,
+            c.name()
+        ))
+    };
+    let base = record
+        .channel(Channel::BaseDisplacementM)
+        .ok_or_else(|| missing(Channel::BaseDisplacementM))?;
+    let rel = record
+        .channel(Channel::RelativeDisplacementM)
+        .ok_or_else(|| missing(Channel::RelativeDisplacementM))?;
+    let acc = record
+        .channel(Channel::MassAccelerationMps2)
+        .ok_or_else(|| missing(Channel::MassAccelerationMps2))?;
+    let fs = record.sample_rate_hz;
+    // The same zero-phase low-pass as `pipeline::validate_rig` before anything else.
+    let mut input = zero_phase_lowpass(base, fs, VALIDATION_BASE_LOWPASS_HZ);
+    if let Some(fc) = transform.lowpass_hz {
+        let d = derivative(&input, fs);
+        input = input
+            .iter()
+            .zip(&d)
+            .map(|(x, dx)| x + dx / (TAU * fc))
+            .collect();
+    }
+    if transform.delay_s != 0.0 {
+        input = delayed(&input, fs, transform.delay_s);
+    }
+    let mass_velocity = if base.len() > 2 {
+        ((base[2] + rel[2]) - (base[0] + rel[0])) * fs / 2.0
+    } else {
+        0.0
+    };
+    let opts = ReplayOptions {
+        initial: RigInitial {
+            relative_displacement_m: rel[0],
+            mass_velocity_mps: mass_velocity,
+        },
+        prefilter: None,
+        ..ReplayOptions::default()
+    };
+    let resp = simulate_on_sampled_base(
+        element,
+        nominal_mass_kg * transform.mass_factor,
+        &input,
+        fs,
+        &opts,
+    )?;
+    let mut predicted = resp.mass_acceleration_mps2;
+    if let Some(fc) = transform.lowpass_hz {
+        predicted = first_order_lowpass(&predicted, fs, fc);
+    }
+    Ok(HeldOut {
+        step: record.step,
+        nmse_percent: nmse_percent(acc, &predicted),
+        measured_mps2: acc.to_vec(),
+        predicted_mps2: predicted,
+        relative_displacement_m: rel.to_vec(),
+        relative_velocity_mps: derivative(rel, fs),
+    })
+}
+
+/// Effective number of independent samples of held-out records: 2 B T per record (B the
+/// excitation bandwidth, T the duration), at least 10. Band-limited samples are strongly
+/// correlated, so counting every sample would make the penalty vanish.
+pub fn effective_samples(records: &[&Record]) -> f64 {
+    records
+        .iter()
+        .map(|r| {
+            let t = r.len() as f64 / r.sample_rate_hz;
+            let b = match r.excitation {
+                crate::record::Excitation::Random {
+                    band_hz: Some([lo, hi]),
+                    ..
+                } => hi - lo,
+                // Unknown band or a sine step: a nominal 1 Hz.
+                _ => 1.0,
+            };
+            (2.0 * b * t).max(10.0)
+        })
+        .sum()
+}
+
+/// BIC applied to the held-out error: comparing N ln(sigma^2) + p ln N between models is
+/// comparing sigma^2 N^(p/N), so the score is the NMSE times N^(p/N) for `extra` added
+/// parameters.
+pub fn penalised(nmse_percent: f64, extra: usize, n_eff: f64) -> f64 {
+    nmse_percent * n_eff.powf(extra as f64 / n_eff)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn delay_shifts_a_sine() {
+        let fs = 100.0;
+        let f = 2.0;
+        let x: Vec<f64> = (0..400).map(|i| (TAU * f * i as f64 / fs).sin()).collect();
+        let d = 0.013;
+        let y = delayed(&x, fs, d);
+        for (i, yi) in y.iter().enumerate().take(390).skip(10) {
+            let t = i as f64 / fs - d;
+            assert!((yi - (TAU * f * t).sin()).abs() < 2e-3, "{i}");
+        }
+    }
+
+    #[test]
+    fn first_order_lowpass_has_the_right_gain() {
+        let fs = 1000.0;
+        let f = 5.0;
+        let fc = 5.0;
+        let u: Vec<f64> = (0..20000)
+            .map(|i| (TAU * f * i as f64 / fs).sin())
+            .collect();
+        let y = first_order_lowpass(&u, fs, fc);
+        let amp = y[15000..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!((amp - 1.0 / 2f64.sqrt()).abs() < 2e-3, "{amp}");
+    }
+}

@@ -1,0 +1,158 @@
+//! The phasor-domain search: every candidate structure fitted to the step cycles and scored by
+//! leave-one-step-out cross-validation; for each effect the searched parameter with the best
+//! cross-validated error is kept.
+
+use super::DiagnoseError;
+use super::cycles::{StepCycle, estimate_exciter_delay, step_cycle};
+use super::effects::{Effect, Scales, Structure, Transform, baseline_has, structures};
+use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit};
+use crate::identify::Setup;
+use crate::model::Model;
+use crate::phasor::HarmonicAnalysis;
+
+/// One effect's best structure on the step cycles.
+#[derive(Debug, Clone)]
+pub struct PhasorCandidate {
+    pub effect: Effect,
+    pub structure: Structure,
+    /// Fitted to every step (with the structure's own channel transformation).
+    pub fitted: Fitted,
+    /// Leave-one-step-out cross-validated force error [%] (None with fewer than 3 steps).
+    pub cv_percent: Option<f64>,
+}
+
+/// Result of [`search`].
+#[derive(Debug, Clone)]
+pub struct PhasorSearch {
+    pub cycles: Vec<StepCycle>,
+    pub scales: Scales,
+    pub baseline: Fitted,
+    pub baseline_cv_percent: Option<f64>,
+    /// Cross-validated error that the force noise alone would leave [%].
+    pub noise_cv_percent: f64,
+    /// Effective number of independent equations (sum of 2N+1 over steps).
+    pub equations: f64,
+    pub candidates: Vec<PhasorCandidate>,
+    /// (delay [s], std [s]) from the kinematic identity.
+    pub exciter_delay: Option<(f64, f64)>,
+}
+
+/// Cycles of every analysis under a transform.
+pub fn cycles_for(
+    setup: &Setup,
+    analyses: &[HarmonicAnalysis],
+    t: &Transform,
+) -> Result<Vec<StepCycle>, DiagnoseError> {
+    analyses
+        .iter()
+        .map(|an| step_cycle(setup, an, t.lowpass_hz, t.mass_factor).map_err(DiagnoseError::from))
+        .collect()
+}
+
+fn noise_cv_percent(cycles: &[StepCycle]) -> f64 {
+    let (mut n, mut d) = (0.0, 0.0);
+    for c in cycles {
+        let vmax = c.velocity_mps.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let w2 = c.force_noise_n.powi(-2);
+        for (v, g) in c.velocity_mps.iter().zip(&c.force_n) {
+            if v.abs() >= REVERSAL_BAND * vmax {
+                // Each grid point carries the noise of the rebuilt force, w^2 s^2 = 1.
+                n += 1.0;
+                d += w2 * g * g;
+            }
+        }
+    }
+    100.0 * (n / d.max(f64::MIN_POSITIVE)).sqrt()
+}
+
+/// Fits the baseline and every candidate effect not already in it.
+pub fn search(
+    setup: &Setup,
+    baseline: &Model,
+    analyses: &[HarmonicAnalysis],
+    effects: &[Effect],
+) -> Result<PhasorSearch, DiagnoseError> {
+    if analyses.is_empty() {
+        return Err(DiagnoseError::NoSineSteps);
+    }
+    let cycles = cycles_for(setup, analyses, &Transform::default())?;
+    let scales = Scales {
+        max_displacement_m: cycles
+            .iter()
+            .map(|c| c.amplitude_m)
+            .fold(0.0, f64::max)
+            .max(f64::MIN_POSITIVE),
+        max_velocity_mps: cycles
+            .iter()
+            .flat_map(|c| c.velocity_mps.iter())
+            .fold(0.0f64, |m, v| m.max(v.abs()))
+            .max(f64::MIN_POSITIVE),
+        max_frequency_hz: cycles.iter().map(|c| c.frequency_hz).fold(0.0, f64::max),
+    };
+    let plain = Structure::default();
+    let base_fit = fit(baseline, &plain, &cycles, None)?;
+    let base_cv = cross_validated_percent(baseline, &plain, &cycles);
+    let exciter_delay = estimate_exciter_delay(analyses);
+    let mut candidates = Vec::new();
+    for &effect in effects {
+        if baseline_has(baseline, effect) {
+            continue;
+        }
+        let options = if effect == Effect::ExciterDelay {
+            match exciter_delay {
+                Some((d, _)) if d > 0.0 => vec![Structure {
+                    effects: vec![effect],
+                    transform: Transform {
+                        delay_s: d,
+                        ..Transform::default()
+                    },
+                    extra_parameters: 1,
+                    ..Structure::default()
+                }],
+                _ => continue,
+            }
+        } else {
+            structures(baseline, effect, &scales)
+        };
+        let mut best: Option<PhasorCandidate> = None;
+        for s in options {
+            let cyc;
+            let cycles_s = if s.transform.lowpass_hz.is_some() || s.transform.mass_factor != 1.0 {
+                cyc = cycles_for(setup, analyses, &s.transform)?;
+                &cyc
+            } else {
+                &cycles
+            };
+            let Ok(fitted) = fit(baseline, &s, cycles_s, None) else {
+                continue;
+            };
+            let cv = cross_validated_percent(baseline, &s, cycles_s);
+            // Without cross-validation (fewer than 3 steps) the in-sample residual decides.
+            let key = cv.unwrap_or(fitted.residual_percent);
+            let better = best
+                .as_ref()
+                .is_none_or(|b| key < b.cv_percent.unwrap_or(b.fitted.residual_percent));
+            if better {
+                best = Some(PhasorCandidate {
+                    effect,
+                    structure: s,
+                    fitted,
+                    cv_percent: cv,
+                });
+            }
+        }
+        if let Some(b) = best {
+            candidates.push(b);
+        }
+    }
+    Ok(PhasorSearch {
+        noise_cv_percent: noise_cv_percent(&cycles),
+        equations: cycles.iter().map(|c| (2 * c.harmonics + 1) as f64).sum(),
+        cycles,
+        scales,
+        baseline: base_fit,
+        baseline_cv_percent: base_cv,
+        candidates,
+        exciter_delay,
+    })
+}

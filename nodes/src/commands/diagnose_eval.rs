@@ -1,0 +1,134 @@
+//! `forcemap diagnose-eval`: the gap diagnosis checked on seeded simulated cases whose planted
+//! effect it is not told (library: `forcemap_math::diagnose::eval`).
+
+use forcemap_math::diagnose::eval::{self, CaseResult, EvalSummary};
+
+use crate::cli::DiagnoseEvalArgs;
+
+pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
+    if args.cases == 0 {
+        anyhow::bail!("--cases must be at least 1");
+    }
+    if !args.snr_db.is_finite() {
+        anyhow::bail!("--snr-db = {}: not a finite number", args.snr_db);
+    }
+    let cases = eval::generate_cases(args.cases, args.seed, args.snr_db);
+    let pb = indicatif::ProgressBar::new(cases.len() as u64);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} cases, {elapsed} ({eta} left) {msg}",
+        )
+        .expect("a valid template"),
+    );
+    let progress = |r: &CaseResult| {
+        pb.set_message(format!("last: {} -> {}", r.label, r.named));
+        pb.inc(1);
+    };
+    let results = eval::run_cases(&cases, args.threads, &progress);
+    pb.finish_and_clear();
+    let summary = eval::summarise(&results, args.snr_db);
+    if args.json {
+        let cases: Vec<_> = results.iter().filter_map(|r| r.as_ref().ok()).collect();
+        println!(
+            "{}",
+            serde_json::json!({"summary": summary, "cases": cases})
+        );
+    } else {
+        print_summary(args, &summary, &results);
+    }
+    Ok(())
+}
+
+fn print_summary(args: &DiagnoseEvalArgs, s: &EvalSummary, results: &[Result<CaseResult, String>]) {
+    println!(
+        "forcemap diagnose-eval --cases {} --seed {} --snr-db {}: {} cases ({} failed)",
+        args.cases,
+        args.seed,
+        args.snr_db,
+        s.cases,
+        s.failed.len()
+    );
+    let pct = |r: &eval::Rate| format!("{:.1} % ({}/{})", r.percent, r.hits, r.of);
+    println!(
+        "top-1 hit rate, single effects with >= 2 % gap at {} dB: {}  (target >= 95 %)",
+        args.snr_db,
+        pct(&s.top1)
+    );
+    println!(
+        "top-1 hit rate, the same at {} and {} dB: {}",
+        args.snr_db,
+        args.snr_db + 10.0,
+        pct(&s.top1_all_snr)
+    );
+    println!(
+        "false alarms on no-effect cases: {}  (target <= 5 %)",
+        pct(&s.false_alarms)
+    );
+    println!(
+        "out-of-library cases given a library name: {}  (target <= 10 %)",
+        pct(&s.out_of_library_named)
+    );
+    println!(
+        "single effects below 2 % gap called adequate: {}",
+        pct(&s.below_threshold_adequate)
+    );
+    println!(
+        "two-effect cases naming one of the two: {}",
+        pct(&s.pairs_one_named)
+    );
+    println!(
+        "shrink, explained single effects: mean |predicted - true| {:.2} %-points (mean true shrink {:.2} %-points)",
+        s.shrink_mean_abs_error_percent, s.shrink_mean_true_percent
+    );
+    let mut columns: Vec<String> = s
+        .confusion
+        .values()
+        .flat_map(|m| m.keys().cloned())
+        .collect();
+    columns.sort();
+    columns.dedup();
+    println!("confusion matrix (rows: planted; columns: named):");
+    print!("{:<28}", "");
+    for c in &columns {
+        print!(" {:>8}", abbreviate(c));
+    }
+    println!();
+    for (row, m) in &s.confusion {
+        print!("{row:<28}");
+        for c in &columns {
+            match m.get(c) {
+                Some(n) => print!(" {n:>8}"),
+                None => print!(" {:>8}", "."),
+            }
+        }
+        println!();
+    }
+    println!(
+        "columns: {}",
+        columns
+            .iter()
+            .map(|c| format!("{} = {c}", abbreviate(c)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    for e in &s.failed {
+        println!("failed: {e}");
+    }
+    let _ = results;
+}
+
+/// A column label of at most 8 characters.
+fn abbreviate(name: &str) -> String {
+    match name {
+        "adequate" => "adequate".into(),
+        "unexplained" => "unexpl".into(),
+        n => n
+            .split('_')
+            .map(|w| w.chars().take(4).collect::<String>())
+            .collect::<Vec<_>>()
+            .join("_")
+            .chars()
+            .take(8)
+            .collect(),
+    }
+}
