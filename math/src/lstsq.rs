@@ -2,6 +2,7 @@
 //! normal equations), with the diagnostics an engineer needs to trust the answer.
 
 use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 /// Above this condition number (of the column-scaled matrix) the system is refused.
@@ -64,89 +65,186 @@ pub fn solve(
     names: &[String],
     variance_scale: f64,
 ) -> Result<Solution, LstsqError> {
-    let (rows, cols) = a.shape();
-    assert_eq!(cols, names.len(), "one name per column");
-    assert_eq!(rows, b.len(), "one right-hand side per row");
-    if let Some(row) =
-        (0..rows).find(|&r| !b[r].is_finite() || a.row(r).iter().any(|v| !v.is_finite()))
-    {
-        return Err(LstsqError::NonFinite { row });
-    }
-    if rows < cols {
-        return Err(LstsqError::Underdetermined {
-            equations: rows,
-            parameters: cols,
-            names: names.join(", "),
-        });
-    }
-    // Scale columns to unit norm so that k [N/m] and s [N/m^3] are comparable.
-    let scale: Vec<f64> = (0..cols)
-        .map(|j| {
-            let n = a.column(j).norm();
-            if n > 0.0 { n } else { 1.0 }
-        })
-        .collect();
-    let mut scaled = a.clone();
-    for (j, s) in scale.iter().enumerate() {
-        scaled.column_mut(j).unscale_mut(*s);
-    }
-    let svd = scaled.clone().svd(true, true);
-    let sv = &svd.singular_values;
-    let s_max = sv.max();
-    let s_min = sv.min();
-    let condition = if s_min > 0.0 {
-        s_max / s_min
-    } else {
-        f64::INFINITY
-    };
-    if condition > MAX_CONDITION_NUMBER || a.column_iter().any(|c| c.norm() == 0.0) {
-        return Err(LstsqError::IllConditioned {
-            condition,
-            limit: MAX_CONDITION_NUMBER,
-            names: unidentifiable(&svd.v_t.clone().expect("v_t requested"), sv, names, s_max),
-        });
-    }
-    let u = svd.u.as_ref().expect("u requested");
-    let v_t = svd.v_t.as_ref().expect("v_t requested");
-    // theta_scaled = V diag(1/s) U^T b
-    let utb = u.transpose() * b;
-    let mut y = DVector::zeros(cols);
-    for i in 0..cols {
-        y[i] = utb[i] / sv[i];
-    }
-    let theta_scaled = v_t.transpose() * y;
-    let theta: Vec<f64> = (0..cols).map(|j| theta_scaled[j] / scale[j]).collect();
+    assert_eq!(a.ncols(), names.len(), "one name per column");
+    let mut acc = QrAccumulator::new(a.ncols());
+    acc.add_rows(a, b)?;
+    acc.solve(names, variance_scale)
+}
 
-    let residual = a * DVector::from_column_slice(&theta) - b;
-    let rss = residual.norm_squared();
-    let dof = rows.saturating_sub(cols).max(1) as f64;
-    let s2 = rss / dof * variance_scale;
-    // (A^T A)^-1 = D^-1 V diag(1/s^2) V^T D^-1
-    let mut cov = DMatrix::zeros(cols, cols);
-    for i in 0..cols {
-        for j in 0..cols {
-            let mut acc = 0.0;
-            for m in 0..cols {
-                acc += v_t[(m, i)] * v_t[(m, j)] / (sv[m] * sv[m]);
-            }
-            cov[(i, j)] = s2 * acc / (scale[i] * scale[j]);
+/// The equations A theta = b seen so far, kept as the triangular factor of their QR
+/// decomposition: `R` (at most p x p), `Q^T b`, and the residual sum of squares that no theta
+/// can remove. Memory is O(p^2) however many rows are added, and adding rows in the same order
+/// gives the same numbers bit for bit, which is what lets the live identifier agree exactly
+/// with an offline run on the same data.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct QrAccumulator {
+    cols: usize,
+    /// Rows of `r` (min(rows, cols)).
+    r_rows: usize,
+    /// The upper-trapezoidal factor, row-major, `r_rows x cols`.
+    r: Vec<f64>,
+    /// The first `r_rows` components of Q^T b.
+    qtb: Vec<f64>,
+    /// Sum of squares of the other components of Q^T b.
+    rss_outside: f64,
+    rows: usize,
+}
+
+impl QrAccumulator {
+    pub fn new(cols: usize) -> QrAccumulator {
+        QrAccumulator {
+            cols,
+            r_rows: 0,
+            r: Vec::new(),
+            qtb: Vec::new(),
+            rss_outside: 0.0,
+            rows: 0,
         }
     }
-    let mut warnings = Vec::new();
-    if condition > WARN_CONDITION_NUMBER {
-        warnings.push(format!(
-            "badly conditioned: condition number {condition:.3e}; weakly determined: {}",
-            unidentifiable(v_t, sv, names, s_max)
-        ));
+
+    pub fn cols(&self) -> usize {
+        self.cols
     }
-    Ok(Solution {
-        theta,
-        covariance: cov,
-        condition_number: condition,
-        equations: rows,
-        residual_rms: (rss / rows as f64).sqrt(),
-        warnings,
-    })
+
+    /// Real equations added so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Adds the rows `a theta = b` (updates the factor by a Householder QR of [R; a]).
+    pub fn add_rows(&mut self, a: &DMatrix<f64>, b: &DVector<f64>) -> Result<(), LstsqError> {
+        let (m, cols) = a.shape();
+        assert_eq!(cols, self.cols, "one column per parameter");
+        assert_eq!(m, b.len(), "one right-hand side per row");
+        if let Some(row) =
+            (0..m).find(|&r| !b[r].is_finite() || a.row(r).iter().any(|v| !v.is_finite()))
+        {
+            return Err(LstsqError::NonFinite {
+                row: self.rows + row,
+            });
+        }
+        if m == 0 {
+            return Ok(());
+        }
+        let total = self.r_rows + m;
+        let mut stacked = DMatrix::zeros(total, cols);
+        let mut c = DVector::zeros(total);
+        for i in 0..self.r_rows {
+            for j in 0..cols {
+                stacked[(i, j)] = self.r[i * cols + j];
+            }
+            c[i] = self.qtb[i];
+        }
+        stacked.rows_mut(self.r_rows, m).copy_from(a);
+        c.rows_mut(self.r_rows, m).copy_from(b);
+        let qr = stacked.qr();
+        qr.q_tr_mul(&mut c);
+        let r = qr.r();
+        let r_rows = total.min(cols);
+        self.r = (0..r_rows)
+            .flat_map(|i| (0..cols).map(move |j| (i, j)))
+            .map(|(i, j)| r[(i, j)])
+            .collect();
+        self.qtb = c.rows(0, r_rows).iter().copied().collect();
+        self.rss_outside += c.rows(r_rows, total - r_rows).norm_squared();
+        self.r_rows = r_rows;
+        self.rows += m;
+        Ok(())
+    }
+
+    /// Norm of each column of the equations so far (that of A, since Q is orthogonal).
+    pub fn column_norms(&self) -> Vec<f64> {
+        (0..self.cols)
+            .map(|j| {
+                (0..self.r_rows)
+                    .map(|i| self.r[i * self.cols + j].powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .collect()
+    }
+
+    /// The least-squares solution of the rows so far, by SVD of the column-scaled R.
+    pub fn solve(&self, names: &[String], variance_scale: f64) -> Result<Solution, LstsqError> {
+        let (rows, cols) = (self.rows, self.cols);
+        assert_eq!(cols, names.len(), "one name per column");
+        if rows < cols {
+            return Err(LstsqError::Underdetermined {
+                equations: rows,
+                parameters: cols,
+                names: names.join(", "),
+            });
+        }
+        let r = DMatrix::from_row_slice(self.r_rows, cols, &self.r);
+        let qtb = DVector::from_column_slice(&self.qtb);
+        // Scale columns to unit norm so that k [N/m] and s [N/m^3] are comparable.
+        let norms = self.column_norms();
+        let scale: Vec<f64> = norms
+            .iter()
+            .map(|&n| if n > 0.0 { n } else { 1.0 })
+            .collect();
+        let mut scaled = r.clone();
+        for (j, s) in scale.iter().enumerate() {
+            scaled.column_mut(j).unscale_mut(*s);
+        }
+        let svd = scaled.svd(true, true);
+        let sv = &svd.singular_values;
+        let s_max = sv.max();
+        let s_min = sv.min();
+        let condition = if s_min > 0.0 {
+            s_max / s_min
+        } else {
+            f64::INFINITY
+        };
+        if condition > MAX_CONDITION_NUMBER || norms.contains(&0.0) {
+            return Err(LstsqError::IllConditioned {
+                condition,
+                limit: MAX_CONDITION_NUMBER,
+                names: unidentifiable(&svd.v_t.clone().expect("v_t requested"), sv, names, s_max),
+            });
+        }
+        let u = svd.u.as_ref().expect("u requested");
+        let v_t = svd.v_t.as_ref().expect("v_t requested");
+        // theta_scaled = V diag(1/s) U^T Q^T b
+        let utb = u.transpose() * &qtb;
+        let mut y = DVector::zeros(cols);
+        for i in 0..cols {
+            y[i] = utb[i] / sv[i];
+        }
+        let theta_scaled = v_t.transpose() * y;
+        let theta: Vec<f64> = (0..cols).map(|j| theta_scaled[j] / scale[j]).collect();
+
+        let rss =
+            self.rss_outside + (&r * DVector::from_column_slice(&theta) - &qtb).norm_squared();
+        let dof = rows.saturating_sub(cols).max(1) as f64;
+        let s2 = rss / dof * variance_scale;
+        // (A^T A)^-1 = D^-1 V diag(1/s^2) V^T D^-1
+        let mut cov = DMatrix::zeros(cols, cols);
+        for i in 0..cols {
+            for j in 0..cols {
+                let mut acc = 0.0;
+                for m in 0..cols {
+                    acc += v_t[(m, i)] * v_t[(m, j)] / (sv[m] * sv[m]);
+                }
+                cov[(i, j)] = s2 * acc / (scale[i] * scale[j]);
+            }
+        }
+        let mut warnings = Vec::new();
+        if condition > WARN_CONDITION_NUMBER {
+            warnings.push(format!(
+                "badly conditioned: condition number {condition:.3e}; weakly determined: {}",
+                unidentifiable(v_t, sv, names, s_max)
+            ));
+        }
+        Ok(Solution {
+            theta,
+            covariance: cov,
+            condition_number: condition,
+            equations: rows,
+            residual_rms: (rss / rows as f64).sqrt(),
+            warnings,
+        })
+    }
 }
 
 /// Names the parameters that dominate the weakest singular directions.
@@ -255,5 +353,67 @@ mod tests {
         a[(2, 1)] = f64::NAN;
         let e = solve(&a, &DVector::zeros(3), &names(&["k", "c"]), 1.0).unwrap_err();
         assert_eq!(e, LstsqError::NonFinite { row: 2 });
+    }
+
+    /// Rows added in blocks (some shorter than the parameter count) give what the normal
+    /// equations of all rows at once give, and the residual of the whole system.
+    #[test]
+    fn blocks_accumulate_to_the_solution_of_all_rows() {
+        let n = 40;
+        let a = DMatrix::from_fn(n, 3, |r, c| {
+            let x = r as f64 * 0.37;
+            match c {
+                0 => x.sin() * 1e3,
+                1 => x.cos(),
+                _ => (x * 0.5).sin() * 1e-4,
+            }
+        });
+        let truth = [2.0, -3.0, 5e4];
+        let b = DVector::from_fn(n, |r, _| {
+            (0..3).map(|c| a[(r, c)] * truth[c]).sum::<f64>() + 0.01 * ((r * 7 % 11) as f64 - 5.0)
+        });
+        let mut acc = QrAccumulator::new(3);
+        let mut r0 = 0;
+        for len in [1, 2, 5, 13, 19] {
+            acc.add_rows(&a.rows(r0, len).into_owned(), &b.rows(r0, len).into_owned())
+                .unwrap();
+            r0 += len;
+        }
+        assert_eq!(r0, n);
+        let names = names(&["k", "c", "s"]);
+        let got = acc.solve(&names, 1.0).unwrap();
+        // independent check: normal equations in full
+        let ata = a.transpose() * &a;
+        let atb = a.transpose() * &b;
+        let direct = ata.clone().lu().solve(&atb).unwrap();
+        for j in 0..3 {
+            assert!(((got.theta[j] - direct[j]) / direct[j]).abs() < 1e-9, "{j}");
+        }
+        let res = &a * DVector::from_column_slice(&got.theta) - &b;
+        assert!((got.residual_rms - (res.norm_squared() / n as f64).sqrt()).abs() < 1e-12);
+        assert_eq!(got.equations, n);
+        // the column norms are those of A
+        for (j, nrm) in acc.column_norms().iter().enumerate() {
+            assert!((nrm / a.column(j).norm() - 1.0).abs() < 1e-12);
+        }
+    }
+
+    /// The state survives a JSON round trip bit for bit (the identifier persists it).
+    #[test]
+    fn accumulated_state_round_trips_exactly_through_json() {
+        let a = DMatrix::from_fn(7, 2, |r, c| {
+            ((r + 1) as f64).powi(c as i32 + 1).sqrt() / 3.0
+        });
+        let b = DVector::from_fn(7, |r, _| (r as f64 * 1.7).sin());
+        let mut acc = QrAccumulator::new(2);
+        acc.add_rows(&a, &b).unwrap();
+        let text = serde_json::to_string(&acc).unwrap();
+        let back: QrAccumulator = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, acc);
+        let names = names(&["k", "c"]);
+        assert_eq!(
+            back.solve(&names, 1.0).unwrap().theta,
+            acc.solve(&names, 1.0).unwrap().theta
+        );
     }
 }

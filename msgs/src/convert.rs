@@ -16,7 +16,9 @@ pub enum ConversionError {
         "{message}: unknown channel name {name:?} (expected a RigSample field name such as \"relative_displacement_m\")"
     )]
     UnknownChannel { message: &'static str, name: String },
-    #[error("ExcitationState: unknown kind {0} (expected SINE=0 or RANDOM=1)")]
+    #[error(
+        "ExcitationState: kind {0} is not an excitation (expected SINE=0 or RANDOM=1; IDLE=2 means none)"
+    )]
     UnknownKind(u8),
     #[error("{message}: {field} has {actual} entries, expected {expected}")]
     Length {
@@ -64,13 +66,15 @@ impl RigSample {
 }
 
 impl ExcitationState {
-    /// The state of a step driven by `excitation` on channel `driven` (the unit of amplitude).
+    /// The state of a step driven by `excitation` on channel `driven` (the unit of amplitude),
+    /// lasting `sample_count` samples (0 when not known in advance).
     pub fn from_excitation(
         header: Header,
         step: usize,
         start_time: Time,
         excitation: &Excitation,
         driven: Channel,
+        sample_count: usize,
     ) -> ExcitationState {
         let (kind, frequency_hz, amplitude, band) = match excitation {
             Excitation::Sine {
@@ -91,7 +95,28 @@ impl ExcitationState {
             amplitude,
             band_low_hz: band[0],
             band_high_hz: band[1],
+            sample_count: u32_sat(sample_count),
         }
+    }
+
+    /// The state that says the exciter is off from `start_time` on (the run has ended).
+    pub fn idle(header: Header, step: usize, start_time: Time, driven: Channel) -> ExcitationState {
+        ExcitationState {
+            header,
+            step: u32_sat(step),
+            start_time,
+            kind: Self::IDLE,
+            driven_channel: driven.name().to_string(),
+            frequency_hz: 0.0,
+            amplitude: 0.0,
+            band_low_hz: f64::NAN,
+            band_high_hz: f64::NAN,
+            sample_count: 0,
+        }
+    }
+
+    pub fn is_idle(&self) -> bool {
+        self.kind == Self::IDLE
     }
 
     /// The excitation (a band with a NaN edge is taken as unknown).

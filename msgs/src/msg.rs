@@ -164,13 +164,15 @@ pub struct ExcitationState {
     pub header: Header,
     pub step: u32,
     pub start_time: Time,
-    /// [`Self::SINE`] or [`Self::RANDOM`].
+    /// [`Self::SINE`], [`Self::RANDOM`] or [`Self::IDLE`].
     pub kind: u8,
     pub driven_channel: String,
     pub frequency_hz: f64,
     pub amplitude: f64,
     pub band_low_hz: f64,
     pub band_high_hz: f64,
+    /// Samples in the step; 0 when not known in advance.
+    pub sample_count: u32,
 }
 
 ros_message!(
@@ -182,6 +184,7 @@ ros_message!(
 impl ExcitationState {
     pub const SINE: u8 = 0;
     pub const RANDOM: u8 = 1;
+    pub const IDLE: u8 = 2;
 }
 
 /// `forcemap_msgs/msg/HarmonicPhasors`: phasors of one settled step. The arrays

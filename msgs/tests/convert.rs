@@ -149,8 +149,10 @@ fn excitation_state_both_ways() {
         start,
         &sine,
         Channel::BaseDisplacementM,
+        1300,
     );
     assert_eq!(m.kind, ExcitationState::SINE);
+    assert_eq!(m.sample_count, 1300);
     assert_eq!(m.driven_channel, "base_displacement_m");
     assert!(m.band_low_hz.is_nan() && m.band_high_hz.is_nan());
     assert_eq!(m.excitation().unwrap(), sine);
@@ -161,8 +163,14 @@ fn excitation_state_both_ways() {
             band_hz: band,
             rms: 3.0,
         };
-        let m =
-            ExcitationState::from_excitation(Header::default(), 5, start, &random, Channel::ForceN);
+        let m = ExcitationState::from_excitation(
+            Header::default(),
+            5,
+            start,
+            &random,
+            Channel::ForceN,
+            0,
+        );
         assert_eq!(m.kind, ExcitationState::RANDOM);
         assert_eq!(m.frequency_hz, 0.0);
         let back = ExcitationState::from_cdr(&m.to_cdr()).unwrap();

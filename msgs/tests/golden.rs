@@ -94,6 +94,7 @@ fn excitation_state_padding_before_float64() {
         amplitude: 2.0,
         band_low_hz: 0.5,
         band_high_hz: 1.5,
+        sample_count: 1300,
     };
     let expected: &[u8] = &[
         0, 1, 0, 0, // encapsulation
@@ -110,6 +111,7 @@ fn excitation_state_padding_before_float64() {
         0, 0, 0, 0, 0, 0, 0, 0x40, // amplitude 2.0
         0, 0, 0, 0, 0, 0, 0xE0, 0x3F, // band_low_hz 0.5
         0, 0, 0, 0, 0, 0, 0xF8, 0x3F, // band_high_hz 1.5
+        0x14, 0x05, 0, 0, // sample_count 1300 (4-aligned after a float64)
     ];
     check(&msg, expected);
 }

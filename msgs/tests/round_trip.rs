@@ -54,6 +54,7 @@ fn excitation_same(a: &ExcitationState, b: &ExcitationState) -> bool {
         && a.start_time == b.start_time
         && a.kind == b.kind
         && a.driven_channel == b.driven_channel
+        && a.sample_count == b.sample_count
         && f64_bits(&[a.frequency_hz, a.amplitude, a.band_low_hz, a.band_high_hz])
             == f64_bits(&[b.frequency_hz, b.amplitude, b.band_low_hz, b.band_high_hz])
 }

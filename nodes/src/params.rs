@@ -283,6 +283,12 @@ impl Params {
         Ok(())
     }
 
+    /// Sets a value read from somewhere else (`origin` is shown in errors).
+    pub fn set_with_origin(&mut self, name: &str, value: ParamValue, origin: &str) {
+        self.values
+            .insert(name.to_string(), (value, origin.to_string()));
+    }
+
     /// Sets a value directly (origin shown in errors: "set in code").
     pub fn set(&mut self, name: &str, value: ParamValue) {
         self.values

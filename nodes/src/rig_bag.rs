@@ -13,7 +13,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use forcemap_math::record::{Channel, Excitation, Record};
+use forcemap_math::record::{Channel, Record};
 use forcemap_msgs::RosMessage;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
@@ -21,6 +21,7 @@ use forcemap_msgs::msg::{ExcitationState, RigSample};
 use forcemap_msgs::std_msgs::Header;
 
 use crate::bag::{BagError, BagReader, BagWriter, QosProfile, TopicSpec};
+use crate::steps::{StepAssembler, StepError, StepPlan};
 
 pub const SAMPLES_TOPIC: &str = "/rig/samples";
 pub const EXCITATION_TOPIC: &str = "/rig/excitation";
@@ -179,6 +180,7 @@ pub fn write_rig_bag(
             start,
             &r.excitation,
             driven,
+            r.len(),
         );
         w.write(excitation, nanos(start), nanos(start), &state.to_cdr())?;
         for i in 0..r.len() {
@@ -226,135 +228,47 @@ pub fn read_rig_bag(path: &Path) -> Result<RigBag, RigBagError> {
         }
     }
 
-    let mut steps: BTreeMap<u32, (Excitation, Time)> = BTreeMap::new();
+    let mut plans: BTreeMap<u32, StepPlan> = BTreeMap::new();
+    let mut run_start: Option<Time> = None;
     for (i, m) in reader.messages_on(&[EXCITATION_TOPIC])?.enumerate() {
         let m = m?;
         let s =
             ExcitationState::from_cdr(&m.data).map_err(|e| decode_err(EXCITATION_TOPIC, i, &e))?;
-        let ex = s
-            .excitation()
-            .map_err(|e| decode_err(EXCITATION_TOPIC, i, &e))?;
-        steps.insert(s.step, (ex, s.start_time));
+        // IDLE (the run ended) starts no step but its time is not the run's start either.
+        if let Some(plan) =
+            StepPlan::from_state(&s).map_err(|e| decode_err(EXCITATION_TOPIC, i, &e))?
+        {
+            run_start = Some(run_start.map_or(s.start_time, |t: Time| t.min(s.start_time)));
+            plans.insert(s.step, plan);
+        }
     }
 
     // Samples, grouped by step in time order.
-    let mut run_start: Option<Time> = None;
+    let mut assembler = StepAssembler::new();
+    if let Some(t) = run_start {
+        assembler.set_origin(t);
+    }
     let mut records: Vec<Record> = Vec::new();
-    let mut stamps: Vec<f64> = Vec::new();
-    let finish_step = |rec: &mut Record, stamps: &[f64], path: &str| -> Result<(), RigBagError> {
-        if stamps.len() < 3 {
-            return Err(RigBagError::Step {
-                path: path.into(),
-                step: rec.step,
-                problem: format!("{} samples; a step needs at least 3", stamps.len()),
-            });
-        }
-        let dt = (stamps[stamps.len() - 1] - stamps[0]) / (stamps.len() - 1) as f64;
-        if let Some(k) =
-            (1..stamps.len()).find(|&k| ((stamps[k] - stamps[k - 1]) / dt - 1.0).abs() > 1e-3)
-        {
-            return Err(RigBagError::Step {
-                path: path.into(),
-                step: rec.step,
-                problem: format!(
-                    "samples are not uniform: sample {k} follows the previous after {:.6} s where {:.6} s is the step's mean interval (a gap or a duplicate)",
-                    stamps[k] - stamps[k - 1],
-                    dt
-                ),
-            });
-        }
-        // Stamps are whole nanoseconds: snap a rate within that rounding of a whole number of
-        // Hz to it, as the CSV reader does, so both forms of the same data give the same rate.
-        let rate = 1.0 / dt;
-        let snapped = rate.round();
-        rec.sample_rate_hz = if (rate - snapped).abs() < 1e-6 * rate {
-            snapped
-        } else {
-            rate
-        };
-        Ok(())
+    let step_err = |e: StepError| RigBagError::Step {
+        path: p.clone(),
+        step: e.step,
+        problem: e.problem,
     };
     for (i, m) in reader.messages_on(&[SAMPLES_TOPIC])?.enumerate() {
         let m = m?;
         let s = RigSample::from_cdr(&m.data).map_err(|e| decode_err(SAMPLES_TOPIC, i, &e))?;
-        let start = *run_start.get_or_insert(
-            steps
-                .values()
-                .map(|(_, t)| *t)
-                .min()
-                .unwrap_or(s.header.stamp),
-        );
-        let t = s.header.stamp.secs_since(start);
-        let present = s.present();
-        if let Some(c) = present
-            .iter()
-            .find(|c| !s.channel(**c).is_some_and(f64::is_finite))
-        {
-            return Err(decode_err(
-                SAMPLES_TOPIC,
-                i,
-                &format!(
-                    "step {}: channel {} is flagged present but not finite",
-                    s.step,
-                    c.name()
-                ),
-            ));
+        for done in assembler.push(&s, plans.get(&s.step)) {
+            records.push(done.map_err(step_err)?);
         }
-        let new_step = records.last().is_none_or(|r| r.step != s.step as usize);
-        if new_step {
-            if let Some(last) = records.last_mut() {
-                finish_step(last, &stamps, &p)?;
-            }
-            let step = s.step as usize;
-            if records.iter().any(|r| r.step == step) {
-                return Err(RigBagError::Step {
-                    path: p.clone(),
-                    step,
-                    problem: "its samples are not contiguous in time".into(),
-                });
-            }
-            let (excitation, _) = steps
-                .get(&s.step)
-                .cloned()
-                .ok_or_else(|| RigBagError::Step {
-                    path: p.clone(),
-                    step,
-                    problem: format!("no ExcitationState for this step on {EXCITATION_TOPIC}"),
-                })?;
-            records.push(Record {
-                step,
-                excitation,
-                sample_rate_hz: 0.0,
-                start_time_s: t,
-                channels: present.iter().map(|c| (*c, Vec::new())).collect(),
-            });
-            stamps.clear();
-        }
-        let rec = records.last_mut().expect("pushed above");
-        let expected: Vec<Channel> = rec.channels.iter().map(|(c, _)| *c).collect();
-        if expected != present {
-            return Err(decode_err(
-                SAMPLES_TOPIC,
-                i,
-                &format!(
-                    "step {}: the set of present channels changed within the step",
-                    s.step
-                ),
-            ));
-        }
-        for (c, v) in rec.channels.iter_mut() {
-            v.push(s.channel(*c).expect("checked present"));
-        }
-        stamps.push(t);
     }
-    match records.last_mut() {
-        Some(last) => finish_step(last, &stamps, &p)?,
-        None => {
-            return Err(RigBagError::Empty {
-                path: p,
-                topic: SAMPLES_TOPIC.into(),
-            });
-        }
+    if let Some(done) = assembler.finish() {
+        records.push(done.map_err(step_err)?);
+    }
+    if records.is_empty() {
+        return Err(RigBagError::Empty {
+            path: p,
+            topic: SAMPLES_TOPIC.into(),
+        });
     }
     Ok(RigBag {
         records,

@@ -6,7 +6,7 @@ use std::f64::consts::TAU;
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
-use super::{FdMultiOptions, IdentifyError, Method, Setup, StepEquations};
+use super::{FdMultiOptions, IdentifyError, Method, Setup, StepEquations, Weighting};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::record::Channel;
@@ -395,7 +395,17 @@ fn fd_multi_equations(
         } else {
             f64::INFINITY
         };
-        let wt = 1.0 / s;
+        let wt = match options.weighting {
+            Weighting::Noise => 1.0 / s,
+            // Uniform still leaves out harmonics without a noise estimate (not measured).
+            Weighting::Uniform => {
+                if s.is_finite() {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+        };
         let parts: &[(usize, bool)] = if n == 0 {
             &[(0, false)]
         } else {

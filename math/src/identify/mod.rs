@@ -13,21 +13,23 @@
 //! Each step gives a block of equations (`StepEquations`); blocks are stacked and solved by
 //! `lstsq::solve`. The live identifier node accumulates the same blocks.
 
+mod accumulator;
 mod cycle;
 mod fd;
 mod td;
 
+pub use accumulator::EquationAccumulator;
 pub use cycle::{Cycle, rebuilt_cycle};
 
 pub use fd::{ElementHarmonics, element_harmonics, step_equations};
 pub use td::td_step_equations;
 
 use nalgebra::{DMatrix, DVector};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use crate::frf::LinearSubstructure;
-use crate::lstsq::{self, LstsqError};
+use crate::lstsq::LstsqError;
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::record::{Channel, Record};
@@ -83,6 +85,36 @@ impl Method {
     }
 }
 
+/// How the improved method weights its real equations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Weighting {
+    /// Each harmonic by the inverse of its measured noise (the default): noisy high harmonics
+    /// count little, and the covariance is that of the measured scatter.
+    #[default]
+    Noise,
+    /// Every harmonic's equations in newtons, unweighted (for comparison, or when the records
+    /// are too short for a noise estimate).
+    Uniform,
+}
+
+impl Weighting {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Weighting::Noise => "noise",
+            Weighting::Uniform => "uniform",
+        }
+    }
+
+    pub fn by_name(name: &str) -> Option<Weighting> {
+        match name {
+            "noise" => Some(Weighting::Noise),
+            "uniform" => Some(Weighting::Uniform),
+            _ => None,
+        }
+    }
+}
+
 /// Tuning of the improved method.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FdMultiOptions {
@@ -107,6 +139,7 @@ pub struct FdMultiOptions {
     /// Floor of each harmonic's force noise, relative to the first force harmonic, so that
     /// noise-free data are not weighted by round-off.
     pub noise_floor: f64,
+    pub weighting: Weighting,
 }
 
 impl Default for FdMultiOptions {
@@ -119,6 +152,7 @@ impl Default for FdMultiOptions {
             stick_force_tolerance: 1e-6,
             jump_margin_harmonic_periods: 0.5,
             noise_floor: 1e-4,
+            weighting: Weighting::Noise,
         }
     }
 }
@@ -184,88 +218,18 @@ impl Identification {
     }
 }
 
-/// Stacks step blocks and solves. Blocks may be weighted already.
+/// Stacks step blocks and solves (through the same accumulator the live identifier keeps, so
+/// both agree exactly). Blocks may be weighted already.
 pub fn solve_blocks(
     model: &Model,
     method: Method,
     blocks: &[StepEquations],
 ) -> Result<Identification, IdentifyError> {
-    if blocks.is_empty() {
-        return Err(IdentifyError::NoSteps);
-    }
-    let p = model.terms.len();
-    let rows: usize = blocks.iter().map(|b| b.a.nrows()).sum();
-    let mut a = DMatrix::zeros(rows, p);
-    let mut b = DVector::zeros(rows);
-    let mut r0 = 0;
+    let mut acc = EquationAccumulator::new(model, method);
     for blk in blocks {
-        let n = blk.a.nrows();
-        a.rows_mut(r0, n).copy_from(&blk.a);
-        b.rows_mut(r0, n).copy_from(&blk.b);
-        r0 += n;
+        acc.add(blk)?;
     }
-    let independent: f64 = blocks.iter().map(|b| b.independent_equations).sum();
-    let names = model.symbols();
-    let variance_scale = if independent > p as f64 {
-        ((rows - p) as f64 / (independent - p as f64)).max(1.0)
-    } else {
-        1.0
-    };
-    let sol = lstsq::solve(&a, &b, &names, variance_scale)?;
-    let std = sol.std();
-    // r: each term's share of the RMS transmitted force over the fitting data.
-    let contrib: Vec<f64> = (0..p)
-        .map(|i| {
-            let ms: f64 = blocks
-                .iter()
-                .map(|blk| blk.term_rms[i].powi(2))
-                .sum::<f64>()
-                / blocks.len() as f64;
-            (sol.theta[i] * ms.sqrt()).abs()
-        })
-        .collect();
-    let total: f64 = contrib.iter().sum();
-    let mut warnings: Vec<String> = blocks
-        .iter()
-        .flat_map(|b| b.notes.iter().cloned())
-        .collect();
-    warnings.extend(sol.warnings.iter().cloned());
-    if (independent as usize) < 2 * p {
-        warnings.push(format!(
-            "few equations: {independent:.0} independent real equations for {p} parameters"
-        ));
-    }
-    Ok(Identification {
-        model: model.name.clone(),
-        method: method.name(),
-        parameters: names
-            .iter()
-            .zip(&sol.theta)
-            .zip(&std)
-            .map(|((n, v), s)| Parameter {
-                name: n.clone(),
-                value: *v,
-                std: *s,
-            })
-            .collect(),
-        covariance: (0..p)
-            .map(|i| (0..p).map(|j| sol.covariance[(i, j)]).collect())
-            .collect(),
-        condition_number: sol.condition_number,
-        equations: sol.equations,
-        r: names
-            .iter()
-            .zip(&contrib)
-            .map(|(n, c)| (n.clone(), 100.0 * c / total.max(f64::MIN_POSITIVE)))
-            .collect(),
-        residual_rms: sol.residual_rms,
-        steps_used: blocks
-            .iter()
-            .filter(|b| b.a.nrows() > 0)
-            .map(|b| b.step)
-            .collect(),
-        warnings,
-    })
+    acc.solve()
 }
 
 /// Identifies `model` from stepped-sine steps. FD methods use the harmonic analyses; TD uses the

@@ -48,6 +48,7 @@ pub fn excitation_sine() -> ExcitationState {
         amplitude: 2.0e-3,
         band_low_hz: f64::NAN,
         band_high_hz: f64::NAN,
+        sample_count: 1300,
     }
 }
 
@@ -65,6 +66,7 @@ pub fn excitation_random() -> ExcitationState {
         amplitude: 1.5,
         band_low_hz: 1.0,
         band_high_hz: 20.0,
+        sample_count: 0,
     }
 }
 

@@ -83,7 +83,11 @@ impl Default for BagWriterOptions {
             chunk_size: 512 * 1024,
             max_chunk_age: Some(Duration::from_secs(1)),
             zstd: true,
-            ros_distro: std::env::var("ROS_DISTRO").unwrap_or_default(),
+            // The sourced ROS 2 environment if any, else the distribution forcemap was built for.
+            ros_distro: std::env::var("ROS_DISTRO")
+                .ok()
+                .filter(|d| !d.is_empty())
+                .unwrap_or_else(|| crate::ros::BUILT_FOR_DISTRO.to_string()),
         }
     }
 }

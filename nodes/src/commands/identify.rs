@@ -33,7 +33,7 @@ fn method(args: &IdentifyArgs) -> anyhow::Result<Method> {
 }
 
 /// The drive-point substructure from the params (`substructure.*`).
-fn substructure(params: &Params, source: &str) -> anyhow::Result<LinearSubstructure> {
+pub fn substructure(params: &Params, source: &str) -> anyhow::Result<LinearSubstructure> {
     if params.opt_str("substructure")? == Some("paper_three_dof") {
         return Ok(LinearSubstructure::paper_three_dof_substructure_i());
     }

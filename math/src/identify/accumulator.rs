@@ -1,0 +1,151 @@
+//! The equations of an identification, accumulated step by step in constant memory: what the
+//! live identifier keeps (and persists) instead of samples, and what the offline path stacks
+//! its steps into, so that both give the same theta from the same steps.
+
+use serde::{Deserialize, Serialize};
+
+use super::{Identification, IdentifyError, Method, Parameter, StepEquations};
+use crate::lstsq::QrAccumulator;
+use crate::model::Model;
+
+/// At most this many step notes are kept (the rest are counted), so that memory stays flat.
+const MAX_NOTES: usize = 64;
+
+/// The accumulated equations of one model and method.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EquationAccumulator {
+    /// What the equations belong to; a state is only resumed for the same model and method.
+    pub model: String,
+    pub method: String,
+    pub parameter_names: Vec<String>,
+    qr: QrAccumulator,
+    /// Sum over steps of each term's mean square over the step's cycle (for the r values).
+    term_ms_sum: Vec<f64>,
+    /// Steps added, including those that gave no equations.
+    blocks: usize,
+    independent_equations: f64,
+    /// Steps that gave equations, in the order added.
+    steps_used: Vec<usize>,
+    notes: Vec<String>,
+    notes_dropped: usize,
+}
+
+impl EquationAccumulator {
+    pub fn new(model: &Model, method: Method) -> EquationAccumulator {
+        let p = model.terms.len();
+        EquationAccumulator {
+            model: model.name.clone(),
+            method: method.name(),
+            parameter_names: model.symbols(),
+            qr: QrAccumulator::new(p),
+            term_ms_sum: vec![0.0; p],
+            blocks: 0,
+            independent_equations: 0.0,
+            steps_used: Vec::new(),
+            notes: Vec::new(),
+            notes_dropped: 0,
+        }
+    }
+
+    /// Whether this state holds equations of `model` by `method`.
+    pub fn is_for(&self, model: &Model, method: Method) -> bool {
+        self.model == model.name
+            && self.method == method.name()
+            && self.parameter_names == model.symbols()
+    }
+
+    /// Steps added so far (with or without equations).
+    pub fn steps_added(&self) -> usize {
+        self.blocks
+    }
+
+    pub fn steps_used(&self) -> &[usize] {
+        &self.steps_used
+    }
+
+    /// Real equations so far.
+    pub fn equations(&self) -> usize {
+        self.qr.rows()
+    }
+
+    /// Adds one step's block of equations.
+    pub fn add(&mut self, blk: &StepEquations) -> Result<(), IdentifyError> {
+        self.qr.add_rows(&blk.a, &blk.b)?;
+        for (s, t) in self.term_ms_sum.iter_mut().zip(&blk.term_rms) {
+            *s += t * t;
+        }
+        self.blocks += 1;
+        self.independent_equations += blk.independent_equations;
+        if blk.a.nrows() > 0 {
+            self.steps_used.push(blk.step);
+        }
+        for n in &blk.notes {
+            if self.notes.len() < MAX_NOTES {
+                self.notes.push(n.clone());
+            } else {
+                self.notes_dropped += 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// Solves the equations so far.
+    pub fn solve(&self) -> Result<Identification, IdentifyError> {
+        if self.blocks == 0 {
+            return Err(IdentifyError::NoSteps);
+        }
+        let p = self.parameter_names.len();
+        let rows = self.qr.rows();
+        let independent = self.independent_equations;
+        let names = &self.parameter_names;
+        let variance_scale = if independent > p as f64 {
+            ((rows.saturating_sub(p)) as f64 / (independent - p as f64)).max(1.0)
+        } else {
+            1.0
+        };
+        let sol = self.qr.solve(names, variance_scale)?;
+        let std = sol.std();
+        // r: each term's share of the RMS transmitted force over the fitting data.
+        let contrib: Vec<f64> = (0..p)
+            .map(|i| (sol.theta[i] * (self.term_ms_sum[i] / self.blocks as f64).sqrt()).abs())
+            .collect();
+        let total: f64 = contrib.iter().sum();
+        let mut warnings = self.notes.clone();
+        if self.notes_dropped > 0 {
+            warnings.push(format!("... and {} more step notes", self.notes_dropped));
+        }
+        warnings.extend(sol.warnings.iter().cloned());
+        if (independent as usize) < 2 * p {
+            warnings.push(format!(
+                "few equations: {independent:.0} independent real equations for {p} parameters"
+            ));
+        }
+        Ok(Identification {
+            model: self.model.clone(),
+            method: self.method.clone(),
+            parameters: names
+                .iter()
+                .zip(&sol.theta)
+                .zip(&std)
+                .map(|((n, v), s)| Parameter {
+                    name: n.clone(),
+                    value: *v,
+                    std: *s,
+                })
+                .collect(),
+            covariance: (0..p)
+                .map(|i| (0..p).map(|j| sol.covariance[(i, j)]).collect())
+                .collect(),
+            condition_number: sol.condition_number,
+            equations: sol.equations,
+            r: names
+                .iter()
+                .zip(&contrib)
+                .map(|(n, c)| (n.clone(), 100.0 * c / total.max(f64::MIN_POSITIVE)))
+                .collect(),
+            residual_rms: sol.residual_rms,
+            steps_used: self.steps_used.clone(),
+            warnings,
+        })
+    }
+}

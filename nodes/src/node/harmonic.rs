@@ -1,0 +1,421 @@
+//! The harmonic node: turns each stepped-sine step into per-frequency phasors.
+//!
+//! Subscribes to the samples and the excitation state, assembles each step (the same
+//! [`StepAssembler`] that reads bags, so a replayed step is the record `forcemap identify`
+//! reads), finds its settled part and publishes the phasors of every harmonic once the step is
+//! complete. Steps with gaps, lost samples or non-finite values are dropped and reported on
+//! /diagnostics, never used. Random (validation) records give no phasors.
+//!
+//! Parameters: `max_harmonic` (100, as `forcemap identify`), `min_periods` (the phasor
+//! analysis' minimum of settled periods), `frame_id`.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::time::{Duration, Instant};
+
+use forcemap_math::phasor::{PhasorOptions, analyse_record};
+use forcemap_math::record::{Excitation, Record};
+use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
+use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, RigSample};
+use forcemap_msgs::std_msgs::Header;
+use tokio::sync::mpsc;
+
+use crate::log_line;
+use crate::ros::{NodeSetup, RosNode, qos, topics};
+use crate::steps::{StepAssembler, StepError, StepPlan};
+
+/// Samples of a step whose excitation state has not arrived are held this long (the two topics
+/// are not ordered with respect to each other).
+const PLAN_WAIT: Duration = Duration::from_secs(2);
+/// At most this many samples wait for their excitation state.
+const MAX_PENDING: usize = 1_000_000;
+/// Plans of this many recent steps are kept.
+const KEEP_PLANS: usize = 64;
+
+pub enum Input {
+    Sample(RigSample),
+    Excitation(ExcitationState),
+    Tick,
+}
+
+/// What the node decided about a step.
+pub enum Outcome {
+    /// A complete sine step to analyse, with the run's time origin.
+    Analyse(Record, Time),
+    /// A complete random record: kept for validation, no phasors.
+    Skipped(usize, String),
+    Dropped(StepError),
+}
+
+/// The node's logic without the middleware, so that it can be tested alone.
+pub struct HarmonicState {
+    assembler: StepAssembler,
+    plans: BTreeMap<u32, Option<StepPlan>>,
+    pending: VecDeque<(RigSample, Instant)>,
+}
+
+impl Default for HarmonicState {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl HarmonicState {
+    pub fn new() -> HarmonicState {
+        HarmonicState {
+            assembler: StepAssembler::new(),
+            plans: BTreeMap::new(),
+            pending: VecDeque::new(),
+        }
+    }
+
+    pub fn handle(&mut self, input: Input, now: Instant) -> Vec<Outcome> {
+        let mut done = Vec::new();
+        match input {
+            Input::Excitation(e) => {
+                match StepPlan::from_state(&e) {
+                    Ok(Some(plan)) => {
+                        self.assembler.set_origin(e.start_time);
+                        self.plans.insert(e.step, Some(plan));
+                    }
+                    Ok(None) => {
+                        // IDLE: the run ended; an open-ended step is complete.
+                        self.flush_pending(&mut done, true);
+                        done.extend(self.assembler.finish().map(|r| self.outcome(r)));
+                    }
+                    Err(err) => {
+                        self.plans.insert(e.step, None);
+                        done.push(Outcome::Dropped(err));
+                    }
+                }
+                while self.plans.len() > KEEP_PLANS {
+                    self.plans.pop_first();
+                }
+                self.flush_pending(&mut done, false);
+            }
+            Input::Sample(s) => {
+                if !self.pending.is_empty() || !self.plans.contains_key(&s.step) {
+                    if self.pending.len() < MAX_PENDING {
+                        self.pending.push_back((s, now));
+                    }
+                    self.flush_pending(&mut done, false);
+                } else {
+                    self.push(&s, &mut done);
+                }
+            }
+            Input::Tick => {
+                let expired = self
+                    .pending
+                    .front()
+                    .is_some_and(|(_, t)| now.duration_since(*t) > PLAN_WAIT);
+                self.flush_pending(&mut done, expired);
+            }
+        }
+        done
+    }
+
+    /// Feeds waiting samples whose plan is known (all of them when `force`).
+    fn flush_pending(&mut self, done: &mut Vec<Outcome>, force: bool) {
+        while let Some((s, _)) = self.pending.front() {
+            if !force && !self.plans.contains_key(&s.step) {
+                break;
+            }
+            let (s, _) = self.pending.pop_front().expect("front exists");
+            self.push(&s, done);
+        }
+    }
+
+    fn push(&mut self, s: &RigSample, done: &mut Vec<Outcome>) {
+        let plan = self.plans.get(&s.step).cloned().flatten();
+        for r in self.assembler.push(s, plan.as_ref()) {
+            done.push(self.outcome(r));
+        }
+    }
+
+    fn outcome(&self, r: Result<Record, StepError>) -> Outcome {
+        match r {
+            Ok(rec) => match rec.excitation {
+                Excitation::Sine { .. } => {
+                    Outcome::Analyse(rec, self.assembler.origin().unwrap_or(Time::ZERO))
+                }
+                Excitation::Random { .. } => Outcome::Skipped(
+                    rec.step,
+                    format!(
+                        "random record of {} samples: kept for validation, no phasors",
+                        rec.len()
+                    ),
+                ),
+            },
+            Err(e) => Outcome::Dropped(e),
+        }
+    }
+}
+
+fn now_time() -> Time {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default();
+    Time::from_nanos(now.as_nanos() as i64)
+}
+
+pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
+    let p = &setup.params;
+    let mut options = PhasorOptions {
+        max_harmonic: p.opt_usize("max_harmonic")?.unwrap_or(100),
+        ..PhasorOptions::default()
+    };
+    if let Some(m) = p.opt_usize("min_periods")? {
+        options.min_periods = m;
+    }
+    let frame = p.opt_str("frame_id")?.unwrap_or("rig").to_string();
+    let fq = setup.fully_qualified_name();
+
+    let mut ros = RosNode::start(setup.clone())?;
+    let samples = ros.subscription::<RigSample>(topics::SAMPLES, qos::samples())?;
+    let excitation = ros.subscription::<ExcitationState>(topics::EXCITATION, qos::excitation())?;
+    let phasors_pub = ros.publisher::<HarmonicPhasors>(topics::PHASORS, qos::phasors())?;
+    let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;
+
+    let (tx, mut rx) = mpsc::unbounded_channel::<Input>();
+    let tx_s = tx.clone();
+    tokio::spawn(async move {
+        loop {
+            match samples.async_take().await {
+                Ok((m, _)) => {
+                    if tx_s.send(Input::Sample(m)).is_err() {
+                        break;
+                    }
+                }
+                Err(e) => log_line!("warning: receiving a sample: {e:?}"),
+            }
+        }
+    });
+    let tx_e = tx.clone();
+    tokio::spawn(async move {
+        loop {
+            match excitation.async_take().await {
+                Ok((m, _)) => {
+                    if tx_e.send(Input::Excitation(m)).is_err() {
+                        break;
+                    }
+                }
+                Err(e) => log_line!("warning: receiving an excitation state: {e:?}"),
+            }
+        }
+    });
+    tokio::spawn(async move {
+        let mut tick = tokio::time::interval(Duration::from_millis(200));
+        loop {
+            tick.tick().await;
+            if tx.send(Input::Tick).is_err() {
+                break;
+            }
+        }
+    });
+
+    // Analysis runs on its own task, in step order, so sample intake never waits for it.
+    let (atx, mut arx) = mpsc::unbounded_channel::<(Record, Time)>();
+    let status_name = format!("{fq}: harmonic analysis");
+    let diag_pub = std::sync::Arc::new(diag_pub);
+    let diag_for_worker = diag_pub.clone();
+    let frame_w = frame.clone();
+    let status_w = status_name.clone();
+    let options_w = options.clone();
+    let worker = tokio::spawn(async move {
+        let options = options_w;
+        let mut analysed = 0usize;
+        while let Some((rec, origin)) = arx.recv().await {
+            let step = rec.step;
+            let opts = options.clone();
+            let result = tokio::task::spawn_blocking(move || analyse_record(&rec, &opts)).await;
+            match result {
+                Ok(Ok(an)) => {
+                    analysed += 1;
+                    log_line!(
+                        "step {step}: {:.3} Hz, {} settled periods{} -> phasors of {} harmonics",
+                        an.frequency_hz,
+                        an.periods_used,
+                        if an.settled { "" } else { " (NOT settled)" },
+                        an.harmonics
+                    );
+                    let msg = HarmonicPhasors::from_analysis(
+                        &an,
+                        origin,
+                        Header::new(now_time(), &frame_w),
+                    );
+                    if let Err(e) = phasors_pub.async_publish(msg).await {
+                        log_line!("error: publishing the phasors of step {step}: {e:?}");
+                    }
+                    let status = DiagnosticStatus::new(
+                        if an.settled {
+                            DiagnosticStatus::OK
+                        } else {
+                            DiagnosticStatus::WARN
+                        },
+                        &status_w,
+                        format!("step {step} analysed"),
+                        "harmonic",
+                    )
+                    .with_value("steps_analysed", analysed)
+                    .with_value("last_step", step);
+                    let _ = diag_for_worker
+                        .async_publish(DiagnosticArray {
+                            header: Header::new(now_time(), ""),
+                            status: vec![status],
+                        })
+                        .await;
+                }
+                Ok(Err(e)) => log_line!("step {step}: dropped: phasor analysis failed: {e}"),
+                Err(e) => log_line!("step {step}: analysis task failed: {e}"),
+            }
+        }
+    });
+
+    let mut state = HarmonicState::new();
+    let mut dropped = 0usize;
+    log_line!(
+        "waiting for samples on {} (max_harmonic {})",
+        setup.absolute_topic(topics::SAMPLES),
+        options.max_harmonic
+    );
+    loop {
+        let input = tokio::select! {
+            i = rx.recv() => match i { Some(i) => i, None => break },
+            _ = crate::ros::shutdown_signal() => break,
+        };
+        for out in state.handle(input, Instant::now()) {
+            match out {
+                Outcome::Analyse(rec, origin) => {
+                    let _ = atx.send((rec, origin));
+                }
+                Outcome::Skipped(step, why) => log_line!("step {step}: {why}"),
+                Outcome::Dropped(e) => {
+                    dropped += 1;
+                    log_line!("step {}: DROPPED: {}", e.step, e.problem);
+                    let status = DiagnosticStatus::new(
+                        DiagnosticStatus::WARN,
+                        &status_name,
+                        format!("step {} dropped: {}", e.step, e.problem),
+                        "harmonic",
+                    )
+                    .with_value("steps_dropped", dropped)
+                    .with_value("dropped_step", e.step);
+                    let _ = diag_pub
+                        .async_publish(DiagnosticArray {
+                            header: Header::new(now_time(), ""),
+                            status: vec![status],
+                        })
+                        .await;
+                }
+            }
+        }
+    }
+    drop(atx);
+    let _ = tokio::time::timeout(Duration::from_secs(5), worker).await;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use forcemap_math::record::Channel;
+
+    fn sample(step: u32, k: i64) -> RigSample {
+        RigSample::new(
+            Header::new(Time::from_nanos(5_000_000_000 + k * 10_000_000), "rig"),
+            step,
+        )
+        .with(Channel::BaseDisplacementM, (k as f64 * 0.3).sin())
+    }
+
+    fn state(step: u32, n: u32, kind_sine: bool) -> ExcitationState {
+        let ex = if kind_sine {
+            Excitation::Sine {
+                frequency_hz: 2.0,
+                amplitude: 1.0,
+            }
+        } else {
+            Excitation::Random {
+                band_hz: None,
+                rms: 1.0,
+            }
+        };
+        ExcitationState::from_excitation(
+            Header::default(),
+            step as usize,
+            Time::from_nanos(5_000_000_000 + (step as i64) * 1_000_000_000),
+            &ex,
+            Channel::BaseDisplacementM,
+            n as usize,
+        )
+    }
+
+    /// Samples that overtake their excitation state wait for it; the step completes at its
+    /// planned count; a random record is skipped; a step with a lost sample is dropped.
+    #[test]
+    fn steps_complete_in_order_whatever_the_topic_order() {
+        let mut h = HarmonicState::new();
+        let t = Instant::now();
+        let mut out = Vec::new();
+        for k in 0..3 {
+            out.extend(h.handle(Input::Sample(sample(0, k)), t));
+        }
+        assert!(out.is_empty());
+        out.extend(h.handle(Input::Excitation(state(0, 5, true)), t));
+        for k in 3..5 {
+            out.extend(h.handle(Input::Sample(sample(0, k)), t));
+        }
+        assert_eq!(out.len(), 1);
+        let Outcome::Analyse(rec, origin) = out.pop().unwrap() else {
+            panic!("step 0 should be analysed")
+        };
+        assert_eq!((rec.step, rec.len(), rec.sample_rate_hz), (0, 5, 100.0));
+        assert_eq!(origin, Time::from_nanos(5_000_000_000));
+
+        out.extend(h.handle(Input::Excitation(state(1, 4, false)), t));
+        for k in 100..104 {
+            out.extend(h.handle(Input::Sample(sample(1, k)), t));
+        }
+        assert!(matches!(out.pop(), Some(Outcome::Skipped(1, _))));
+
+        out.extend(h.handle(Input::Excitation(state(2, 4, true)), t));
+        for k in [200, 201, 203] {
+            out.extend(h.handle(Input::Sample(sample(2, k)), t));
+        }
+        assert!(out.is_empty());
+        let idle = ExcitationState::idle(Header::default(), 3, Time::ZERO, Channel::ForceN);
+        out.extend(h.handle(Input::Excitation(idle), t));
+        let Some(Outcome::Dropped(e)) = out.pop() else {
+            panic!("step 2 should be dropped")
+        };
+        assert_eq!(e.step, 2);
+    }
+
+    /// Samples whose excitation state never comes are dropped after the wait, not used.
+    #[test]
+    fn samples_without_an_excitation_state_are_dropped_after_the_wait() {
+        let mut h = HarmonicState::new();
+        let t = Instant::now();
+        for k in 0..4 {
+            assert!(h.handle(Input::Sample(sample(7, k)), t).is_empty());
+        }
+        assert!(
+            h.handle(Input::Tick, t + Duration::from_millis(100))
+                .is_empty()
+        );
+        let mut out = h.handle(Input::Tick, t + PLAN_WAIT + Duration::from_millis(1));
+        out.extend(h.handle(
+            Input::Excitation(ExcitationState::idle(
+                Header::default(),
+                8,
+                Time::ZERO,
+                Channel::ForceN,
+            )),
+            t,
+        ));
+        let Some(Outcome::Dropped(e)) = out.pop() else {
+            panic!("step 7 should be dropped")
+        };
+        assert!(e.problem.contains("no ExcitationState"), "{}", e.problem);
+    }
+}

@@ -1,0 +1,390 @@
+//! What every forcemap node shares: the `--ros-args` command line (node name, namespace,
+//! parameters, remaps), the DDS context on `ROS_DOMAIN_ID`, the QoS of each topic, and clean
+//! shutdown on SIGINT/SIGTERM.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::{Context as _, bail};
+use ros2_client::{
+    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
+    QosProfile, Subscription,
+    qos::{Durability, History, WhenFull},
+};
+
+use crate::params::{Params, read_params};
+
+/// The ROS 2 distribution the nodes are built for (cargo feature `jazzy`, the default, or
+/// `humble`): it decides the wire format ros2-client speaks (e.g. 16- or 24-byte GIDs).
+pub const BUILT_FOR_DISTRO: &str = if cfg!(feature = "jazzy") {
+    "jazzy"
+} else if cfg!(feature = "humble") {
+    "humble"
+} else {
+    ""
+};
+
+/// The topics of a rig, relative to the rig's namespace (so `/rig/samples` for namespace `/rig`).
+pub mod topics {
+    pub const SAMPLES: &str = "samples";
+    pub const EXCITATION: &str = "excitation";
+    /// Rig constants (`mass_kg`, ...) as a diagnostic_msgs/DiagnosticStatus.
+    pub const PARAMETERS: &str = "parameters";
+    pub const PHASORS: &str = "phasors";
+    pub const THETA: &str = "theta";
+    pub const DIAGNOSTICS: &str = "/diagnostics";
+}
+
+/// QoS per topic. Samples: reliable with a deep queue (a step's samples must all arrive).
+/// Excitation state, rig constants and the latest theta: transient local, so a late joiner
+/// (a control node, a restarted node) gets them at once. Phasors: transient local with a
+/// history of a whole run, so that a restarted identifier receives the steps it missed.
+pub mod qos {
+    use super::*;
+
+    pub const SAMPLES_DEPTH: usize = 10_000;
+    pub const PHASORS_DEPTH: usize = 1_000;
+
+    pub fn samples() -> QosProfile {
+        QosProfile::publisher_default()
+            .reliability_reliable(WhenFull::Block)
+            .history(History::KeepLast {
+                depth: SAMPLES_DEPTH,
+            })
+    }
+
+    pub fn latched(depth: usize) -> QosProfile {
+        QosProfile::publisher_default()
+            .reliability_reliable(WhenFull::Wait(Duration::from_millis(500)))
+            .durability(Durability::TransientLocal)
+            .history(History::KeepLast { depth })
+    }
+
+    pub fn excitation() -> QosProfile {
+        latched(64)
+    }
+
+    pub fn parameters() -> QosProfile {
+        latched(1)
+    }
+
+    pub fn phasors() -> QosProfile {
+        latched(PHASORS_DEPTH)
+    }
+
+    pub fn theta() -> QosProfile {
+        latched(1)
+    }
+
+    /// As ROS tools expect on /diagnostics: reliable, volatile.
+    pub fn diagnostics() -> QosProfile {
+        QosProfile::publisher_default()
+            .reliability_reliable(WhenFull::Wait(Duration::from_millis(100)))
+            .history(History::KeepLast { depth: 100 })
+    }
+}
+
+/// The command line of a node after `--ros-args` (the subset of the rcl arguments forcemap
+/// honours: `-p name:=value`, `--params-file FILE`, `-r from:=to` including `__node` and
+/// `__ns`).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RosArgs {
+    pub node_name: Option<String>,
+    pub namespace: Option<String>,
+    pub params_files: Vec<PathBuf>,
+    pub overrides: Vec<String>,
+    pub remaps: BTreeMap<String, String>,
+}
+
+impl RosArgs {
+    /// Parses the arguments of a node. Arguments before `--ros-args` are refused (nodes take
+    /// their settings as parameters); `--` ends the ROS arguments.
+    pub fn parse(args: &[String]) -> anyhow::Result<RosArgs> {
+        let mut out = RosArgs::default();
+        let mut it = args.iter().peekable();
+        let mut in_ros = false;
+        while let Some(a) = it.next() {
+            if a == "--ros-args" {
+                in_ros = true;
+                continue;
+            }
+            if a == "--" {
+                in_ros = false;
+                continue;
+            }
+            if !in_ros {
+                bail!(
+                    "unexpected argument '{a}': node settings are ROS parameters, e.g. --ros-args -p name:=value or --params-file FILE"
+                );
+            }
+            let mut value = |flag: &str| {
+                it.next()
+                    .cloned()
+                    .with_context(|| format!("{flag} needs a value"))
+            };
+            match a.as_str() {
+                "-p" | "--param" => out.overrides.push(value(a)?),
+                "--params-file" => out.params_files.push(PathBuf::from(value(a)?)),
+                "-r" | "--remap" => {
+                    let v = value(a)?;
+                    let Some((from, to)) = v.split_once(":=") else {
+                        bail!("remap '{v}': expected from:=to");
+                    };
+                    match from {
+                        "__node" | "__name" => out.node_name = Some(to.to_string()),
+                        "__ns" => out.namespace = Some(to.to_string()),
+                        _ => {
+                            out.remaps.insert(from.to_string(), to.to_string());
+                        }
+                    }
+                }
+                "--log-level" | "-e" | "--enclave" => {
+                    value(a)?;
+                }
+                other => bail!(
+                    "unknown ROS argument '{other}' (forcemap nodes take -p, --params-file, -r, --log-level)"
+                ),
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// A node's identity and parameters, resolved from its command line.
+#[derive(Debug, Clone)]
+pub struct NodeSetup {
+    pub name: String,
+    /// Absolute namespace, e.g. `/rig` (`/` for the root).
+    pub namespace: String,
+    pub params: Params,
+    pub remaps: BTreeMap<String, String>,
+}
+
+impl NodeSetup {
+    /// Resolves the node's name, namespace and parameters (files in order, then `-p`
+    /// overrides), with `default_name` when no `__node` remap is given.
+    pub fn from_args(default_name: &str, args: &RosArgs) -> anyhow::Result<NodeSetup> {
+        let name = args
+            .node_name
+            .clone()
+            .unwrap_or_else(|| default_name.to_string());
+        let namespace = match args.namespace.as_deref() {
+            None | Some("") | Some("/") => "/".to_string(),
+            Some(ns) if ns.starts_with('/') => ns.trim_end_matches('/').to_string(),
+            Some(ns) => format!("/{}", ns.trim_end_matches('/')),
+        };
+        NodeName::new(&namespace, &name)
+            .map_err(|e| anyhow::anyhow!("node name '{name}' in namespace '{namespace}': {e:?}"))?;
+        let fq = if namespace == "/" {
+            format!("/{name}")
+        } else {
+            format!("{namespace}/{name}")
+        };
+        let mut params = Params::new();
+        for f in &args.params_files {
+            let file = match read_params(f, Some(&fq)) {
+                Ok(p) => p,
+                // A shared file without an entry for this node is fine (ros2 does the same).
+                Err(crate::params::ParamsError::NoMatchingNode { .. }) => continue,
+                Err(e) => return Err(e.into()),
+            };
+            for (k, v) in file.iter() {
+                params.set_with_origin(k, v.clone(), &f.display().to_string());
+            }
+        }
+        for o in &args.overrides {
+            params.set_from_override(o)?;
+        }
+        Ok(NodeSetup {
+            name,
+            namespace,
+            params,
+            remaps: args.remaps.clone(),
+        })
+    }
+
+    pub fn fully_qualified_name(&self) -> String {
+        if self.namespace == "/" {
+            format!("/{}", self.name)
+        } else {
+            format!("{}/{}", self.namespace, self.name)
+        }
+    }
+
+    /// The name of a topic after remapping (relative names stay relative to the namespace).
+    pub fn topic_name(&self, name: &str) -> String {
+        self.remaps
+            .get(name)
+            .cloned()
+            .unwrap_or_else(|| name.to_string())
+    }
+
+    /// The absolute name of a topic, as it appears on the wire and in bags.
+    pub fn absolute_topic(&self, name: &str) -> String {
+        let n = self.topic_name(name);
+        if n.starts_with('/') {
+            n
+        } else if self.namespace == "/" {
+            format!("/{n}")
+        } else {
+            format!("{}/{n}", self.namespace)
+        }
+    }
+}
+
+/// The DDS domain from `ROS_DOMAIN_ID` (0 when unset), checked as ROS does.
+pub fn domain_id() -> anyhow::Result<u16> {
+    match std::env::var("ROS_DOMAIN_ID") {
+        Err(_) => Ok(0),
+        Ok(s) if s.trim().is_empty() => Ok(0),
+        Ok(s) => match s.trim().parse::<u16>() {
+            Ok(d) if d <= 232 => Ok(d),
+            _ => bail!("ROS_DOMAIN_ID='{s}': expected a whole number from 0 to 232"),
+        },
+    }
+}
+
+/// A running ROS 2 node: its context, node handle and setup.
+pub struct RosNode {
+    pub setup: NodeSetup,
+    pub node: Node,
+    _context: Context,
+}
+
+impl RosNode {
+    /// Creates the node on `ROS_DOMAIN_ID` and starts its spinner (inside tokio).
+    pub fn start(setup: NodeSetup) -> anyhow::Result<RosNode> {
+        let context = Context::with_options(ContextOptions::new().domain_id(domain_id()?))
+            .map_err(|e| anyhow::anyhow!("creating the DDS participant: {e:?}"))?;
+        let name = NodeName::new(&setup.namespace, &setup.name)
+            .map_err(|e| anyhow::anyhow!("node name: {e:?}"))?;
+        let mut node = context
+            .new_node(name, NodeOptions::new().enable_rosout(true))
+            .map_err(|e| anyhow::anyhow!("creating node {}: {e:?}", setup.name))?;
+        let spinner = node
+            .spinner()
+            .map_err(|e| anyhow::anyhow!("starting the node's spinner: {e:?}"))?;
+        tokio::spawn(spinner.spin());
+        Ok(RosNode {
+            setup,
+            node,
+            _context: context,
+        })
+    }
+
+    fn ros_name(&self, name: &str) -> anyhow::Result<Name> {
+        let n = self.setup.topic_name(name);
+        Name::parse(&n).map_err(|e| anyhow::anyhow!("topic name '{n}': {e:?}"))
+    }
+
+    pub fn publisher<M: forcemap_msgs::RosMessage + serde::Serialize>(
+        &mut self,
+        name: &str,
+        qos: QosProfile,
+    ) -> anyhow::Result<Publisher<M>> {
+        let topic = self
+            .node
+            .create_topic(&self.ros_name(name)?, type_name::<M>(), &qos)
+            .map_err(|e| anyhow::anyhow!("topic {name}: {e:?}"))?;
+        self.node
+            .create_publisher::<M>(&topic, Some(qos))
+            .map_err(|e| anyhow::anyhow!("publisher on {name}: {e:?}"))
+    }
+
+    pub fn subscription<M: forcemap_msgs::RosMessage + 'static>(
+        &mut self,
+        name: &str,
+        qos: QosProfile,
+    ) -> anyhow::Result<Subscription<M>> {
+        let topic = self
+            .node
+            .create_topic(&self.ros_name(name)?, type_name::<M>(), &qos)
+            .map_err(|e| anyhow::anyhow!("topic {name}: {e:?}"))?;
+        self.node
+            .create_subscription::<M>(&topic, Some(qos))
+            .map_err(|e| anyhow::anyhow!("subscription to {name}: {e:?}"))
+    }
+}
+
+/// `pkg/msg/Type` as ros2-client wants it.
+pub fn type_name<M: forcemap_msgs::RosMessage>() -> MessageTypeName {
+    let mut parts = M::TYPE_NAME.split('/');
+    let pkg = parts.next().unwrap_or("");
+    let ty = parts.next_back().unwrap_or("");
+    MessageTypeName::new(pkg, ty)
+}
+
+/// Resolves on SIGINT or SIGTERM.
+pub async fn shutdown_signal() {
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut term = signal(SignalKind::terminate()).expect("SIGTERM handler");
+    let mut int = signal(SignalKind::interrupt()).expect("SIGINT handler");
+    tokio::select! {
+        _ = term.recv() => {}
+        _ = int.recv() => {}
+    }
+}
+
+/// Runs a node's main future on a tokio runtime, stopping it cleanly on SIGINT/SIGTERM.
+pub fn run_node<F, Fut>(main: F) -> anyhow::Result<()>
+where
+    F: FnOnce() -> Fut,
+    Fut: std::future::Future<Output = anyhow::Result<()>>,
+{
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?;
+    rt.block_on(main())
+}
+
+/// Prints a line of the node's log to stdout at once (the launcher prefixes it with the node
+/// name; stdout of a child process is a pipe, so flush every line).
+#[macro_export]
+macro_rules! log_line {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, $($arg)*);
+        let _ = out.flush();
+    }};
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(s: &str) -> Vec<String> {
+        s.split_whitespace().map(str::to_string).collect()
+    }
+
+    #[test]
+    fn ros_args_give_name_namespace_params_and_remaps() {
+        let a = RosArgs::parse(&args(
+            "--ros-args -r __node:=ident -r __ns:=/bench -p model:=coulomb -p mass_kg:=36 -r theta:=/ctrl/theta",
+        ))
+        .unwrap();
+        let s = NodeSetup::from_args("identifier", &a).unwrap();
+        assert_eq!(s.fully_qualified_name(), "/bench/ident");
+        assert_eq!(s.params.get_str("model").unwrap(), "coulomb");
+        assert_eq!(s.params.get_f64("mass_kg").unwrap(), 36.0);
+        assert_eq!(s.absolute_topic("theta"), "/ctrl/theta");
+        assert_eq!(s.absolute_topic("samples"), "/bench/samples");
+        assert_eq!(s.absolute_topic("/diagnostics"), "/diagnostics");
+    }
+
+    #[test]
+    fn bad_arguments_are_named() {
+        let e = RosArgs::parse(&args("--model coulomb")).unwrap_err();
+        assert!(e.to_string().contains("'--model'"), "{e}");
+        let e = RosArgs::parse(&args("--ros-args -p")).unwrap_err();
+        assert!(e.to_string().contains("-p needs a value"), "{e}");
+        let e = RosArgs::parse(&args("--ros-args -r samples")).unwrap_err();
+        assert!(e.to_string().contains("from:=to"), "{e}");
+        let a = RosArgs::parse(&args("--ros-args -p mass_kg")).unwrap();
+        let e = NodeSetup::from_args("x", &a).unwrap_err();
+        assert!(e.to_string().contains("mass_kg"), "{e}");
+    }
+}
