@@ -35,6 +35,32 @@ pub enum Command {
     DiagnoseEval(DiagnoseEvalArgs),
     /// List the named models.
     Models,
+    /// Run one ROS 2 node (sensor, harmonic, identifier, recorder, monitor); settings are ROS
+    /// parameters: `forcemap node identifier --ros-args -p model:=coulomb`.
+    Node(NodeArgs),
+    /// Start the nodes of a ROS 2 YAML launch file as separate processes:
+    /// `forcemap launch launch_configs/rig_sim.launch.yaml out:=/tmp/run`.
+    Launch(LaunchArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct NodeArgs {
+    /// sensor, harmonic, identifier, recorder or monitor.
+    pub kind: String,
+    /// ROS arguments: --ros-args -p name:=value --params-file FILE -r from:=to -r __ns:=/rig
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+    pub ros_args: Vec<String>,
+}
+
+#[derive(Debug, Args)]
+pub struct LaunchArgs {
+    /// The launch file (ROS 2 YAML launch format).
+    pub file: PathBuf,
+    /// Launch arguments, name:=value.
+    pub args: Vec<String>,
+    /// Print the commands that would be started, and exit.
+    #[arg(long)]
+    pub dry_run: bool,
 }
 
 #[derive(Debug, Args)]

@@ -20,6 +20,8 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Import(a) => import::run(&a),
         Command::Diagnose(a) => diagnose::run(&a),
         Command::DiagnoseEval(a) => diagnose_eval::run(&a),
+        Command::Node(a) => crate::node::run(&a.kind, &a.ros_args),
+        Command::Launch(a) => crate::launch::run(&a),
         Command::Models => {
             for (name, what) in forcemap_math::model::MODEL_NAMES {
                 println!("{name:<20} {what}");
