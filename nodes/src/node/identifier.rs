@@ -294,6 +294,17 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         setup.absolute_topic(topics::PHASORS)
     );
     let status_name = format!("{fq}: identification");
+    // A resumed state is published at once: a control node may have missed the last theta.
+    if let Some(st) = &state
+        && st.accumulator.steps_added() > 0
+        && let Ok(id) = st.accumulator.solve()
+    {
+        log_line!("resumed theta: {}", theta_line(&id));
+        let msg = IdentifiedParameters::from_identification(&id, Header::new(now_time(), "rig"));
+        if let Err(e) = theta_pub.async_publish(msg).await {
+            log_line!("error: publishing theta: {e:?}");
+        }
+    }
     // Phasors that arrived before the rig's mass was known.
     let mut waiting: Vec<HarmonicPhasors> = Vec::new();
     loop {

@@ -8,6 +8,8 @@
 //! namespace or absolute; default: samples, excitation, parameters, phasors, theta,
 //! /diagnostics). The type of each topic is known from its last name component (forcemap's
 //! topics) or given as `name:pkg/msg/Type`. `overwrite` (false): replace an existing bag there.
+//! `log_flushes` (false): log the message count each time a chunk is closed (what a crash
+//! would keep).
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -208,6 +210,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let mut tick = tokio::time::interval(Duration::from_millis(250));
     let mut last_flush = Instant::now();
     let mut count = 0u64;
+    let log_flushes = p.opt_bool("log_flushes")?.unwrap_or(false);
     loop {
         tokio::select! {
             m = rx.recv() => {
@@ -220,6 +223,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                 if last_flush.elapsed() >= Duration::from_secs(1) {
                     writer.flush_chunk()?;
                     last_flush = Instant::now();
+                    if log_flushes {
+                        log_line!("on disk: {count} messages");
+                    }
                 }
             }
             _ = crate::ros::shutdown_signal() => break,

@@ -1,0 +1,178 @@
+//! Faults in the real node graph: an identifier killed with SIGKILL in the middle of a run and
+//! restarted ends with the theta of an undisturbed run; a recorder killed with SIGKILL leaves a
+//! bag that `forcemap bag recover` restores with every message the recorder had put on disk.
+
+mod common;
+
+use std::process::Command;
+use std::time::Duration;
+
+use common::*;
+
+#[test]
+fn identifier_killed_mid_run_resumes_and_ends_with_the_undisturbed_theta() {
+    let d = domain(2);
+    let dir = tempfile::tempdir().unwrap();
+    let state = dir.path().join("identifier_state.json");
+    let summary = dir.path().join("summary.json");
+    let bag = repo().join("bags/rig_40db");
+    let id_params = vec![
+        "model:=coulomb".to_string(),
+        format!("state_file:={}", state.display()),
+    ];
+    let mut monitor = NodeProcess::start(
+        "monitor",
+        d,
+        &[
+            format!("summary_json:={}", summary.display()),
+            "quiet_s:=3.0".into(),
+            "timeout_s:=180.0".into(),
+        ],
+    );
+    let _harmonic = NodeProcess::start("harmonic", d, &[]);
+    let identifier = NodeProcess::start("identifier", d, &id_params);
+    // 10x real time: a 13 s step every 1.3 s.
+    let mut sensor = NodeProcess::start(
+        "sensor",
+        d,
+        &[
+            "source:=bag".into(),
+            format!("bag:={}", bag.display()),
+            "rate_factor:=10.0".into(),
+        ],
+    );
+    identifier.wait_for("step 2:", Duration::from_secs(60));
+    identifier.signal("KILL");
+    drop(identifier);
+    // Steps go by while it is down; their phasors wait in the harmonic node's history.
+    sensor.wait_for("step 6:", Duration::from_secs(60));
+    let restarted = NodeProcess::start("identifier", d, &id_params);
+    restarted.wait_for("resuming from", Duration::from_secs(30));
+    assert!(sensor.wait_exit(Duration::from_secs(120)).success());
+    assert!(monitor.wait_exit(Duration::from_secs(60)).success());
+
+    let lines = restarted.lines();
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.contains("already in the accumulated equations")),
+        "the restarted identifier should have skipped the steps it had:\n{}",
+        lines.join("\n")
+    );
+    let live = summary_theta(&summary);
+    let undisturbed = offline_theta(&bag, &["--model", "coulomb"]);
+    assert_same_theta(&live, &undisturbed, 1e-9);
+}
+
+#[test]
+fn recorder_killed_leaves_a_bag_that_recover_restores() {
+    let d = domain(3);
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("rec");
+    let source = repo().join("bags/rig_40db");
+    let recorder = NodeProcess::start(
+        "recorder",
+        d,
+        &[
+            format!("bag:={}", bag.display()),
+            "log_flushes:=true".into(),
+            "topics:=[samples, excitation, parameters]".into(),
+        ],
+    );
+    recorder.wait_for("recording 3 topics", Duration::from_secs(30));
+    let mut sensor = NodeProcess::start(
+        "sensor",
+        d,
+        &[
+            "source:=bag".into(),
+            format!("bag:={}", source.display()),
+            "rate_factor:=10.0".into(),
+        ],
+    );
+    sensor.wait_for("step 3:", Duration::from_secs(60));
+    // Wait for a flush after step 3 began, then kill without warning.
+    let n0 = recorder
+        .lines()
+        .iter()
+        .filter(|l| l.contains("on disk:"))
+        .count();
+    let t0 = std::time::Instant::now();
+    while recorder
+        .lines()
+        .iter()
+        .filter(|l| l.contains("on disk:"))
+        .count()
+        < n0 + 2
+    {
+        assert!(t0.elapsed() < Duration::from_secs(10), "no flush logged");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    recorder.signal("KILL");
+    let on_disk: u64 = recorder
+        .lines()
+        .iter()
+        .rev()
+        .find_map(|l| l.strip_prefix("on disk: "))
+        .and_then(|s| s.trim_end_matches(" messages").parse().ok())
+        .expect("a flush count");
+    drop(recorder);
+    let _ = sensor.wait_exit(Duration::from_secs(60));
+
+    // The bag never finished: only the partial directory exists.
+    assert!(!bag.exists());
+    let partial = dir.path().join(".rec.partial");
+    assert!(
+        partial.exists(),
+        "the recorder's partial bag should be left behind"
+    );
+    let restored = dir.path().join("restored");
+    let out = Command::new(forcemap())
+        .args(["bag", "recover"])
+        .arg(&partial)
+        .arg(&restored)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "recover failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let info = Command::new(forcemap())
+        .args(["bag", "info", "--json"])
+        .arg(&restored)
+        .output()
+        .unwrap();
+    assert!(info.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    let total = v["messages"].as_u64().expect("messages");
+    assert!(
+        total >= on_disk,
+        "recovered {total} messages, the recorder had {on_disk} on disk"
+    );
+
+    // Every recovered sample is the one the source bag holds at the same place.
+    let orig = forcemap_nodes::rig_bag::read_rig_bag(&source).unwrap();
+    let got = forcemap_nodes::bag::BagReader::open(&restored).unwrap();
+    let mut n = 0usize;
+    let samples: Vec<f64> = orig
+        .records
+        .iter()
+        .flat_map(|r| {
+            r.channel(forcemap_math::record::Channel::MassAccelerationMps2)
+                .unwrap()
+                .to_vec()
+        })
+        .collect();
+    for m in got.messages_on(&["/rig/samples"]).unwrap() {
+        let m = m.unwrap();
+        use forcemap_msgs::RosMessage;
+        let s = forcemap_msgs::msg::RigSample::from_cdr(&m.data).unwrap();
+        assert_eq!(
+            s.mass_acceleration_mps2.to_bits(),
+            samples[n].to_bits(),
+            "sample {n}"
+        );
+        n += 1;
+    }
+    assert!(n > 3 * 1300, "only {n} samples recovered");
+}

@@ -1,0 +1,93 @@
+//! Bag playback through the real node graph (separate processes, DDS over loopback): the theta
+//! the identifier publishes live equals `forcemap identify` on the same bag, and is close to the
+//! truth the bag was simulated from.
+
+mod common;
+
+use std::time::Duration;
+
+use common::*;
+
+/// Plays `bag` through harmonic + identifier + monitor, returns (live, offline) theta.
+fn replay(
+    bag: &str,
+    domain_id: u16,
+    identifier_params: &[String],
+    offline_args: &[&str],
+) -> (Theta, Theta) {
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("summary.json");
+    let bag = repo().join(bag);
+    let mut monitor = NodeProcess::start(
+        "monitor",
+        domain_id,
+        &[
+            format!("summary_json:={}", summary.display()),
+            "quiet_s:=2.0".into(),
+            "timeout_s:=120.0".into(),
+        ],
+    );
+    let _harmonic = NodeProcess::start("harmonic", domain_id, &[]);
+    let _identifier = NodeProcess::start("identifier", domain_id, identifier_params);
+    let mut sensor = NodeProcess::start(
+        "sensor",
+        domain_id,
+        &[
+            "source:=bag".into(),
+            format!("bag:={}", bag.display()),
+            "rate_factor:=0.0".into(),
+        ],
+    );
+    assert!(sensor.wait_exit(Duration::from_secs(120)).success());
+    assert!(monitor.wait_exit(Duration::from_secs(60)).success());
+    (summary_theta(&summary), offline_theta(&bag, offline_args))
+}
+
+#[test]
+fn rig_bag_replayed_live_gives_the_offline_theta_and_the_truth() {
+    let (live, offline) = replay(
+        "bags/rig_40db",
+        domain(0),
+        &["model:=coulomb".into(), "method:=fd-multi".into()],
+        &["--model", "coulomb", "--method", "fd-multi"],
+    );
+    assert_same_theta(&live, &offline, 1e-9);
+    // The stand-in rig's truth (k 6380 N/m, c 184 N s/m, F_d 12.3 N) at 40 dB SNR.
+    for ((n, v), truth) in live.iter().zip([6380.0, 184.0, 12.3]) {
+        let err = (v - truth).abs() / truth;
+        assert!(err < 0.01, "{n} = {v}, truth {truth}: {:.2} %", 100.0 * err);
+    }
+}
+
+#[test]
+fn three_dof_case_i_replayed_live_gives_the_offline_theta_and_the_truth() {
+    let params = repo().join("launch_configs/three_dof.params.yaml");
+    let (live, offline) = replay(
+        "bags/three_dof_case_i",
+        domain(1),
+        &[
+            format!("--params-file={}", params.display()),
+            "model:=coulomb-cubic".into(),
+        ],
+        &[
+            "--model",
+            "coulomb-cubic",
+            "--params",
+            params.to_str().unwrap(),
+        ],
+    );
+    assert_same_theta(&live, &offline, 1e-9);
+    // Table 1 truth (k, c, F_d, S); noise-free CASE I.
+    let (k, c, fd, s) = forcemap_math::paper::TABLE1_TRUTH;
+    for (n, v) in &live {
+        let t = match n.as_str() {
+            "k" => k,
+            "c" => c,
+            "fd" => fd,
+            "s" => s,
+            other => panic!("unexpected parameter {other}"),
+        };
+        let err = (v - t).abs() / t;
+        assert!(err < 0.01, "{n} = {v}, truth {t}: {:.2} %", 100.0 * err);
+    }
+}
