@@ -50,6 +50,9 @@ pub fn profile_of(records: &[Record], source: &str) -> anyhow::Result<CsvProfile
 pub fn load(path: &Path) -> anyhow::Result<Loaded> {
     if is_bag(path) {
         let bag = read_rig_bag(path)?;
+        if let Some(why) = &bag.left_out {
+            eprintln!("notice: {}: {why}", path.display());
+        }
         let profile = profile_of(&bag.records, &path.display().to_string())?;
         Ok(Loaded {
             records: bag.records,

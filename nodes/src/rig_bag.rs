@@ -198,6 +198,8 @@ pub struct RigBag {
     pub records: Vec<Record>,
     /// Rig constants found on `/rig/parameters` (numeric values only).
     pub parameters: BTreeMap<String, f64>,
+    /// Why a last, unfinished step was left out (a recording stopped in the middle of it).
+    pub left_out: Option<String>,
 }
 
 /// Reads the records of a rig run from a bag directory or a bare .mcap.
@@ -261,8 +263,15 @@ pub fn read_rig_bag(path: &Path) -> Result<RigBag, RigBagError> {
             records.push(done.map_err(step_err)?);
         }
     }
-    if let Some(done) = assembler.finish() {
-        records.push(done.map_err(step_err)?);
+    let mut left_out = None;
+    match assembler.finish() {
+        Some(Ok(r)) => records.push(r),
+        // The recording stopped in the middle of the last step: keep the complete ones.
+        Some(Err(e)) if e.truncated && !records.is_empty() => {
+            left_out = Some(format!("step {} left out: {}", e.step, e.problem));
+        }
+        Some(Err(e)) => return Err(step_err(e)),
+        None => {}
     }
     if records.is_empty() {
         return Err(RigBagError::Empty {
@@ -273,6 +282,7 @@ pub fn read_rig_bag(path: &Path) -> Result<RigBag, RigBagError> {
     Ok(RigBag {
         records,
         parameters,
+        left_out,
     })
 }
 

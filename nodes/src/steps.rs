@@ -12,6 +12,9 @@ use forcemap_msgs::msg::{ExcitationState, RigSample};
 pub struct StepError {
     pub step: usize,
     pub problem: String,
+    /// The step only ended early (fewer samples than planned, nothing else wrong): what the
+    /// last step of an interrupted recording looks like.
+    pub truncated: bool,
 }
 
 /// What the assembler knows of a step from its excitation state.
@@ -31,6 +34,7 @@ impl StepPlan {
         let excitation = state.excitation().map_err(|e| StepError {
             step: state.step as usize,
             problem: e.to_string(),
+            truncated: false,
         })?;
         Ok(Some(StepPlan {
             excitation,
@@ -188,6 +192,7 @@ impl StepAssembler {
         Some(StepError {
             step: b.record.step,
             problem: format!("{why} after {} samples", b.stamps.len()),
+            truncated: false,
         })
     }
 }
@@ -202,15 +207,19 @@ fn complete(b: Building) -> Result<Record, StepError> {
     let err = |problem: String| StepError {
         step: record.step,
         problem,
+        truncated: false,
     };
     if let Some(p) = problem {
         return Err(err(p));
     }
     if expected > 0 && stamps.len() != expected {
-        return Err(err(format!(
-            "{} of its {expected} samples arrived (samples were lost)",
-            stamps.len()
-        )));
+        return Err(StepError {
+            truncated: stamps.len() < expected,
+            ..err(format!(
+                "{} of its {expected} samples arrived (samples were lost or the recording stopped)",
+                stamps.len()
+            ))
+        });
     }
     if stamps.len() < 3 {
         return Err(err(format!(
@@ -292,6 +301,7 @@ mod tests {
         let e = a.finish().unwrap().unwrap_err();
         assert_eq!(e.step, 0);
         assert!(e.problem.contains("not uniform"), "{e}");
+        assert!(!e.truncated, "a gap is not a truncation");
 
         let p = plan(6);
         let mut out = Vec::new();
@@ -303,6 +313,7 @@ mod tests {
         let e = out.pop().unwrap().unwrap_err();
         assert_eq!(e.step, 1);
         assert!(e.problem.contains("4 of its 6 samples"), "{e}");
+        assert!(e.truncated, "a short step is only truncated");
     }
 
     #[test]

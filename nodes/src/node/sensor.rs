@@ -332,11 +332,22 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         }
     );
 
+    // Stop between two messages on SIGINT/SIGTERM.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let stop_w = stop.clone();
+    tokio::spawn(async move {
+        crate::ros::shutdown_signal().await;
+        stop_w.store(true, std::sync::atomic::Ordering::SeqCst);
+    });
     let first_stamp = messages.iter().find_map(Out::stamp);
     let wall0 = Instant::now();
     let mut published = 0usize;
     let mut last_report = Instant::now();
     for m in messages {
+        if stop.load(std::sync::atomic::Ordering::SeqCst) {
+            log_line!("stopped after {published} of {total_samples} samples");
+            return Ok(());
+        }
         if rate_factor > 0.0
             && let (Some(t0), Some(t)) = (first_stamp, m.stamp())
         {
@@ -375,9 +386,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     );
     // Keep the latched topics alive a moment for late joiners, unless told to stay.
     let linger = p.opt_f64("linger_s")?.unwrap_or(2.0);
-    tokio::select! {
-        _ = tokio::time::sleep(Duration::from_secs_f64(linger.max(0.0))) => {}
-        _ = crate::ros::shutdown_signal() => {}
+    let t_end = Instant::now() + Duration::from_secs_f64(linger.max(0.0));
+    while Instant::now() < t_end && !stop.load(std::sync::atomic::Ordering::SeqCst) {
+        tokio::time::sleep(Duration::from_millis(20)).await;
     }
     Ok(())
 }

@@ -1,0 +1,153 @@
+//! `forcemap launch` with the shipped launch files: the simulated rig end to end (the README's
+//! main command) and a clean stop of every node on Ctrl-C.
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use common::*;
+
+fn launch(domain_id: u16, args: &[String]) -> (std::process::Child, Arc<Mutex<Vec<String>>>) {
+    let mut child = Command::new(forcemap())
+        .arg("launch")
+        .arg(repo().join("launch_configs/rig_sim.launch.yaml"))
+        .args(args)
+        .env("ROS_DOMAIN_ID", domain_id.to_string())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let lines = Arc::new(Mutex::new(Vec::new()));
+    let l = lines.clone();
+    let out = child.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            eprintln!("{line}");
+            l.lock().unwrap().push(line);
+        }
+    });
+    (child, lines)
+}
+
+#[test]
+fn simulated_rig_runs_end_to_end_through_the_graph() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let (mut child, lines) = launch(
+        domain(5),
+        &[format!("out:={}", out.display()), "rate_factor:=0.0".into()],
+    );
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "launch did not end"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success());
+    let lines = lines.lock().unwrap().clone();
+    for prefix in [
+        "[sensor] ",
+        "[harmonic] ",
+        "[identifier] ",
+        "[monitor] ",
+        "[recorder] ",
+    ] {
+        assert!(
+            lines.iter().any(|l| l.starts_with(prefix)),
+            "no output from {prefix}"
+        );
+    }
+    // The summary: theta within 1 % of the simulator's truth, all ten sine steps used.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["steps_used"].as_array().unwrap().len(), 10);
+    for p in summary["parameters"].as_array().unwrap() {
+        let err = p["error_percent"].as_f64().unwrap();
+        assert!(err.abs() < 1.0, "{p}");
+    }
+    // The recorded bag holds the run: 12 records (10 sine, 2 random) and the live theta, and
+    // identifying it offline gives the live theta.
+    let bag = out.join("bag");
+    let run = forcemap_nodes::rig_bag::read_rig_bag(&bag).unwrap();
+    assert_eq!(run.records.len(), 12);
+    let info = forcemap_nodes::bag::BagReader::open(&bag).unwrap();
+    assert_eq!(info.topic("/rig/theta").unwrap().message_count, 10);
+    let live = summary_theta(&out.join("summary.json"));
+    assert_same_theta(&live, &offline_theta(&bag, &["--model", "coulomb"]), 1e-9);
+}
+
+#[test]
+fn ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    // Real time: the run would last over two minutes.
+    let (mut child, lines) = launch(
+        domain(6),
+        &[format!("out:={}", out.display()), "rate_factor:=1.0".into()],
+    );
+    let t0 = Instant::now();
+    while !lines
+        .lock()
+        .unwrap()
+        .iter()
+        .any(|l| l.starts_with("[sensor] step 1:"))
+    {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "the run did not start"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let t1 = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            t1.elapsed() < Duration::from_secs(20),
+            "launch did not stop"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "{status}");
+    let lines = lines.lock().unwrap().clone();
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.contains("[launch] interrupted: stopping"))
+    );
+    for node in ["sensor", "harmonic", "identifier", "monitor", "recorder"] {
+        assert!(
+            lines
+                .iter()
+                .any(|l| l.starts_with(&format!("[launch] {node} exited (exit status: 0)"))),
+            "{node} did not exit cleanly:\n{}",
+            lines.join("\n")
+        );
+    }
+    // The recorder finished its bag (renamed into place with its metadata).
+    let bag = out.join("bag");
+    assert!(bag.join("metadata.yaml").exists());
+    // The step cut by Ctrl-C is left out with the reason; the complete ones are kept.
+    let run = forcemap_nodes::rig_bag::read_rig_bag(&bag).unwrap();
+    assert!(!run.records.is_empty());
+    assert!(run.records.iter().all(|r| r.len() == 1300));
+    if let Some(why) = &run.left_out {
+        assert!(why.contains("the recording stopped"), "{why}");
+    }
+}
