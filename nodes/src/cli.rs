@@ -289,10 +289,10 @@ fn parse_order(s: &str) -> Result<(u32, u32), String> {
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
     /// A bag directory, a bare .mcap or a test-bench CSV export (sine steps are fitted, random
-    /// records held out).
+    /// records held out); or an EMPS .mat file (time-domain path, scored on --validate).
     #[arg(required_unless_present = "demo")]
     pub data: Option<PathBuf>,
-    /// The baseline model (see `forcemap models`).
+    /// The baseline model (see `forcemap models`; for EMPS: emps-viscous or emps-coulomb).
     #[arg(long, required_unless_present = "demo")]
     pub model: Option<String>,
     /// More held-out data (same forms as DATA).

@@ -434,9 +434,11 @@ pub struct EvalSummary {
     pub false_alarms: Rate,
     /// Out-of-library cases given a library name.
     pub out_of_library_named: Rate,
-    /// Single effects with a gap below 2 % (their best answer is "adequate"): how many were
-    /// called adequate.
+    /// Single effects with a gap below 2 %: how many were still named right, called adequate,
+    /// or given another answer (a wrong name or "unexplained").
+    pub below_threshold_named_right: Rate,
     pub below_threshold_adequate: Rate,
+    pub below_threshold_wrong: Rate,
     /// Two-effect cases whose top effect is one of the two.
     pub pairs_one_named: Rate,
     /// Mean |predicted shrink - true shrink| over explained single-effect cases [%-points],
@@ -528,6 +530,17 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
                 .filter(|r| r.verdict == Verdict::Explained)
                 .count(),
             ool.len(),
+        ),
+        below_threshold_named_right: rate(
+            below.iter().filter(|r| r.named == r.label).count(),
+            below.len(),
+        ),
+        below_threshold_wrong: rate(
+            below
+                .iter()
+                .filter(|r| r.verdict != Verdict::Adequate && r.named != r.label)
+                .count(),
+            below.len(),
         ),
         below_threshold_adequate: rate(
             below

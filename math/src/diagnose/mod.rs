@@ -12,7 +12,9 @@
 //! 3. **Which effect.** Every candidate of [`effects::Effect`] not already in the baseline is
 //!    added, its searched parameter (gap, yield, Stribeck velocity, cutoff, mass factor)
 //!    chosen by leave-one-step-out cross-validation on the sine steps, the exciter delay
-//!    estimated from the kinematic identity; the model is refitted and simulated on the
+//!    estimated from the kinematic identity (a fit whose friction level, Stribeck excess,
+//!    free-play spring or hysteretic force comes out negative is not that effect and is
+//!    dropped); the model is refitted and simulated on the
 //!    held-out records. Score: held-out NMSE times `N^(p/N)` (BIC with the effective number
 //!    of independent held-out samples `N = 2 B T`, `p` the added parameters; see
 //!    [`score::penalised`]). Candidates are ranked by score; the best pair of the top four is
@@ -37,6 +39,7 @@ pub mod locate;
 pub mod phasor;
 pub mod score;
 pub mod search;
+pub mod time_domain;
 
 use serde::Serialize;
 use thiserror::Error;

@@ -114,14 +114,24 @@ pub fn predict_record(
     if transform.delay_s != 0.0 {
         input = delayed(&input, fs, transform.delay_s);
     }
-    let mass_velocity = if base.len() > 2 {
-        ((base[2] + rel[2]) - (base[0] + rel[0])) * fs / 2.0
+    // With a delay the element still sees the previous motion for the first d seconds of the
+    // record, which this record does not hold: the model starts after them, from the measured
+    // relative displacement there, and the error is taken over the samples it predicts.
+    let k0 = if transform.delay_s > 0.0 {
+        ((transform.delay_s * fs).ceil() as usize + 1).min(input.len().saturating_sub(3))
+    } else {
+        0
+    };
+    // The mass moves with the base the element sees: its initial velocity comes from the
+    // transformed input.
+    let mass_velocity = if input.len() > k0 + 2 {
+        ((input[k0 + 2] + rel[k0 + 2]) - (input[k0] + rel[k0])) * fs / 2.0
     } else {
         0.0
     };
     let opts = ReplayOptions {
         initial: RigInitial {
-            relative_displacement_m: rel[0],
+            relative_displacement_m: rel[k0],
             mass_velocity_mps: mass_velocity,
         },
         prefilter: None,
@@ -130,7 +140,7 @@ pub fn predict_record(
     let resp = simulate_on_sampled_base(
         element,
         nominal_mass_kg * transform.mass_factor,
-        &input,
+        &input[k0..],
         fs,
         &opts,
     )?;
@@ -138,6 +148,8 @@ pub fn predict_record(
     if let Some(fc) = transform.lowpass_hz {
         predicted = first_order_lowpass(&predicted, fs, fc);
     }
+    let acc = &acc[k0..];
+    let rel = &rel[k0..];
     Ok(HeldOut {
         step: record.step,
         nmse_percent: nmse_percent(acc, &predicted),

@@ -126,6 +126,9 @@ pub fn search(
             let Ok(fitted) = fit(baseline, &s, cycles_s, None) else {
                 continue;
             };
+            if !physical(&fitted) {
+                continue;
+            }
             let cv = cross_validated_percent(baseline, &s, cycles_s);
             // Without cross-validation (fewer than 3 steps) the in-sample residual decides.
             let key = cv.unwrap_or(fitted.residual_percent);
@@ -155,4 +158,16 @@ pub fn search(
         candidates,
         exciter_delay,
     })
+}
+
+/// Coefficients that must be positive for the effect to be what it is named: a friction level
+/// (fd, fc), a Stribeck excess of static over kinetic friction (fs), a free-play spring (kfp), a
+/// hysteretic force (alpha). A fit that needs the opposite sign describes something else.
+pub const POSITIVE_SYMBOLS: [&str; 5] = ["fd", "fc", "fs", "kfp", "alpha"];
+
+/// False when an added coefficient of [`POSITIVE_SYMBOLS`] came out zero or negative.
+pub fn physical(f: &Fitted) -> bool {
+    f.added_parameters()
+        .iter()
+        .all(|(n, v, _)| !POSITIVE_SYMBOLS.contains(&n.as_str()) || *v > 0.0)
 }

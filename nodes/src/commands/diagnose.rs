@@ -115,6 +115,11 @@ fn demo_data() -> anyhow::Result<Data> {
 }
 
 pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
+    if let Some(data) = &args.data
+        && super::diagnose_time_domain::is_emps(data)
+    {
+        return super::diagnose_time_domain::run(args, data);
+    }
     // Refuse an existing report directory before any work.
     if let Some(dir) = &args.report
         && dir.exists()

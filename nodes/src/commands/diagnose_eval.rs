@@ -69,8 +69,10 @@ fn print_summary(args: &DiagnoseEvalArgs, s: &EvalSummary, results: &[Result<Cas
         pct(&s.out_of_library_named)
     );
     println!(
-        "single effects below 2 % gap called adequate: {}",
-        pct(&s.below_threshold_adequate)
+        "single effects below 2 % gap: named right {}, adequate {}, other answer {}",
+        pct(&s.below_threshold_named_right),
+        pct(&s.below_threshold_adequate),
+        pct(&s.below_threshold_wrong)
     );
     println!(
         "two-effect cases naming one of the two: {}",

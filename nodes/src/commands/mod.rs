@@ -3,6 +3,7 @@
 pub mod bag;
 pub mod diagnose;
 pub mod diagnose_eval;
+pub mod diagnose_time_domain;
 pub mod identify;
 pub mod import;
 pub mod reproduce;

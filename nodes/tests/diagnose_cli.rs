@@ -1,0 +1,260 @@
+//! `forcemap diagnose` and `forcemap diagnose-eval` at the process boundary: the demo names
+//! coulomb_friction, the JSON keys the issue lists, the report files (written atomically), and
+//! clear errors with nothing half-written.
+
+mod common;
+
+use common::forcemap;
+
+fn json(args: &[&str]) -> serde_json::Value {
+    let o = forcemap(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[test]
+fn demo_names_coulomb_friction_with_the_issue_keys() {
+    let v = json(&["diagnose", "--demo", "--json"]);
+    assert_eq!(v["verdict"], "explained", "{v}");
+    assert_eq!(v["top_effect"], "coulomb_friction");
+    let before = v["gap_before_percent"].as_f64().unwrap();
+    let after = v["gap_after_percent"].as_f64().unwrap();
+    assert!(before > 3.0 && after < 0.3 * before, "{before} -> {after}");
+    let ranked = v["ranked_effects"].as_array().unwrap();
+    assert!(
+        ranked.len() >= 8,
+        "nearly every candidate is scored: {ranked:?}"
+    );
+    assert_eq!(ranked[0]["effect"], "coulomb_friction");
+    assert!(ranked[0]["gap_after_percent"].is_number());
+    assert!(v["located"]["by_harmonic"].is_array());
+    assert!(v["located"]["state_plane"]["rms_residual_n"].is_array());
+    let summary: Vec<&str> = v["located"]["summary"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap())
+        .collect();
+    assert!(
+        summary.iter().any(|s| s.contains("near zero velocity")),
+        "{summary:?}"
+    );
+    assert!(
+        summary.iter().any(|s| s.contains("low amplitude")),
+        "{summary:?}"
+    );
+    assert_eq!(v["paper"]["linear_nmse_percent"][1], 17.2);
+}
+
+#[test]
+fn report_is_written_whole_and_never_over_an_existing_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let csv = tmp.path().join("rig.csv");
+    let o = forcemap(&["simulate", "--snr-db", "40", "--csv", csv.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = tmp.path().join("report");
+    let o = forcemap(&[
+        "diagnose",
+        csv.to_str().unwrap(),
+        "--model",
+        "linear",
+        "--mass-kg",
+        "36",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("verdict: explained by coulomb_friction"),
+        "{text}"
+    );
+    for f in [
+        "index.html",
+        "state_plane.svg",
+        "harmonics.svg",
+        "heldout_10.svg",
+        "heldout_11.svg",
+    ] {
+        let p = report.join(f);
+        let body = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        assert!(body.len() > 500, "{f} is too short");
+    }
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(html.contains("coulomb_friction") && html.contains("<img src=\"state_plane.svg\""));
+    // nothing temporary left beside it
+    let names: Vec<String> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.contains(".tmp")), "{names:?}");
+    // a second run refuses the existing directory before any work
+    let o = forcemap(&[
+        "diagnose",
+        csv.to_str().unwrap(),
+        "--model",
+        "linear",
+        "--mass-kg",
+        "36",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("exists already"));
+}
+
+#[test]
+fn bad_input_is_refused_clearly_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let report = tmp.path().join("report");
+    let rep = report.to_str().unwrap();
+    // a missing file
+    let o = forcemap(&[
+        "diagnose",
+        "/nonexistent/rig.csv",
+        "--model",
+        "linear",
+        "--mass-kg",
+        "36",
+        "--report",
+        rep,
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent/rig.csv"));
+    // sine steps only: nothing to hold out
+    let sine = tmp.path().join("sine.csv");
+    assert!(
+        forcemap(&["simulate", "--no-random", "--csv", sine.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let o = forcemap(&[
+        "diagnose",
+        sine.to_str().unwrap(),
+        "--model",
+        "linear",
+        "--mass-kg",
+        "36",
+        "--report",
+        rep,
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("no held-out records") && err.contains("--validate"),
+        "{err}"
+    );
+    // an unknown baseline
+    let o = forcemap(&[
+        "diagnose",
+        sine.to_str().unwrap(),
+        "--model",
+        "friction",
+        "--mass-kg",
+        "36",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown model"));
+    // a drive-point export is not a rig
+    let three = tmp.path().join("three.csv");
+    assert!(
+        forcemap(&[
+            "simulate",
+            "--system",
+            "three-dof",
+            "--csv",
+            three.to_str().unwrap()
+        ])
+        .status
+        .success()
+    );
+    let o = forcemap(&[
+        "diagnose",
+        three.to_str().unwrap(),
+        "--model",
+        "coulomb-cubic",
+        "--report",
+        rep,
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("base-excited rig"));
+    // no mass
+    let o = forcemap(&["diagnose", sine.to_str().unwrap(), "--model", "linear"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--mass-kg"));
+    assert!(!report.exists(), "a failed run must not leave a report");
+    let left: Vec<_> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
+fn eval_reports_rates_and_a_confusion_matrix() {
+    let v = json(&["diagnose-eval", "--cases", "3", "--seed", "5", "--json"]);
+    let s = &v["summary"];
+    for k in [
+        "top1",
+        "false_alarms",
+        "out_of_library_named",
+        "confusion",
+        "shrink_mean_abs_error_percent",
+    ] {
+        assert!(!s[k].is_null(), "missing {k}: {s}");
+    }
+    assert_eq!(v["cases"].as_array().unwrap().len(), 3);
+    let o = forcemap(&["diagnose-eval", "--cases", "0"]);
+    assert_eq!(o.status.code(), Some(1));
+}
+
+/// The EMPS benchmark (real data) through the time-domain path: with M q'' + Fv q' + offset the
+/// diagnosis names coulomb_friction; with Coulomb in the baseline the top candidate is the
+/// asymmetric viscous friction (Fv+ != Fv-, published 166.7 and 240.4 N s/m). Skips where
+/// ../shared/real is absent.
+#[test]
+fn emps_names_coulomb_then_finds_the_asymmetric_friction() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/real/emps");
+    if !dir.join("DATA_EMPS.mat").is_file() {
+        eprintln!("skipped: {} does not exist", dir.display());
+        return;
+    }
+    let fit = dir.join("DATA_EMPS.mat");
+    let val = dir.join("DATA_EMPS_PULSES.mat");
+    let run = |model: &str| {
+        json(&[
+            "diagnose",
+            fit.to_str().unwrap(),
+            "--model",
+            model,
+            "--validate",
+            val.to_str().unwrap(),
+            "--json",
+        ])
+    };
+    let v = run("emps-viscous");
+    println!("emps-viscous: {v}");
+    assert_eq!(v["verdict"], "explained");
+    assert_eq!(v["top_effect"], "coulomb_friction");
+    let fc = v["ranked_effects"][0]["added_parameters"][0]["value"]
+        .as_f64()
+        .unwrap();
+    assert!((fc - 20.3935).abs() < 1.0, "Fc {fc}");
+    let v = run("emps-coulomb");
+    println!("emps-coulomb: {v}");
+    let top = &v["ranked_effects"][0];
+    assert_eq!(top["effect"], "asymmetric_damping");
+    let fv = v["baseline_parameters"][1]["value"].as_f64().unwrap();
+    let ca = top["added_parameters"][0]["value"].as_f64().unwrap();
+    // rebound (q' > 0) fv + ca, the other way fv - ca
+    assert!(
+        ((fv + ca) - 166.7).abs() < 10.0 && ((fv - ca) - 240.4).abs() < 10.0,
+        "{fv} {ca}"
+    );
+    assert!(top["gap_after_percent"].as_f64().unwrap() < v["gap_before_percent"].as_f64().unwrap());
+}
