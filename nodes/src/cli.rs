@@ -41,6 +41,38 @@ pub enum Command {
     /// Start the nodes of a ROS 2 YAML launch file as separate processes:
     /// `forcemap launch launch_configs/rig_sim.launch.yaml out:=/tmp/run`.
     Launch(LaunchArgs),
+    /// Benchmarks of the node graph (throughput without loss, latency, CPU and memory).
+    Bench(BenchArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    #[command(subcommand)]
+    pub command: BenchCommand,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Run the harmonic node and the identifier as processes, play a simulated rig run into
+    /// them and measure samples/s without loss, last-sample-to-theta latency, CPU and RSS.
+    Graph(BenchGraphArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BenchGraphArgs {
+    /// Sine steps (the paper's 1.6-3.4 Hz, cycled).
+    #[arg(long, default_value_t = 20)]
+    pub steps: usize,
+    #[arg(long, default_value_t = 100.0)]
+    pub sample_rate_hz: f64,
+    /// Duration of each step [s] (13 s is the paper's 1300 samples at 100 Hz).
+    #[arg(long, default_value_t = 13.0)]
+    pub step_duration_s: f64,
+    /// 0: as fast as the graph acknowledges; 1: real time.
+    #[arg(long, default_value_t = 0.0)]
+    pub rate_factor: f64,
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Debug, Args)]

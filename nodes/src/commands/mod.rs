@@ -1,6 +1,7 @@
 //! One module per `forcemap` subcommand; `dispatch` routes to them.
 
 pub mod bag;
+pub mod bench;
 pub mod diagnose;
 pub mod diagnose_eval;
 pub mod diagnose_time_domain;
@@ -23,6 +24,9 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::DiagnoseEval(a) => diagnose_eval::run(&a),
         Command::Node(a) => crate::node::run(&a.kind, &a.ros_args),
         Command::Launch(a) => crate::launch::run(&a),
+        Command::Bench(a) => match &a.command {
+            crate::cli::BenchCommand::Graph(g) => bench::run_graph(g),
+        },
         Command::Models => {
             for (name, what) in forcemap_math::model::MODEL_NAMES {
                 println!("{name:<20} {what}");

@@ -36,8 +36,8 @@ use crate::bag::BagReader;
 use crate::log_line;
 use crate::ros::{NodeSetup, RosNode, qos, topics};
 
-/// One message to publish, in time order.
-enum Out {
+/// One message the sensor publishes, in time order.
+pub enum Out {
     Excitation(ExcitationState),
     Sample(RigSample),
     Parameters(DiagnosticStatus),
@@ -54,7 +54,7 @@ impl Out {
 }
 
 /// The run the simulated rig plays, and its rig constants (with the truth, for summaries).
-fn simulated_run(setup: &NodeSetup) -> anyhow::Result<(Vec<Record>, Channel, DiagnosticStatus)> {
+pub fn simulated_run(setup: &NodeSetup) -> anyhow::Result<(Vec<Record>, Channel, DiagnosticStatus)> {
     let p = &setup.params;
     let system = p.opt_str("system")?.unwrap_or("rig").to_string();
     let snr_db = p.opt_f64("snr_db")?.unwrap_or(40.0);
@@ -146,7 +146,7 @@ fn simulated_run(setup: &NodeSetup) -> anyhow::Result<(Vec<Record>, Channel, Dia
 }
 
 /// The messages of a simulated run starting at `run_start`, ending with IDLE.
-fn messages_of(
+pub fn messages_of(
     records: &[Record],
     driven: Channel,
     constants: DiagnosticStatus,
@@ -395,7 +395,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
 
 /// Publishes reliably, retrying while the send window is full (flow control: the sensor
 /// slows down to what the subscribers acknowledge rather than losing samples).
-async fn publish_blocking<M: serde::Serialize + Clone>(
+pub async fn publish_blocking<M: serde::Serialize + Clone>(
     publisher: &ros2_client::Publisher<M>,
     message: M,
 ) -> anyhow::Result<()> {
