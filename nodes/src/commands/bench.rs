@@ -47,6 +47,9 @@ fn proc_usage(pid: u32) -> Option<(f64, u64)> {
     Some((cpu, rss_kb * 1024))
 }
 
+/// (seconds since the start, node, CPU seconds, RSS bytes).
+type UsageSample = (f64, &'static str, f64, u64);
+
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
@@ -174,8 +177,7 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         });
         let pids: Vec<(&'static str, u32)> =
             children.iter().map(|c| (c.name, c.child.id())).collect();
-        let usage: Arc<Mutex<Vec<(f64, &'static str, f64, u64)>>> =
-            Arc::new(Mutex::new(Vec::new()));
+        let usage: Arc<Mutex<Vec<UsageSample>>> = Arc::new(Mutex::new(Vec::new()));
         let us = usage.clone();
         let sampler_start = Instant::now();
         let sampler = tokio::spawn(async move {
@@ -221,10 +223,10 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
                     let step = s.step;
                     publish_blocking(&samples_pub, s).await?;
                     published += 1;
-                    if published % samples_per_step.max(1) == 0 {
+                    if published.is_multiple_of(samples_per_step.max(1)) {
                         last_sample_at.insert(step, now_ns());
                     }
-                    if published % 1000 == 0 {
+                    if published.is_multiple_of(1000) {
                         bar.set_position(published as u64);
                     }
                 }
@@ -282,7 +284,7 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
 
     let mut per_node = Vec::new();
     for name in ["harmonic", "identifier"] {
-        let s: Vec<&(f64, &str, f64, u64)> = usage.iter().filter(|u| u.1 == name).collect();
+        let s: Vec<&UsageSample> = usage.iter().filter(|u| u.1 == name).collect();
         if s.len() < 2 {
             continue;
         }
