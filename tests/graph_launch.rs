@@ -151,3 +151,45 @@ fn ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished() {
         assert!(why.contains("the recording stopped"), "{why}");
     }
 }
+
+/// Bad settings stop a node before it joins the graph, with the parameter named.
+#[test]
+fn bad_node_settings_fail_fast_and_name_the_parameter() {
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["identifier", "--ros-args", "-p", "method:=td"],
+            "method = td",
+        ),
+        (&["identifier", "--ros-args", "-p", "model:=nope"], "nope"),
+        (
+            &["sensor", "--ros-args", "-p", "source:=bag"],
+            "parameter bag",
+        ),
+        (
+            &["sensor", "--ros-args", "-p", "rate_factor:=-1.0"],
+            "rate_factor",
+        ),
+        (
+            &["recorder", "--model", "x"],
+            "unexpected argument '--model'",
+        ),
+    ];
+    for (args, needle) in cases {
+        let out = std::process::Command::new(forcemap())
+            .arg("node")
+            .args(args)
+            .env("ROS_DOMAIN_ID", domain(7).to_string())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+    let out = std::process::Command::new(forcemap())
+        .args(["node", "sensor"])
+        .env("ROS_DOMAIN_ID", "999")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("ROS_DOMAIN_ID='999'"));
+}

@@ -52,6 +52,9 @@ pub struct HarmonicState {
     assembler: StepAssembler,
     plans: BTreeMap<u32, Option<StepPlan>>,
     pending: VecDeque<(RigSample, Instant)>,
+    /// When the exciter went idle. The step in progress is closed only `PLAN_WAIT` later: the
+    /// idle state travels on another topic and may overtake the step's last samples.
+    idle_since: Option<Instant>,
 }
 
 impl Default for HarmonicState {
@@ -66,6 +69,7 @@ impl HarmonicState {
             assembler: StepAssembler::new(),
             plans: BTreeMap::new(),
             pending: VecDeque::new(),
+            idle_since: None,
         }
     }
 
@@ -77,11 +81,11 @@ impl HarmonicState {
                     Ok(Some(plan)) => {
                         self.assembler.set_origin(e.start_time);
                         self.plans.insert(e.step, Some(plan));
+                        self.idle_since = None;
                     }
                     Ok(None) => {
-                        // IDLE: the run ended; an open-ended step is complete.
-                        self.flush_pending(&mut done, true);
-                        done.extend(self.assembler.finish().map(|r| self.outcome(r)));
+                        // IDLE: the run ended; the step in progress closes after the wait.
+                        self.idle_since = Some(now);
                     }
                     Err(err) => {
                         self.plans.insert(e.step, None);
@@ -109,6 +113,14 @@ impl HarmonicState {
                     .front()
                     .is_some_and(|(_, t)| now.duration_since(*t) > PLAN_WAIT);
                 self.flush_pending(&mut done, expired);
+                if self
+                    .idle_since
+                    .is_some_and(|t| now.duration_since(t) > PLAN_WAIT)
+                {
+                    self.idle_since = None;
+                    self.flush_pending(&mut done, true);
+                    done.extend(self.assembler.finish().map(|r| self.outcome(r)));
+                }
             }
         }
         done
@@ -385,10 +397,33 @@ mod tests {
         assert!(out.is_empty());
         let idle = ExcitationState::idle(Header::default(), 3, Time::ZERO, Channel::ForceN);
         out.extend(h.handle(Input::Excitation(idle), t));
+        // The idle state may overtake the last samples: the step stays open for the wait.
+        out.extend(h.handle(Input::Tick, t + Duration::from_millis(500)));
+        assert!(out.is_empty());
+        out.extend(h.handle(Input::Tick, t + PLAN_WAIT + Duration::from_millis(1)));
         let Some(Outcome::Dropped(e)) = out.pop() else {
             panic!("step 2 should be dropped")
         };
         assert_eq!(e.step, 2);
+    }
+
+    /// The idle state overtaking the last samples of a step does not cut the step short.
+    #[test]
+    fn a_step_whose_idle_state_overtakes_its_last_samples_completes() {
+        let mut h = HarmonicState::new();
+        let t = Instant::now();
+        let mut out = h.handle(Input::Excitation(state(0, 5, true)), t);
+        for k in 0..3 {
+            out.extend(h.handle(Input::Sample(sample(0, k)), t));
+        }
+        let idle = ExcitationState::idle(Header::default(), 1, Time::ZERO, Channel::ForceN);
+        out.extend(h.handle(Input::Excitation(idle), t));
+        out.extend(h.handle(Input::Tick, t + Duration::from_millis(300)));
+        for k in 3..5 {
+            out.extend(h.handle(Input::Sample(sample(0, k)), t + Duration::from_millis(400)));
+        }
+        assert_eq!(out.len(), 1);
+        assert!(matches!(out.pop(), Some(Outcome::Analyse(r, _)) if r.len() == 5));
     }
 
     /// Samples whose excitation state never comes are dropped after the wait, not used.
@@ -411,8 +446,9 @@ mod tests {
                 Time::ZERO,
                 Channel::ForceN,
             )),
-            t,
+            t + PLAN_WAIT,
         ));
+        out.extend(h.handle(Input::Tick, t + 2 * PLAN_WAIT + Duration::from_millis(2)));
         let Some(Outcome::Dropped(e)) = out.pop() else {
             panic!("step 7 should be dropped")
         };
