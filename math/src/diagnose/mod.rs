@@ -409,6 +409,9 @@ pub fn diagnose(
                 let Ok(f) = fit::fit(baseline, &s, &cycles, None) else {
                     continue;
                 };
+                if !search::physical(&f) {
+                    continue;
+                }
                 let Ok(h) = heldout_all(&f, mass_kg, &heldout) else {
                     continue;
                 };
