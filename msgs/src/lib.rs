@@ -7,7 +7,7 @@
 //! the same CDR bytes as any other ROS 2 implementation:
 //!
 //! - [`msg`]: `forcemap_msgs/msg/{RigSample, ExcitationState, HarmonicPhasors, IdentifiedParameters,
-//!   AxisSample}`;
+//!   AxisSample, GapDiagnosis}`;
 //! - [`builtin_interfaces`], [`std_msgs`], [`diagnostic_msgs`]: mirrors of the upstream types
 //!   the messages and the `/diagnostics` topic use.
 //!
@@ -78,7 +78,7 @@ mod ros2_client_impls {
     use crate::builtin_interfaces::Time;
     use crate::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
     use crate::msg::{
-        AxisSample, ExcitationState, HarmonicPhasors, IdentifiedParameters, RigSample,
+        AxisSample, ExcitationState, GapDiagnosis, HarmonicPhasors, IdentifiedParameters, RigSample,
     };
     use crate::std_msgs::Header;
 
@@ -92,4 +92,5 @@ mod ros2_client_impls {
     impl ros2_client::Message for HarmonicPhasors {}
     impl ros2_client::Message for IdentifiedParameters {}
     impl ros2_client::Message for AxisSample {}
+    impl ros2_client::Message for GapDiagnosis {}
 }

@@ -33,14 +33,20 @@ pub const AXIS_SAMPLE_DEF: MsgDef = MsgDef {
     text: include_str!("../msg/AxisSample.msg"),
     deps: &[HEADER_DEF],
 };
+pub const GAP_DIAGNOSIS_DEF: MsgDef = MsgDef {
+    name: "forcemap_msgs/GapDiagnosis",
+    text: include_str!("../msg/GapDiagnosis.msg"),
+    deps: &[HEADER_DEF],
+};
 
 /// The definitions of all `forcemap_msgs` messages.
-pub const ALL: [MsgDef; 5] = [
+pub const ALL: [MsgDef; 6] = [
     RIG_SAMPLE_DEF,
     EXCITATION_STATE_DEF,
     HARMONIC_PHASORS_DEF,
     IDENTIFIED_PARAMETERS_DEF,
     AXIS_SAMPLE_DEF,
+    GAP_DIAGNOSIS_DEF,
 ];
 
 /// `forcemap_msgs/msg/RigSample`: one sample of the measured channels. A channel that is not
@@ -310,3 +316,25 @@ impl AxisSample {
         }
     }
 }
+
+/// `forcemap_msgs/msg/GapDiagnosis`: the live diagnosis of a baseline model's gap.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GapDiagnosis {
+    pub header: Header,
+    pub baseline_model: String,
+    pub steps: u32,
+    pub verdict: String,
+    pub top_effect: String,
+    pub gap_before_percent: f64,
+    pub gap_after_percent: f64,
+    pub noise_floor_percent: f64,
+    pub ranked_effects: Vec<String>,
+    pub ranked_gap_after_percent: Vec<f64>,
+    pub ranked_significant: Vec<bool>,
+}
+
+ros_message!(
+    GapDiagnosis,
+    "forcemap_msgs/msg/GapDiagnosis",
+    GAP_DIAGNOSIS_DEF
+);

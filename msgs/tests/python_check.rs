@@ -11,7 +11,7 @@ use forcemap_math::record::Channel;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};
 use forcemap_msgs::msg::{
-    AxisSample, ExcitationState, HarmonicPhasors, IdentifiedParameters, RigSample,
+    AxisSample, ExcitationState, GapDiagnosis, HarmonicPhasors, IdentifiedParameters, RigSample,
 };
 use forcemap_msgs::std_msgs::Header;
 use forcemap_msgs::{MsgDef, RosMessage};
@@ -127,6 +127,29 @@ fn write_cases(dir: &Path) {
     for (name, sample) in axis_samples() {
         c.add(name, &sample);
     }
+    c.add(
+        "gap_diagnosis",
+        &GapDiagnosis {
+            header: common::header("rig"),
+            baseline_model: "linear".into(),
+            steps: 10,
+            verdict: "explained".into(),
+            top_effect: "coulomb_friction".into(),
+            gap_before_percent: 11.0,
+            gap_after_percent: 4.0,
+            noise_floor_percent: 0.5,
+            ranked_effects: vec!["coulomb_friction".into(), "quadratic_damping".into()],
+            ranked_gap_after_percent: vec![4.0, 8.25],
+            ranked_significant: vec![true, false],
+        },
+    );
+    let idle = ExcitationState::idle(
+        common::header("rig"),
+        10,
+        Time { sec: 5, nanosec: 7 },
+        Channel::BaseDisplacementM,
+    );
+    c.add("excitation_idle", &idle);
 
     let defs = [
         Time::DEFINITION,
@@ -139,6 +162,7 @@ fn write_cases(dir: &Path) {
         HarmonicPhasors::DEFINITION,
         IdentifiedParameters::DEFINITION,
         AxisSample::DEFINITION,
+        GapDiagnosis::DEFINITION,
     ];
     let manifest = json!({
         "msg_files": defs.iter().map(|d| msg_file(d, root)).collect::<Vec<_>>(),
@@ -155,6 +179,7 @@ fn write_cases(dir: &Path) {
             "forcemap_msgs/msg/ExcitationState": {
                 "SINE": ExcitationState::SINE,
                 "RANDOM": ExcitationState::RANDOM,
+                "IDLE": ExcitationState::IDLE,
             },
             "diagnostic_msgs/msg/DiagnosticStatus": {
                 "OK": DiagnosticStatus::OK,

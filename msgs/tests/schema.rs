@@ -167,5 +167,6 @@ fn every_referenced_type_is_defined() {
     check::<ExcitationState>();
     check::<HarmonicPhasors>();
     check::<IdentifiedParameters>();
+    check::<forcemap_msgs::msg::GapDiagnosis>();
     check::<DiagnosticArray>();
 }

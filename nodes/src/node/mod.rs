@@ -5,8 +5,10 @@
 //! - [`harmonic`]: per-step phasors;
 //! - [`identifier`]: accumulated equations and live theta;
 //! - [`recorder`]: topics into a rosbag2 MCAP bag;
-//! - [`monitor`]: prints live theta and a summary at the end of a run.
+//! - [`monitor`]: prints live theta and a summary at the end of a run;
+//! - [`diagnoser`]: the gap diagnosis of a baseline model, live from the phasors.
 
+pub mod diagnoser;
 pub mod harmonic;
 pub mod identifier;
 pub mod monitor;
@@ -16,7 +18,14 @@ pub mod sensor;
 use crate::ros::{NodeSetup, RosArgs, run_node};
 
 /// The node kinds, as `exec` names in launch files.
-pub const KINDS: [&str; 5] = ["sensor", "harmonic", "identifier", "recorder", "monitor"];
+pub const KINDS: [&str; 6] = [
+    "sensor",
+    "harmonic",
+    "identifier",
+    "recorder",
+    "monitor",
+    "diagnoser",
+];
 
 /// Runs the node `kind` with its ROS arguments until it is done or stopped.
 pub fn run(kind: &str, args: &[String]) -> anyhow::Result<()> {
@@ -28,6 +37,7 @@ pub fn run(kind: &str, args: &[String]) -> anyhow::Result<()> {
         "identifier" => run_node(|| identifier::run(setup)),
         "recorder" => run_node(|| recorder::run(setup)),
         "monitor" => run_node(|| monitor::run(setup)),
+        "diagnoser" => run_node(|| diagnoser::run(setup)),
         other => anyhow::bail!(
             "unknown node '{other}': forcemap's nodes are {}",
             KINDS.join(", ")

@@ -17,7 +17,9 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, bail};
 use forcemap_msgs::RosMessage;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
-use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, IdentifiedParameters, RigSample};
+use forcemap_msgs::msg::{
+    ExcitationState, GapDiagnosis, HarmonicPhasors, IdentifiedParameters, RigSample,
+};
 use ros2_client::QosProfile;
 use tokio::sync::mpsc;
 
@@ -60,6 +62,7 @@ fn known_type(name: &str, explicit: Option<&str>) -> anyhow::Result<(&'static st
             HarmonicPhasors::TYPE_NAME => (HarmonicPhasors::TYPE_NAME, qos::phasors()),
             IdentifiedParameters::TYPE_NAME => (IdentifiedParameters::TYPE_NAME, qos::theta()),
             DiagnosticArray::TYPE_NAME => (DiagnosticArray::TYPE_NAME, qos::diagnostics()),
+            GapDiagnosis::TYPE_NAME => (GapDiagnosis::TYPE_NAME, qos::theta()),
             _ => return None,
         })
     };
@@ -76,6 +79,7 @@ fn known_type(name: &str, explicit: Option<&str>) -> anyhow::Result<(&'static st
         topics::PHASORS => HarmonicPhasors::TYPE_NAME,
         topics::THETA => IdentifiedParameters::TYPE_NAME,
         "diagnostics" => DiagnosticArray::TYPE_NAME,
+        crate::node::diagnoser::DIAGNOSIS_TOPIC => GapDiagnosis::TYPE_NAME,
         _ => bail!(
             "topic {name}: unknown type; write it as {name}:pkg/msg/Type (e.g. forcemap_msgs/msg/RigSample)"
         ),
@@ -187,6 +191,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             DiagnosticStatus::TYPE_NAME => DiagnosticStatus::schema(),
             HarmonicPhasors::TYPE_NAME => HarmonicPhasors::schema(),
             IdentifiedParameters::TYPE_NAME => IdentifiedParameters::schema(),
+            GapDiagnosis::TYPE_NAME => GapDiagnosis::schema(),
             _ => DiagnosticArray::schema(),
         };
         let mut spec = TopicSpec::new(&absolute, type_name, &schema);
@@ -202,6 +207,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             IdentifiedParameters::TYPE_NAME => {
                 forward::<IdentifiedParameters>(&mut ros, name, q, i, tx)?
             }
+            GapDiagnosis::TYPE_NAME => forward::<GapDiagnosis>(&mut ros, name, q, i, tx)?,
             _ => forward::<DiagnosticArray>(&mut ros, name, q, i, tx)?,
         }
     }

@@ -54,7 +54,9 @@ impl Out {
 }
 
 /// The run the simulated rig plays, and its rig constants (with the truth, for summaries).
-pub fn simulated_run(setup: &NodeSetup) -> anyhow::Result<(Vec<Record>, Channel, DiagnosticStatus)> {
+pub fn simulated_run(
+    setup: &NodeSetup,
+) -> anyhow::Result<(Vec<Record>, Channel, DiagnosticStatus)> {
     let p = &setup.params;
     let system = p.opt_str("system")?.unwrap_or("rig").to_string();
     let snr_db = p.opt_f64("snr_db")?.unwrap_or(40.0);
