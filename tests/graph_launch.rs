@@ -57,6 +57,7 @@ fn simulated_rig_runs_end_to_end_through_the_graph() {
         "[sensor] ",
         "[harmonic] ",
         "[identifier] ",
+        "[diagnoser] ",
         "[monitor] ",
         "[recorder] ",
     ] {
@@ -131,7 +132,14 @@ fn ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished() {
             .iter()
             .any(|l| l.contains("[launch] interrupted: stopping"))
     );
-    for node in ["sensor", "harmonic", "identifier", "monitor", "recorder"] {
+    for node in [
+        "sensor",
+        "harmonic",
+        "identifier",
+        "diagnoser",
+        "monitor",
+        "recorder",
+    ] {
         assert!(
             lines
                 .iter()
