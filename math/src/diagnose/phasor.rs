@@ -43,9 +43,9 @@ pub struct PhasorFindings {
     pub ranked_effects: Vec<PhasorEffect>,
     pub located: Located,
     /// Exciter delay from the kinematic identity x_o - x = x_i [s] and its std, when the
-    /// channels allow it. A delay is named when it stands out of its noise (4 std) and
-    /// exceeds a tenth of a sample interval-free threshold of 0.5 ms; the force fit cannot
-    /// see it (the element's own channels are consistent).
+    /// channels allow it. A delay is named when it stands out of its noise (4 standard
+    /// deviations) and exceeds 0.5 ms; the force fit cannot see it (the element's own channels
+    /// are consistent).
     pub kinematic_delay_s: Option<[f64; 2]>,
 }
 
