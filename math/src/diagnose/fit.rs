@@ -6,7 +6,9 @@ use std::sync::Arc;
 
 use nalgebra::{DMatrix, DVector};
 
-use super::cycles::{StepCycle, bouc_wen_cycle};
+use num_complex::Complex64;
+
+use super::cycles::{StepCycle, bouc_wen_cycle, harmonics_of, synthesize};
 use super::effects::{Structure, Transform};
 use crate::basis::Term;
 use crate::element::{Element, Friction};
@@ -52,7 +54,20 @@ fn columns(
     if let Some(zy) = hysteresis_yield_m {
         cols.push(bouc_wen_cycle(&c.velocity_mps, 1.0 / c.frequency_hz, zy));
     }
-    cols
+    // The measured force is rebuilt from harmonics 0..=N only; a model force is compared in
+    // the same band (a jump rebuilt from N harmonics rings, and so must the prediction).
+    cols.iter()
+        .map(|col| band_limited(col, c.harmonics))
+        .collect()
+}
+
+/// `h` (one period on a uniform grid) keeping only harmonics 0..=n.
+fn band_limited(h: &[f64], n: usize) -> Vec<f64> {
+    if n + 1 >= h.len() / 2 {
+        return h.to_vec();
+    }
+    let c = harmonics_of(h, n);
+    synthesize(&c, h.len(), |_| Complex64::new(1.0, 0.0))
 }
 
 fn kept(c: &StepCycle) -> Vec<bool> {
