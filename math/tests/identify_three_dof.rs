@@ -8,6 +8,8 @@ use forcemap_math::paper::TABLE1_TRUTH;
 use forcemap_math::pipeline::identify_records;
 use forcemap_math::record::Record;
 use forcemap_math::reproduce::phasor_options;
+use forcemap_math::sim::excitation::derive_seed;
+use forcemap_math::sim::noise::add_noise;
 use forcemap_math::sim::{SimSpec, ThreeDofRun, simulate};
 use std::sync::OnceLock;
 
@@ -126,7 +128,8 @@ fn improved_method_at_40_db_over_three_noise_seeds() {
         for (name, run, bound) in [
             // the acceptance target for CASE I is 5 %
             ("I", ThreeDofRun::case_i(), 0.05),
-            // the target for CASE II is 2 %; the scatter of c at 40 dB (std ~1.6 %) reaches 2.8 %
+            // fd-multi's scatter of c at 40 dB (std ~1.5 %) reaches 2.8 %; the 2 % target of
+            // CASE II is met by the output-error refinement (tests below)
             ("II", ThreeDofRun::case_ii(), 0.03),
         ] {
             let records = simulate(&SimSpec::ThreeDof(ThreeDofRun {
@@ -161,5 +164,87 @@ fn improved_method_at_40_db_over_three_noise_seeds() {
                 );
             }
         }
+    }
+}
+
+/// The run's records with white measurement noise at `snr_db` as `simulate` adds it for `seed`
+/// (the sine program does not depend on the seed, so the noise-free run is simulated once).
+fn noisy(which: &str, snr_db: f64, seed: u64) -> Vec<Record> {
+    let mut rec = case(which).clone();
+    add_noise(&mut rec, Some(snr_db), derive_seed(seed, 1));
+    rec
+}
+
+#[test]
+fn noise_added_here_is_the_simulators_noise() {
+    let direct = simulate(&SimSpec::ThreeDof(ThreeDofRun {
+        snr_db: Some(40.0),
+        seed: 3,
+        ..ThreeDofRun::case_ii()
+    }))
+    .unwrap();
+    assert_eq!(direct, noisy("II", 40.0, 3));
+}
+
+fn identify_on(records: &[Record], method: Method) -> Identification {
+    let setup = Setup::DrivePoint {
+        substructure: LinearSubstructure::paper_three_dof_substructure_i(),
+    };
+    let model = Model::by_name("coulomb-cubic", &ModelOptions::default()).unwrap();
+    identify_records(
+        &model,
+        &setup,
+        method,
+        records,
+        &phasor_options(),
+        &FdMultiOptions::default(),
+    )
+    .expect("identifies")
+}
+
+#[test]
+fn output_error_noise_free_within_a_tenth_of_a_percent() {
+    for which in ["I", "II"] {
+        let id = identify_on(case(which), Method::OutputError);
+        let e = errors(&id);
+        assert!(e.iter().all(|v| *v < 1e-3), "CASE {which} errors {e:?}");
+        assert_eq!(id.method, "output-error");
+    }
+}
+
+/// Issue 2's 40 dB targets (CASE II every parameter within 2 %, CASE I within 5 %) over ten noise
+/// seeds, and honest standard deviations: each error within 3.5 reported std, and the scatter
+/// over the seeds of the same size as the reported std.
+#[test]
+fn output_error_at_40_db_over_ten_noise_seeds() {
+    let (k, c, fd, s) = TABLE1_TRUTH;
+    for (which, bound) in [("II", 0.02), ("I", 0.05)] {
+        let mut c_err = Vec::new();
+        let mut c_std = Vec::new();
+        for seed in 0..10 {
+            let id = identify_on(&noisy(which, 40.0, seed), Method::OutputError);
+            let e = errors(&id);
+            assert!(
+                e.iter().all(|v| *v < bound),
+                "CASE {which} seed {seed}: errors {e:?}"
+            );
+            for (p, truth) in id.parameters.iter().zip([k, c, fd, s]) {
+                assert!(
+                    (p.value - truth).abs() < 3.5 * p.std,
+                    "CASE {which} seed {seed}: {} = {} +- {}",
+                    p.name,
+                    p.value,
+                    p.std
+                );
+            }
+            c_err.push(id.value("c").unwrap() / c - 1.0);
+            c_std.push(id.parameters[1].std / c);
+        }
+        let rms = (c_err.iter().map(|e| e * e).sum::<f64>() / c_err.len() as f64).sqrt();
+        let std = c_std.iter().sum::<f64>() / c_std.len() as f64;
+        assert!(
+            rms < 2.0 * std && rms > 0.3 * std,
+            "CASE {which}: RMS error of c {rms:.2e} against reported std {std:.2e}"
+        );
     }
 }

@@ -489,6 +489,10 @@ pub fn step_equations(
         }
         Method::FdMulti => fd_multi_equations(model, &eh, an.step, options, term_rms, notes),
         Method::Td { .. } => unreachable!("time-domain equations come from td_step_equations"),
+        Method::OutputError => Err(IdentifyError::Step {
+            step: an.step,
+            problem: "output-error refinement has no per-step equations (it is a post-step on fd-multi's estimate)".into(),
+        }),
     }
 }
 

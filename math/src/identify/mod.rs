@@ -8,6 +8,8 @@
 //!   element sticks (or reverses) its force is set-valued, so there it is an unknown per step (a
 //!   low-order polynomial per stick interval plus a jump where the element sticks or reverses),
 //!   whose columns are projected out of the step's equations.
+//! - `Method::OutputError`: fd-multi's estimate refined by output error against the exact model's
+//!   simulation (stick-slip included) of the 3-DOF drive-point setup; see `output_error`.
 //! - `Method::Td`: classical time-domain force-state mapping (paper section 4.3), the baseline.
 //!
 //! Each step gives a block of equations (`StepEquations`); blocks are stacked and solved by
@@ -16,12 +18,14 @@
 mod accumulator;
 mod cycle;
 mod fd;
+mod output_error;
 mod td;
 
 pub use accumulator::EquationAccumulator;
 pub use cycle::{Cycle, rebuilt_cycle};
 
 pub use fd::{ElementHarmonics, element_harmonics, step_equations};
+pub use output_error::refine_output_error;
 pub use td::td_step_equations;
 
 use nalgebra::{DMatrix, DVector};
@@ -66,6 +70,9 @@ pub enum Method {
     Fd,
     /// All harmonics, slip-phase aware.
     FdMulti,
+    /// `FdMulti`, then refined by output error against the exact model's simulation (3-DOF
+    /// drive-point setup; a global post-step, not a per-step block producer).
+    OutputError,
     /// Time-domain FSM; `points_per_step` None = every settled sample.
     Td { points_per_step: Option<usize> },
 }
@@ -75,6 +82,7 @@ impl Method {
         match self {
             Method::Fd => "fd".into(),
             Method::FdMulti => "fd-multi".into(),
+            Method::OutputError => "output-error".into(),
             Method::Td {
                 points_per_step: Some(n),
             } => format!("td-{n}"),
@@ -242,10 +250,15 @@ pub fn identify(
     analyses: &[HarmonicAnalysis],
     options: &FdMultiOptions,
 ) -> Result<Identification, IdentifyError> {
+    if method == Method::OutputError {
+        let first = identify(model, setup, Method::FdMulti, records, analyses, options)?;
+        return refine_output_error(model, setup, records, analyses, &first);
+    }
     let mut blocks = Vec::with_capacity(analyses.len());
     for an in analyses {
         let blk = match method {
             Method::Fd | Method::FdMulti => step_equations(model, setup, method, an, options)?,
+            Method::OutputError => unreachable!("handled above"),
             Method::Td { points_per_step } => {
                 let rec = records.iter().find(|r| r.step == an.step).ok_or_else(|| {
                     IdentifyError::Step {
