@@ -132,3 +132,27 @@ fn live_phasor_diagnosis_names_coulomb_friction_and_passes_the_clean_rig() {
         }
     }
 }
+
+/// Strong Stribeck friction sticks the element through the slowest steps (the base force never
+/// reaches breakaway): those steps are left out of the fits, and the friction is named. Case 73
+/// of `forcemap diagnose-eval --seed 1` (30 dB).
+#[test]
+fn stribeck_friction_is_named_despite_stuck_steps() {
+    let c = forcemap_math::diagnose::eval::generate_cases(200, 1, 30.0)[73];
+    assert!(
+        matches!(
+            c.planted,
+            Planted::One {
+                effect: Effect::StribeckFriction,
+                ..
+            }
+        ),
+        "{c:?}"
+    );
+    let r = run_case(&c).unwrap();
+    println!(
+        "stribeck_friction: {} ({:.2} % -> {:.2} %, truth {:.2} %)",
+        r.named, r.gap_before_percent, r.gap_after_percent, r.truth_nmse_percent
+    );
+    assert_eq!(r.named, "stribeck_friction", "{r:?}");
+}

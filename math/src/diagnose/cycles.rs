@@ -27,7 +27,16 @@ pub struct StepCycle {
     pub harmonics: usize,
     /// Noise of each force harmonic n = 0..=harmonics [N] (complex magnitude).
     pub force_harmonic_noise_n: Vec<f64>,
+    /// The element (nearly) did not move: relative displacement amplitude below
+    /// [`STUCK_FRACTION`] of the largest step's (set by `search::cycles_for`). Its force is a
+    /// stick force, set-valued, that no model of the state describes; fits and scores leave
+    /// the step out for every model alike.
+    pub stuck: bool,
 }
+
+/// Steps whose relative displacement amplitude is below this fraction of the largest step's
+/// count as stuck (see [`StepCycle::stuck`]).
+pub const STUCK_FRACTION: f64 = 0.05;
 
 /// Grid points per period.
 pub const CYCLE_POINTS: usize = 256;
@@ -129,6 +138,7 @@ pub fn step_cycle(
         },
         harmonics: nh,
         force_harmonic_noise_n: eh.force_noise.iter().map(|s| s * mass_factor).collect(),
+        stuck: false,
     })
 }
 

@@ -71,6 +71,9 @@ fn band_limited(h: &[f64], n: usize) -> Vec<f64> {
 }
 
 fn kept(c: &StepCycle) -> Vec<bool> {
+    if c.stuck {
+        return vec![false; c.velocity_mps.len()];
+    }
     let vmax = c.velocity_mps.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     c.velocity_mps
         .iter()
@@ -101,7 +104,7 @@ pub fn fit(
     let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
     let mut independent = 0.0;
     for (k, c) in cycles.iter().enumerate() {
-        if Some(k) == skip {
+        if Some(k) == skip || c.stuck {
             continue;
         }
         let cols = columns(&terms, s.hysteresis_yield_m, c);

@@ -3,7 +3,7 @@
 //! cross-validated error is kept.
 
 use super::DiagnoseError;
-use super::cycles::{StepCycle, estimate_exciter_delay, step_cycle};
+use super::cycles::{STUCK_FRACTION, StepCycle, estimate_exciter_delay, step_cycle};
 use super::effects::{Effect, Scales, Structure, Transform, baseline_has, structures};
 use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit};
 use crate::identify::Setup;
@@ -43,15 +43,20 @@ pub fn cycles_for(
     analyses: &[HarmonicAnalysis],
     t: &Transform,
 ) -> Result<Vec<StepCycle>, DiagnoseError> {
-    analyses
+    let mut cycles: Vec<StepCycle> = analyses
         .iter()
         .map(|an| step_cycle(setup, an, t.lowpass_hz, t.mass_factor).map_err(DiagnoseError::from))
-        .collect()
+        .collect::<Result<_, _>>()?;
+    let amax = cycles.iter().map(|c| c.amplitude_m).fold(0.0, f64::max);
+    for c in &mut cycles {
+        c.stuck = c.amplitude_m < STUCK_FRACTION * amax;
+    }
+    Ok(cycles)
 }
 
 fn noise_cv_percent(cycles: &[StepCycle]) -> f64 {
     let (mut n, mut d) = (0.0, 0.0);
-    for c in cycles {
+    for c in cycles.iter().filter(|c| !c.stuck) {
         let vmax = c.velocity_mps.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let w2 = c.force_noise_n.powi(-2);
         for (v, g) in c.velocity_mps.iter().zip(&c.force_n) {
@@ -150,7 +155,11 @@ pub fn search(
     }
     Ok(PhasorSearch {
         noise_cv_percent: noise_cv_percent(&cycles),
-        equations: cycles.iter().map(|c| (2 * c.harmonics + 1) as f64).sum(),
+        equations: cycles
+            .iter()
+            .filter(|c| !c.stuck)
+            .map(|c| (2 * c.harmonics + 1) as f64)
+            .sum(),
         cycles,
         scales,
         baseline: base_fit,
