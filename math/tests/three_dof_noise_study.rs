@@ -293,3 +293,27 @@ fn case_ii_noise_budget() {
         println!("   G harmonics |G_n|/noise: {gn:?}");
     }
 }
+
+/// Table 1 as `forcemap reproduce --tables 1` computes it (seed 1, 40 dB), one line per row.
+#[test]
+#[ignore]
+fn table1_rows() {
+    let rows =
+        forcemap_math::reproduce::table1(&forcemap_math::reproduce::Settings::default(), |_| {})
+            .unwrap();
+    for r in rows {
+        println!(
+            "{} {} {:?} {} {:?} snr {:?}: k {:?} c {:?} fd {:?} s {:?}",
+            r.case.unwrap_or_default(),
+            r.model,
+            r.atan_m,
+            r.source,
+            r.method,
+            r.snr_db,
+            r.k,
+            r.c,
+            r.fd,
+            r.s
+        );
+    }
+}
