@@ -3,7 +3,9 @@
 //!
 //! # Steps ([`diagnose`])
 //! 1. **Gap.** The baseline is fitted on the sine steps (weighted least squares on one rebuilt
-//!    period per step, see [`fit`]); the gap is its held-out NMSE of the mass acceleration
+//!    period per step, see [`fit`]; the model force is band-limited to the harmonics the
+//!    measured force was rebuilt from, and steps where the element sticks throughout,
+//!    [`cycles::StepCycle::stuck`], are left out); the gap is its held-out NMSE of the mass acceleration
 //!    (eq. 27) on the random records (and any steps held out), the model simulated on the
 //!    measured base motion; per step, the phasor mismatch of the element force.
 //! 2. **Where.** [`locate`]: per step (frequency, amplitude), per harmonic order (DC, 1st,
