@@ -75,3 +75,24 @@ fn linear_sim_against_the_coulomb_rig_is_diagnosed_live_as_coulomb_friction() {
         });
     assert!(warned, "no WARN naming coulomb_friction on /diagnostics");
 }
+
+/// The true model (the rig bag is a Coulomb damper) is not flagged: the live verdict is
+/// "adequate" and /diagnostics says OK.
+#[test]
+fn the_true_model_is_adequate_live() {
+    let d = domain(9);
+    let _harmonic = NodeProcess::start("harmonic", d, &[]);
+    let diagnoser = NodeProcess::start("diagnoser", d, &["baseline:=coulomb".into()]);
+    let mut sensor = NodeProcess::start(
+        "sensor",
+        d,
+        &[
+            "source:=bag".into(),
+            format!("bag:={}", repo().join("bags/rig_40db").display()),
+            "rate_factor:=0.0".into(),
+        ],
+    );
+    let line = diagnoser.wait_for("after 10 steps:", Duration::from_secs(120));
+    assert!(line.contains("after 10 steps: adequate"), "{line}");
+    assert!(sensor.wait_exit(Duration::from_secs(60)).success());
+}

@@ -144,6 +144,9 @@ pub enum MethodArg {
     FdMulti,
     /// Time-domain FSM (needs mass acceleration; velocity integrated from acceleration).
     Td,
+    /// fd-multi refined by output error against the exact simulation (3-DOF drive-point
+    /// setups with sgn friction; seconds per identification).
+    OutputError,
 }
 
 #[derive(Debug, Args)]

@@ -18,6 +18,7 @@ fn method(args: &IdentifyArgs) -> anyhow::Result<Method> {
     Ok(match args.method {
         MethodArg::Fd => Method::Fd,
         MethodArg::FdMulti => Method::FdMulti,
+        MethodArg::OutputError => Method::OutputError,
         MethodArg::Td => {
             Method::Td {
                 points_per_step: if args.td_points == "all" {

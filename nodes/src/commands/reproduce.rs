@@ -79,7 +79,7 @@ fn print_tables(rows: &[Row], settings: &Settings) {
             ),
         }
         println!(
-            "{:<5} {:<20} {:>7} {:<30} {:>9} {:>8} {:>7} {:>9} {:>7} {:>7}  r [%]",
+            "{:<5} {:<20} {:>7} {:<36} {:>9} {:>8} {:>7} {:>9} {:>7} {:>7}  r [%]",
             "case",
             "model",
             "M",
@@ -102,7 +102,7 @@ fn print_tables(rows: &[Row], settings: &Settings) {
                             .join(", ")
                     });
             println!(
-                "{:<5} {:<20} {:>7} {:<30} {:>9} {:>8} {:>7} {:>9} {:>7} {:>7}  {}",
+                "{:<5} {:<20} {:>7} {:<36} {:>9} {:>8} {:>7} {:>9} {:>7} {:>7}  {}",
                 r.case.as_deref().unwrap_or("-"),
                 r.model,
                 r.atan_m.map_or("-".into(), |m| format!("{m:.0e}")),
