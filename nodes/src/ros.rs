@@ -233,6 +233,24 @@ impl NodeSetup {
     }
 }
 
+/// The wall-clock time, as message stamps carry it.
+pub fn now_time() -> forcemap_msgs::builtin_interfaces::Time {
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default();
+    forcemap_msgs::builtin_interfaces::Time::from_nanos(now.as_nanos() as i64)
+}
+
+/// The rig's mass from its constants on the `parameters` topic, if it is there and usable.
+pub fn rig_mass_kg(status: &forcemap_msgs::diagnostic_msgs::DiagnosticStatus) -> Option<f64> {
+    status
+        .values
+        .iter()
+        .find(|kv| kv.key == "mass_kg")
+        .and_then(|kv| kv.value.parse::<f64>().ok())
+        .filter(|m| *m > 0.0 && m.is_finite())
+}
+
 /// The DDS domain from `ROS_DOMAIN_ID` (0 when unset), checked as ROS does.
 pub fn domain_id() -> anyhow::Result<u16> {
     match std::env::var("ROS_DOMAIN_ID") {

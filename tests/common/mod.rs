@@ -151,6 +151,12 @@ pub fn offline_theta(bag: &Path, extra: &[&str]) -> Theta {
         String::from_utf8_lossy(&out.stderr)
     );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    theta_of_json(&v)
+}
+
+/// `parameters: [{name, value}, ...]`, as `forcemap identify --json` and the monitor's summary
+/// both write it.
+fn theta_of_json(v: &serde_json::Value) -> Theta {
     v["parameters"]
         .as_array()
         .unwrap()
@@ -165,21 +171,11 @@ pub fn offline_theta(bag: &Path, extra: &[&str]) -> Theta {
 }
 
 /// Theta from a monitor's summary JSON.
-pub fn summary_theta(path: &Path) -> Vec<(String, f64)> {
+pub fn summary_theta(path: &Path) -> Theta {
     let text =
         std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
     let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-    v["parameters"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|p| {
-            (
-                p["name"].as_str().unwrap().to_string(),
-                p["value"].as_f64().unwrap(),
-            )
-        })
-        .collect()
+    theta_of_json(&v)
 }
 
 /// Asserts that two thetas name the same parameters and agree to `rel` relative difference.

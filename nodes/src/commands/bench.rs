@@ -13,7 +13,7 @@
 use std::collections::BTreeMap;
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use forcemap_math::sim::excitation::PAPER_RIG_FREQUENCIES_HZ;
@@ -99,10 +99,7 @@ fn spawn(kind: &'static str, domain: u16, params: &[&str]) -> anyhow::Result<Spa
 }
 
 fn now_ns() -> i64 {
-    SystemTime::now()
-        .duration_since(SystemTime::UNIX_EPOCH)
-        .unwrap_or_default()
-        .as_nanos() as i64
+    crate::ros::now_time().as_nanos()
 }
 
 pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {

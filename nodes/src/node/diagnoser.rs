@@ -21,17 +21,10 @@ use tokio::sync::mpsc;
 
 use crate::log_line;
 use crate::node::identifier::setup_for;
-use crate::ros::{NodeSetup, RosNode, qos, topics};
+use crate::ros::{NodeSetup, RosNode, now_time, qos, topics};
 
 /// The diagnoser's own topic (relative to the namespace).
 pub const DIAGNOSIS_TOPIC: &str = "diagnosis";
-
-fn now_time() -> Time {
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    Time::from_nanos(now.as_nanos() as i64)
-}
 
 /// The message of a set of findings.
 pub fn diagnosis_message(baseline: &str, f: &PhasorFindings, header: Header) -> GapDiagnosis {
@@ -90,11 +83,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     });
     tokio::spawn(async move {
         while let Ok((m, _)) = rig.async_take().await {
-            if let Some(v) = m
-                .values
-                .iter()
-                .find(|kv| kv.key == "mass_kg")
-                .and_then(|kv| kv.value.parse::<f64>().ok())
+            if let Some(v) = crate::ros::rig_mass_kg(&m)
                 && tx.send(Input::RigMass(v)).is_err()
             {
                 break;

@@ -21,7 +21,7 @@ use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
 use crate::log_line;
-use crate::ros::{NodeSetup, RosNode, qos, topics};
+use crate::ros::{NodeSetup, RosNode, now_time, qos, topics};
 use crate::steps::{StepAssembler, StepError, StepPlan};
 
 /// Samples of a step whose excitation state has not arrived are held this long (the two topics
@@ -161,13 +161,6 @@ impl HarmonicState {
             Err(e) => Outcome::Dropped(e),
         }
     }
-}
-
-fn now_time() -> Time {
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    Time::from_nanos(now.as_nanos() as i64)
 }
 
 pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {

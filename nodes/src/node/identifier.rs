@@ -36,7 +36,7 @@ use tokio::sync::mpsc;
 
 use crate::log_line;
 use crate::params::Params;
-use crate::ros::{NodeSetup, RosNode, qos, topics};
+use crate::ros::{NodeSetup, RosNode, now_time, qos, topics};
 
 /// What the identifier persists.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -187,13 +187,6 @@ fn describe_setup(s: &Setup) -> String {
     }
 }
 
-fn now_time() -> Time {
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    Time::from_nanos(now.as_nanos() as i64)
-}
-
 fn theta_line(id: &Identification) -> String {
     id.parameters
         .iter()
@@ -270,11 +263,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         loop {
             match rig.async_take().await {
                 Ok((m, _)) => {
-                    if let Some(v) = m
-                        .values
-                        .iter()
-                        .find(|kv| kv.key == "mass_kg")
-                        .and_then(|kv| kv.value.parse::<f64>().ok())
+                    if let Some(v) = crate::ros::rig_mass_kg(&m)
                         && tx.send(Input::RigMass(v)).is_err()
                     {
                         break;

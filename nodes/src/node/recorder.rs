@@ -44,13 +44,6 @@ struct Received {
     cdr: Vec<u8>,
 }
 
-fn now_ns() -> u64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default()
-        .as_nanos() as u64
-}
-
 /// The type and QoS of one of forcemap's topics, by its last name component or an explicit
 /// `pkg/msg/Type`.
 fn known_type(name: &str, explicit: Option<&str>) -> anyhow::Result<(&'static str, QosProfile)> {
@@ -115,7 +108,7 @@ where
         loop {
             match sub.async_take().await {
                 Ok((m, info)) => {
-                    let log_time = now_ns();
+                    let log_time = crate::ros::now_time().as_nanos().max(0) as u64;
                     let publish_time = info
                         .source_timestamp()
                         .map_or(log_time, |t| t.to_nanos().max(0) as u64);

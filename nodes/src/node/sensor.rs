@@ -312,10 +312,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
 
     let messages = match prepared {
         Some((records, driven, constants)) => {
-            let now = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .unwrap_or_default();
-            let run_start = Time::from_nanos(now.as_nanos() as i64);
+            let run_start = crate::ros::now_time();
             messages_of(&records, driven, constants, run_start, &frame)
         }
         None => bag_messages.unwrap_or_default(),
