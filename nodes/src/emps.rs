@@ -29,6 +29,9 @@ use forcemap_msgs::msg::AxisSample;
 use forcemap_msgs::std_msgs::Header;
 
 use crate::bag::{BagError, BagWriter, QosProfile, TopicSpec};
+use forcemap_math::diagnose::time_domain::{
+    AxisBaseline, AxisModelFit, AxisRecord, TimeDomainOptions, fit_axis_model,
+};
 
 /// The epoch the sample times `t` are added to: 2018-11-06T00:00:00Z, the day the published
 /// files were written (their MAT headers say so). Fixed, so that an import is reproducible.
@@ -458,29 +461,10 @@ pub fn import_emps(mat: &Path, out: &Path) -> anyhow::Result<ImportSummary> {
     })
 }
 
-/// Options of [`fit_reference_model`], after the published procedure: position low-passed
-/// without phase shift, derivatives by central differences, then parallel decimation (every
-/// column and the force low-passed, then one sample in `decimation` kept).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FitOptions {
-    /// Cut-off of the zero-phase 4th-order Butterworth filter on the position [Hz]. The
-    /// default, 40 Hz, is the band the decimation filter leaves to the force: a lower cut-off
-    /// leaves force content between it and 40 Hz that the model cannot follow (on DATA_EMPS:
-    /// 25 Hz gives a 6.99 % force error, 40 Hz 4.01 %, published 4.08 %).
-    pub position_cutoff_hz: f64,
-    /// Decimation factor of the parallel decimation (its anti-alias filter: zero-phase
-    /// 4th-order Butterworth at 0.8 * Nyquist / decimation).
-    pub decimation: usize,
-}
-
-impl Default for FitOptions {
-    fn default() -> Self {
-        FitOptions {
-            position_cutoff_hz: 40.0,
-            decimation: 10,
-        }
-    }
-}
+/// Options of [`fit_reference_model`]: the preprocessing of the time-domain diagnosis, the
+/// one implementation of the published procedure (position low-passed without phase shift,
+/// central differences, parallel decimation; see `forcemap_math::diagnose::time_domain`).
+pub type FitOptions = TimeDomainOptions;
 
 /// The reference model tau = M q'' + Fv q' + Fc sgn(q') + offset fitted by least squares.
 #[derive(Debug, Clone, PartialEq)]
@@ -494,6 +478,7 @@ pub struct ReferenceFit {
     /// 100 |tau - W theta| / |tau| on the decimated data [%].
     pub relative_error_percent: f64,
     pub equations: usize,
+    pub options: FitOptions,
 }
 
 impl ReferenceFit {
@@ -502,214 +487,52 @@ impl ReferenceFit {
     }
 
     /// 100 |tau - W theta| / |tau| of these parameters on other data, prepared the same way.
-    pub fn relative_error_on(&self, data: &EmpsData, opts: &FitOptions) -> f64 {
-        let (w, tau) = regressors(data, opts);
-        relative_error(&w, &tau, &self.theta())
+    pub fn relative_error_on(&self, data: &EmpsData) -> Result<f64, EmpsError> {
+        let fit = AxisModelFit::new(
+            AxisBaseline::EmpsCoulomb,
+            self.theta().to_vec(),
+            &self.options,
+        );
+        fit.relative_error_on(&axis_record(data))
+            .map_err(|e| EmpsError::Fit {
+                path: data.source.clone(),
+                detail: e.to_string(),
+            })
+    }
+}
+
+/// The record as the time-domain path takes it.
+pub fn axis_record(data: &EmpsData) -> AxisRecord {
+    AxisRecord {
+        sample_rate_hz: data.sample_rate_hz(),
+        position_m: data.position_m.clone(),
+        force_n: data.force_n.clone(),
     }
 }
 
 /// Fits tau = M q'' + Fv q' + Fc sgn(q') + offset on a record (see [`FitOptions`]).
 pub fn fit_reference_model(data: &EmpsData, opts: &FitOptions) -> Result<ReferenceFit, EmpsError> {
-    let fail = |detail: String| EmpsError::Fit {
-        path: data.source.clone(),
-        detail,
-    };
-    if opts.decimation == 0 || opts.position_cutoff_hz.is_nan() || opts.position_cutoff_hz <= 0.0 {
-        return Err(fail(format!("invalid fit options {opts:?}")));
-    }
-    let (w, tau) = regressors(data, opts);
-    if tau.len() < 8 {
-        return Err(fail(format!(
-            "{} equations after decimation: too few for 4 parameters",
-            tau.len()
-        )));
-    }
-    let (theta, std) = least_squares(&w, &tau).ok_or_else(|| {
-        fail("the equations are singular: the record does not excite M, Fv, Fc and offset independently".into())
+    let fit = fit_axis_model(AxisBaseline::EmpsCoulomb, &axis_record(data), opts).map_err(|e| {
+        EmpsError::Fit {
+            path: data.source.clone(),
+            detail: e.to_string(),
+        }
     })?;
+    let [m, fv, fc, offset]: [f64; 4] =
+        fit.theta.clone().try_into().map_err(|_| EmpsError::Fit {
+            path: data.source.clone(),
+            detail: format!("expected 4 parameters, got {:?}", fit.names),
+        })?;
     Ok(ReferenceFit {
-        mass_kg: theta[0],
-        fv_ns_per_m: theta[1],
-        fc_n: theta[2],
-        offset_n: theta[3],
-        std,
-        relative_error_percent: relative_error(&w, &tau, &theta),
-        equations: tau.len(),
+        mass_kg: m,
+        fv_ns_per_m: fv,
+        fc_n: fc,
+        offset_n: offset,
+        std: std::array::from_fn(|j| fit.std[j]),
+        relative_error_percent: fit.relative_error_percent,
+        equations: fit.equations,
+        options: *opts,
     })
-}
-
-fn relative_error(w: &[[f64; 4]], tau: &[f64], theta: &[f64; 4]) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for (row, t) in w.iter().zip(tau) {
-        let pred: f64 = row.iter().zip(theta).map(|(a, b)| a * b).sum();
-        num += (t - pred).powi(2);
-        den += t * t;
-    }
-    100.0 * (num / den).sqrt()
-}
-
-/// Decimated regressor rows [q'', q', sgn(q'), 1] and forces.
-fn regressors(data: &EmpsData, opts: &FitOptions) -> (Vec<[f64; 4]>, Vec<f64>) {
-    let n = data.len();
-    let fs = data.sample_rate_hz();
-    let dt = 1.0 / fs;
-    let q = filtfilt(
-        &Butterworth4::lowpass(opts.position_cutoff_hz, fs),
-        &data.position_m,
-    );
-    let mut qd = vec![0.0; n];
-    let mut qdd = vec![0.0; n];
-    for i in 1..n - 1 {
-        qd[i] = (q[i + 1] - q[i - 1]) / (2.0 * dt);
-        qdd[i] = (q[i + 1] - 2.0 * q[i] + q[i - 1]) / (dt * dt);
-    }
-    let sgn: Vec<f64> = qd
-        .iter()
-        .map(|v| if *v == 0.0 { 0.0 } else { v.signum() })
-        .collect();
-    let anti_alias = Butterworth4::lowpass(0.8 * fs / 2.0 / opts.decimation as f64, fs);
-    let cols = [&qdd, &qd, &sgn].map(|c| filtfilt(&anti_alias, &c[1..n - 1]));
-    let tau = filtfilt(&anti_alias, &data.force_n[1..n - 1]);
-    // Leave out the filters' edges (a quarter second each side) and decimate.
-    let edge = (0.25 * fs).round() as usize;
-    let mut w = Vec::new();
-    let mut y = Vec::new();
-    let mut i = edge;
-    while i + edge < tau.len() {
-        w.push([cols[0][i], cols[1][i], cols[2][i], 1.0]);
-        y.push(tau[i]);
-        i += opts.decimation;
-    }
-    (w, y)
-}
-
-/// Least squares by the normal equations of the column-scaled matrix (4 well-scaled columns),
-/// with standard deviations s^2 (W^T W)^-1.
-fn least_squares(w: &[[f64; 4]], y: &[f64]) -> Option<([f64; 4], [f64; 4])> {
-    let mut scale = [0.0f64; 4];
-    for row in w {
-        for j in 0..4 {
-            scale[j] += row[j] * row[j];
-        }
-    }
-    let scale = scale.map(|s| if s > 0.0 { s.sqrt() } else { 1.0 });
-    let mut a = [[0.0f64; 4]; 4];
-    let mut b = [0.0f64; 4];
-    for (row, t) in w.iter().zip(y) {
-        let r: [f64; 4] = std::array::from_fn(|j| row[j] / scale[j]);
-        for j in 0..4 {
-            b[j] += r[j] * t;
-            for k in 0..4 {
-                a[j][k] += r[j] * r[k];
-            }
-        }
-    }
-    let inv = invert4(a)?;
-    let theta_s: [f64; 4] = std::array::from_fn(|j| (0..4).map(|k| inv[j][k] * b[k]).sum());
-    let theta: [f64; 4] = std::array::from_fn(|j| theta_s[j] / scale[j]);
-    let rss: f64 = w
-        .iter()
-        .zip(y)
-        .map(|(row, t)| (t - row.iter().zip(&theta).map(|(a, b)| a * b).sum::<f64>()).powi(2))
-        .sum();
-    let s2 = rss / (y.len() as f64 - 4.0).max(1.0);
-    let std = std::array::from_fn(|j| (s2 * inv[j][j]).max(0.0).sqrt() / scale[j]);
-    Some((theta, std))
-}
-
-/// Inverse of a symmetric positive definite 4x4 matrix by Gauss-Jordan with partial pivoting;
-/// None when it is (numerically) singular.
-fn invert4(mut a: [[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
-    let mut inv = [[0.0f64; 4]; 4];
-    for (i, row) in inv.iter_mut().enumerate() {
-        row[i] = 1.0;
-    }
-    for c in 0..4 {
-        let p = (c..4).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
-        if a[p][c].abs() < 1e-12 {
-            return None;
-        }
-        a.swap(c, p);
-        inv.swap(c, p);
-        let d = a[c][c];
-        for k in 0..4 {
-            a[c][k] /= d;
-            inv[c][k] /= d;
-        }
-        for r in 0..4 {
-            if r != c {
-                let f = a[r][c];
-                for k in 0..4 {
-                    a[r][k] -= f * a[c][k];
-                    inv[r][k] -= f * inv[c][k];
-                }
-            }
-        }
-    }
-    Some(inv)
-}
-
-/// A 4th-order Butterworth low-pass as two biquads (bilinear transform with pre-warping).
-#[derive(Debug, Clone, Copy)]
-struct Butterworth4 {
-    /// (b0, b1, b2, a1, a2) of each section, a0 = 1.
-    sections: [[f64; 5]; 2],
-}
-
-impl Butterworth4 {
-    fn lowpass(cutoff_hz: f64, fs: f64) -> Self {
-        let k = (std::f64::consts::PI * (cutoff_hz / fs).min(0.49)).tan();
-        let section = |q: f64| {
-            let norm = 1.0 + k / q + k * k;
-            let b0 = k * k / norm;
-            [
-                b0,
-                2.0 * b0,
-                b0,
-                2.0 * (k * k - 1.0) / norm,
-                (1.0 - k / q + k * k) / norm,
-            ]
-        };
-        // Pole pairs of the 4th-order Butterworth: Q = 1 / (2 sin((2m - 1) pi / 8)), m = 1, 2.
-        let q1 = 1.0 / (2.0 * (std::f64::consts::PI / 8.0).sin());
-        let q2 = 1.0 / (2.0 * (3.0 * std::f64::consts::PI / 8.0).sin());
-        Butterworth4 {
-            sections: [section(q1), section(q2)],
-        }
-    }
-
-    /// Filters in place, starting from the steady state of the first value.
-    fn apply(&self, x: &mut [f64]) {
-        for &[b0, b1, b2, a1, a2] in &self.sections {
-            let Some(&x0) = x.first() else { return };
-            let (mut z1, mut z2) = ((1.0 - b0) * x0, (b2 - a2) * x0);
-            for v in x.iter_mut() {
-                let input = *v;
-                let y = b0 * input + z1;
-                z1 = b1 * input - a1 * y + z2;
-                z2 = b2 * input - a2 * y;
-                *v = y;
-            }
-        }
-    }
-}
-
-/// Zero-phase filtering (forward, then backward) with odd-reflection padding at both ends.
-fn filtfilt(f: &Butterworth4, x: &[f64]) -> Vec<f64> {
-    let n = x.len();
-    if n < 2 {
-        return x.to_vec();
-    }
-    let pad = (n - 1).min(300);
-    let mut v = Vec::with_capacity(n + 2 * pad);
-    v.extend((1..=pad).rev().map(|k| 2.0 * x[0] - x[k]));
-    v.extend_from_slice(x);
-    v.extend((1..=pad).map(|k| 2.0 * x[n - 1] - x[n - 1 - k]));
-    f.apply(&mut v);
-    v.reverse();
-    f.apply(&mut v);
-    v.reverse();
-    v[pad..pad + n].to_vec()
 }
 
 #[cfg(test)]
@@ -723,44 +546,5 @@ mod tests {
         assert_eq!(s, "0.0*2,5.0*3,0.1,-2.5e-7*2");
         assert_eq!(parse_run_length(&s).unwrap(), v);
         assert_eq!(parse_run_length("").unwrap(), Vec::<f64>::new());
-    }
-
-    #[test]
-    fn butterworth_passes_dc_and_stops_high_frequencies() {
-        let f = Butterworth4::lowpass(25.0, 1000.0);
-        let dc = filtfilt(&f, &[3.0; 500]);
-        assert!(dc.iter().all(|v| (v - 3.0).abs() < 1e-9));
-        let hf: Vec<f64> = (0..2000)
-            .map(|i| (2.0 * std::f64::consts::PI * 200.0 * i as f64 / 1000.0).sin())
-            .collect();
-        let out = filtfilt(&f, &hf);
-        assert!(out[500..1500].iter().all(|v| v.abs() < 1e-4));
-        // -6 dB (|H|^2 of filtfilt) at the cut-off.
-        let at_fc: Vec<f64> = (0..4000)
-            .map(|i| (2.0 * std::f64::consts::PI * 25.0 * i as f64 / 1000.0).sin())
-            .collect();
-        let out = filtfilt(&f, &at_fc);
-        let peak = out[1000..3000].iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        assert!((peak - 0.5).abs() < 0.01, "{peak}");
-    }
-
-    #[test]
-    fn least_squares_recovers_exact_parameters() {
-        let theta = [95.0, 200.0, 20.0, -3.0];
-        let w: Vec<[f64; 4]> = (0..200)
-            .map(|i| {
-                let t = i as f64 * 0.01;
-                let v = (3.0 * t).sin() * 0.2;
-                [(7.0 * t).cos(), v, v.signum(), 1.0]
-            })
-            .collect();
-        let y: Vec<f64> = w
-            .iter()
-            .map(|r| r.iter().zip(&theta).map(|(a, b)| a * b).sum())
-            .collect();
-        let (got, _) = least_squares(&w, &y).unwrap();
-        for (g, t) in got.iter().zip(&theta) {
-            assert!((g - t).abs() < 1e-8 * t.abs().max(1.0), "{got:?}");
-        }
     }
 }

@@ -215,8 +215,11 @@ fn eval_reports_rates_and_a_confusion_matrix() {
 
 /// The EMPS benchmark (real data) through the time-domain path: with M q'' + Fv q' + offset the
 /// diagnosis names coulomb_friction; with Coulomb in the baseline the top candidate is the
-/// asymmetric viscous friction (Fv+ != Fv-, published 166.7 and 240.4 N s/m). Skips where
-/// ../shared/real is absent.
+/// asymmetric viscous friction (Fv+ != Fv-, published 166.7 and 240.4 N s/m), which removes
+/// most of the gap above the floor, but that gap is small against the floor (what no
+/// memoryless force law removes), so the rule calls the Coulomb model adequate. The published
+/// model's errors (4.08 % fit, 5.98 % pulses, 3.11 % with asymmetric friction) are reproduced
+/// within 0.1 %-points. Skips where ../shared/real is absent.
 #[test]
 fn emps_names_coulomb_then_finds_the_asymmetric_friction() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/real/emps");
@@ -237,24 +240,48 @@ fn emps_names_coulomb_then_finds_the_asymmetric_friction() {
             "--json",
         ])
     };
+    let num = |v: &serde_json::Value| v.as_f64().unwrap();
     let v = run("emps-viscous");
     println!("emps-viscous: {v}");
     assert_eq!(v["verdict"], "explained");
     assert_eq!(v["top_effect"], "coulomb_friction");
-    let fc = v["ranked_effects"][0]["added_parameters"][0]["value"]
-        .as_f64()
-        .unwrap();
-    assert!((fc - 20.3935).abs() < 1.0, "Fc {fc}");
+    let fc = num(&v["ranked_effects"][0]["added_parameters"][0]["value"]);
+    assert!((fc - 20.3935).abs() < 0.5, "Fc {fc}");
+    let floor = num(&v["floor"]["floor_percent"]);
+    assert!(
+        floor > 4.0 && floor < num(&v["gap_after_percent"]),
+        "{floor}"
+    );
+
     let v = run("emps-coulomb");
     println!("emps-coulomb: {v}");
+    // The published model: 4.08 % on the fitting record, 5.98 % on the pulses.
+    assert!((num(&v["fit_before_percent"]) - 4.08).abs() < 0.1, "{v}");
+    assert!((num(&v["gap_before_percent"]) - 5.98).abs() < 0.1, "{v}");
     let top = &v["ranked_effects"][0];
     assert_eq!(top["effect"], "asymmetric_damping");
-    let fv = v["baseline_parameters"][1]["value"].as_f64().unwrap();
-    let ca = top["added_parameters"][0]["value"].as_f64().unwrap();
-    // rebound (q' > 0) fv + ca, the other way fv - ca
+    // Published with asymmetric friction: 3.11 % on the fitting record.
+    assert!((num(&top["fit_percent"]) - 3.11).abs() < 0.1, "{top}");
+    let fv = num(&v["baseline_parameters"][1]["value"]);
+    let ca = num(&top["added_parameters"][0]["value"]);
+    // forward (q' > 0) fv + ca, back fv - ca
     assert!(
-        ((fv + ca) - 166.7).abs() < 10.0 && ((fv - ca) - 240.4).abs() < 10.0,
+        ((fv + ca) - 166.7).abs() < 3.0 && ((fv - ca) - 240.4).abs() < 3.0,
         "{fv} {ca}"
     );
-    assert!(top["gap_after_percent"].as_f64().unwrap() < v["gap_before_percent"].as_f64().unwrap());
+    let (before, after) = (
+        num(&v["gap_before_percent"]),
+        num(&top["gap_after_percent"]),
+    );
+    let floor = num(&v["floor"]["floor_percent"]);
+    // It removes most of what lies above the floor ...
+    assert!(
+        after - floor < 0.5 * (before - floor),
+        "{before} {after} {floor}"
+    );
+    // ... but that is less than the floor itself: not significant, and the gap is within
+    // three floors.
+    assert_eq!(top["significant"], false);
+    assert_eq!(v["verdict"], "adequate");
+    assert!(v["top_effect"].is_null());
 }

@@ -53,7 +53,7 @@ fn least_squares_fit_lands_near_the_published_parameters() {
     );
 
     if let Ok(pulses) = emps::read_emps(dir.join("DATA_EMPS_PULSES.mat")) {
-        let e = fit.relative_error_on(&pulses, &opts);
+        let e = fit.relative_error_on(&pulses).unwrap();
         println!("relative force error: {e:.2} % on DATA_EMPS_PULSES (published 5.98 %)");
         assert!(e < 7.5, "{e}");
     }

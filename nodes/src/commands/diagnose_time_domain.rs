@@ -91,6 +91,17 @@ pub fn run(args: &DiagnoseArgs, data: &Path) -> anyhow::Result<()> {
         val_path.display(),
         d.fit_before_percent
     );
+    println!(
+        "floor: {:.2} % (set by {}): what no element effect removes, the smallest validation error of a memoryless force law fitted on the fitting record",
+        d.floor.floor_percent, d.floor.set_by,
+    );
+    println!(
+        "  best of {} flexible laws: {:.2} % on the validation record, {:.2} % on the fitting record: {}",
+        d.floor.flexible_laws_tried,
+        d.floor.flexible_law_percent,
+        d.floor.flexible_law_fit_percent,
+        d.floor.flexible_law
+    );
     for s in &d.located.summary {
         println!("  {s}");
     }
