@@ -57,7 +57,8 @@ pub fn write_atomically(path: &Path, text: &str) -> anyhow::Result<()> {
     })
 }
 
-fn draw_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
+/// A plotters error as an anyhow error.
+pub fn draw_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow::anyhow!("drawing the plot: {e:?}")
 }
 
@@ -186,4 +187,322 @@ pub fn time_trace(
         root.present().map_err(draw_err)?;
     }
     write_atomically(path, &svg)
+}
+
+/// Colours of the baseline model and of the model with the top effect in the diagnosis plots.
+pub const BASELINE_COLOR: RGBColor = RGBColor(214, 39, 40);
+pub const AFTER_COLOR: RGBColor = RGBColor(31, 119, 180);
+
+/// Axis range of the finite values, padded by 5 % ([-1, 1] when there are none).
+pub fn span(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
+    range(values.filter(|v| v.is_finite()))
+}
+
+/// Text for HTML element content and attribute values.
+pub fn html_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// Fills a new directory `dir` through `fill`, which writes into a temporary sibling
+/// directory that is then renamed to `dir`: an error leaves nothing behind (the temporary
+/// directory is removed) and `dir` never exists half-written. Refuses an existing `dir`.
+pub fn write_dir_atomically(
+    dir: &Path,
+    fill: impl FnOnce(&Path) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    if dir.exists() {
+        anyhow::bail!(
+            "{}: the report directory exists already; remove it or choose a new one",
+            dir.display()
+        );
+    }
+    let parent = dir
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = dir
+        .file_name()
+        .and_then(|n| n.to_str())
+        .with_context(|| format!("{}: the directory needs a name", dir.display()))?;
+    let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp)
+            .with_context(|| format!("removing the stale {}", tmp.display()))?;
+    }
+    std::fs::create_dir_all(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+    let result = fill(&tmp).and_then(|()| {
+        std::fs::rename(&tmp, dir)
+            .with_context(|| format!("renaming {} to {}", tmp.display(), dir.display()))
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    result
+}
+
+/// One line of [`lines_svg`].
+pub struct Line<'a> {
+    pub label: &'a str,
+    pub values: &'a [f64],
+    pub color: RGBColor,
+}
+
+/// Lines over a common abscissa (e.g. measured and predicted time traces), as SVG text.
+pub fn lines_svg(
+    title: &str,
+    x: &[f64],
+    x_desc: &str,
+    y_desc: &str,
+    lines: &[Line],
+) -> anyhow::Result<String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1200, 420)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(
+                span(x.iter().copied()),
+                span(lines.iter().flat_map(|l| l.values.iter().copied())),
+            )
+            .map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc(y_desc)
+            .draw()
+            .map_err(draw_err)?;
+        for l in lines {
+            let color = l.color;
+            chart
+                .draw_series(LineSeries::new(
+                    x.iter().copied().zip(l.values.iter().copied()),
+                    color.stroke_width(1),
+                ))
+                .map_err(draw_err)?
+                .label(l.label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(draw_err)?;
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
+/// One panel of [`scatter_panels_svg`].
+pub struct ScatterPanel<'a> {
+    pub caption: String,
+    pub x: &'a [f64],
+    pub y: &'a [f64],
+    pub color: RGBColor,
+}
+
+/// Side-by-side scatter plots with common axes (e.g. a residual against velocity before and
+/// after), as SVG text.
+pub fn scatter_panels_svg(
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    panels: &[ScatterPanel],
+) -> anyhow::Result<String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1200, 480)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let root = root.titled(title, ("sans-serif", 18)).map_err(draw_err)?;
+        let x_range = span(panels.iter().flat_map(|p| p.x.iter().copied()));
+        let y_range = span(panels.iter().flat_map(|p| p.y.iter().copied()));
+        for (area, p) in root
+            .split_evenly((1, panels.len().max(1)))
+            .iter()
+            .zip(panels)
+        {
+            let mut chart = ChartBuilder::on(area)
+                .caption(&p.caption, ("sans-serif", 15))
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(60)
+                .build_cartesian_2d(x_range.clone(), y_range.clone())
+                .map_err(draw_err)?;
+            chart
+                .configure_mesh()
+                .x_desc(x_desc)
+                .y_desc(y_desc)
+                .draw()
+                .map_err(draw_err)?;
+            chart
+                .draw_series(
+                    p.x.iter()
+                        .zip(p.y)
+                        .filter(|(x, y)| x.is_finite() && y.is_finite())
+                        .map(|(x, y)| Circle::new((*x, *y), 1, p.color.filled())),
+                )
+                .map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
+/// Mean of `value` in the bins of an `nx` x `ny` grid over the ranges of `x` and `y`.
+#[derive(Debug, Clone)]
+pub struct BinnedMean {
+    pub x_range: std::ops::Range<f64>,
+    pub y_range: std::ops::Range<f64>,
+    /// `means[i][j]`: bin i of x, bin j of y; None where no sample fell.
+    pub means: Vec<Vec<Option<f64>>>,
+}
+
+impl BinnedMean {
+    pub fn new(x: &[f64], y: &[f64], value: &[f64], nx: usize, ny: usize) -> BinnedMean {
+        let (nx, ny) = (nx.max(1), ny.max(1));
+        let x_range = span(x.iter().copied());
+        let y_range = span(y.iter().copied());
+        let mut sum = vec![vec![(0.0, 0usize); ny]; nx];
+        let bin = |v: f64, r: &std::ops::Range<f64>, n: usize| {
+            (((v - r.start) / (r.end - r.start) * n as f64) as usize).min(n - 1)
+        };
+        for ((x, y), v) in x.iter().zip(y).zip(value) {
+            if x.is_finite() && y.is_finite() && v.is_finite() {
+                let cell = &mut sum[bin(*x, &x_range, nx)][bin(*y, &y_range, ny)];
+                cell.0 += v;
+                cell.1 += 1;
+            }
+        }
+        let means = sum
+            .into_iter()
+            .map(|col| {
+                col.into_iter()
+                    .map(|(s, n)| (n > 0).then(|| s / n as f64))
+                    .collect()
+            })
+            .collect();
+        BinnedMean {
+            x_range,
+            y_range,
+            means,
+        }
+    }
+
+    fn max_abs(&self) -> f64 {
+        self.means
+            .iter()
+            .flatten()
+            .flatten()
+            .fold(0.0f64, |m, v| m.max(v.abs()))
+    }
+}
+
+/// Blue (negative) through white to red (positive), saturated at +-`scale`.
+fn diverging(v: f64, scale: f64) -> RGBColor {
+    let t = (v / scale.max(f64::MIN_POSITIVE)).clamp(-1.0, 1.0);
+    let fade = |c: u8, t: f64| (255.0 + (c as f64 - 255.0) * t.abs()).round() as u8;
+    let c = if t >= 0.0 {
+        BASELINE_COLOR
+    } else {
+        AFTER_COLOR
+    };
+    RGBColor(fade(c.0, t), fade(c.1, t), fade(c.2, t))
+}
+
+/// Side-by-side maps of binned means over a plane (e.g. the residual over the state plane
+/// before and after), one diverging colour scale for all panels (its range in the title).
+pub fn heatmap_panels_svg(
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    unit: &str,
+    panels: &[(String, BinnedMean)],
+) -> anyhow::Result<String> {
+    let scale = panels.iter().fold(0.0f64, |m, (_, b)| m.max(b.max_abs()));
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1200, 520)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let root = root
+            .titled(
+                &format!("{title} (colour: red +{scale:.2} {unit}, white 0, blue -{scale:.2} {unit}; grey: no samples)"),
+                ("sans-serif", 16),
+            )
+            .map_err(draw_err)?;
+        for (area, (caption, b)) in root
+            .split_evenly((1, panels.len().max(1)))
+            .iter()
+            .zip(panels)
+        {
+            let mut chart = ChartBuilder::on(area)
+                .caption(caption, ("sans-serif", 15))
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(60)
+                .build_cartesian_2d(b.x_range.clone(), b.y_range.clone())
+                .map_err(draw_err)?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .x_desc(x_desc)
+                .y_desc(y_desc)
+                .draw()
+                .map_err(draw_err)?;
+            let nx = b.means.len();
+            let ny = b.means.first().map_or(1, Vec::len);
+            let dx = (b.x_range.end - b.x_range.start) / nx as f64;
+            let dy = (b.y_range.end - b.y_range.start) / ny as f64;
+            chart
+                .draw_series(b.means.iter().enumerate().flat_map(|(i, col)| {
+                    col.iter().enumerate().map(move |(j, v)| {
+                        let x0 = b.x_range.start + i as f64 * dx;
+                        let y0 = b.y_range.start + j as f64 * dy;
+                        let color = v.map_or(RGBColor(235, 235, 235), |v| diverging(v, scale));
+                        Rectangle::new([(x0, y0), (x0 + dx, y0 + dy)], color.filled())
+                    })
+                }))
+                .map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn binned_means_land_in_their_cells() {
+        let b = BinnedMean::new(&[0.0, 0.0, 1.0], &[0.0, 0.0, 1.0], &[1.0, 3.0, -5.0], 2, 2);
+        assert_eq!(b.means[0][0], Some(2.0));
+        assert_eq!(b.means[1][1], Some(-5.0));
+        assert_eq!(b.means[0][1], None);
+        assert_eq!(b.max_abs(), 5.0);
+    }
+
+    #[test]
+    fn a_failed_fill_leaves_no_directory() {
+        let base = std::env::temp_dir().join(format!("forcemap-plot-{}", std::process::id()));
+        let dir = base.join("report");
+        std::fs::create_dir_all(&base).unwrap();
+        let e = write_dir_atomically(&dir, |tmp| {
+            write_atomically(&tmp.join("a.svg"), "<svg/>")?;
+            anyhow::bail!("drawing failed")
+        });
+        assert!(e.is_err());
+        assert!(!dir.exists());
+        assert_eq!(std::fs::read_dir(&base).unwrap().count(), 0);
+        write_dir_atomically(&dir, |tmp| write_atomically(&tmp.join("a.svg"), "<svg/>")).unwrap();
+        assert!(dir.join("a.svg").is_file());
+        assert!(write_dir_atomically(&dir, |_| Ok(())).is_err());
+        std::fs::remove_dir_all(&base).unwrap();
+    }
 }

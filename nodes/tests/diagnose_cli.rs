@@ -284,4 +284,41 @@ fn emps_names_coulomb_then_finds_the_asymmetric_friction() {
     assert_eq!(top["significant"], false);
     assert_eq!(v["verdict"], "adequate");
     assert!(v["top_effect"].is_null());
+
+    // The report: force traces, residual against velocity and over the state plane.
+    let tmp = tempfile::tempdir().unwrap();
+    let report = tmp.path().join("report");
+    let args = [
+        "diagnose",
+        fit.to_str().unwrap(),
+        "--model",
+        "emps-coulomb",
+        "--validate",
+        val.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ];
+    let o = forcemap(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in [
+        "force_window.svg",
+        "force_whole.svg",
+        "residual_velocity.svg",
+        "state_plane.svg",
+    ] {
+        let text = std::fs::read_to_string(report.join(f)).unwrap();
+        assert!(
+            text.starts_with("<svg") && text.trim_end().ends_with("</svg>"),
+            "{f}"
+        );
+    }
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(
+        html.contains("asymmetric_damping") && html.contains("Floor"),
+        "{html}"
+    );
+    // Never over an existing directory.
+    let o = forcemap(&args);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("exists already"));
 }
