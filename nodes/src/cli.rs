@@ -370,6 +370,10 @@ pub struct DiagnoseEvalArgs {
     /// Worker threads.
     #[arg(long, default_value_t = 2)]
     pub threads: usize,
+    /// Run only these case indices (of the `--cases` generated from `--seed`), to look at one
+    /// case again: `--only 12,45`.
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<usize>,
     /// One JSON object (summary and cases) instead of tables.
     #[arg(long)]
     pub json: bool,

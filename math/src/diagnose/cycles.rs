@@ -25,6 +25,13 @@ pub struct StepCycle {
     pub force_noise_n: f64,
     /// Harmonics in the rebuilt force.
     pub harmonics: usize,
+    /// Cutoff of the sensor low-pass this cycle's state was undone from [Hz]: the state
+    /// (displacement, velocity) is the element's, the force is as measured, so a model force
+    /// is passed through the same low-pass before it is compared (`fit::columns`). Comparing
+    /// in the measured domain keeps the noise white: undoing the filter on the force instead
+    /// would amplify the n-th harmonic's noise by |1 + j n f / fc| and make the error of
+    /// different cutoffs incomparable.
+    pub lowpass_hz: Option<f64>,
     /// Noise of each force harmonic n = 0..=harmonics [N] (complex magnitude).
     pub force_harmonic_noise_n: Vec<f64>,
     /// The element (nearly) did not move: relative displacement amplitude below
@@ -89,30 +96,28 @@ pub fn unfiltered(an: &HarmonicAnalysis, cutoff_hz: f64) -> HarmonicAnalysis {
     out
 }
 
-/// The step's cycle; `lowpass_hz` undoes a sensor low-pass first, `mass_factor` scales the
-/// element force (true mass = nominal * factor).
+/// The step's cycle; `lowpass_hz` undoes a sensor low-pass on the state (see
+/// [`StepCycle::lowpass_hz`]), `mass_factor` scales the element force (true mass = nominal *
+/// factor).
 pub fn step_cycle(
     setup: &Setup,
     an: &HarmonicAnalysis,
     lowpass_hz: Option<f64>,
     mass_factor: f64,
 ) -> Result<StepCycle, IdentifyError> {
-    let owned;
-    let an = match lowpass_hz {
-        Some(fc) => {
-            owned = unfiltered(an, fc);
-            &owned
-        }
-        None => an,
-    };
+    // The force as measured; the state as the element saw it (the low-pass undone).
     let eh = element_harmonics(setup, an, false)?;
+    let state = match lowpass_hz {
+        Some(fc) => element_harmonics(setup, &unfiltered(an, fc), false)?,
+        None => eh.clone(),
+    };
     let nh = eh.harmonics();
     let l = CYCLE_POINTS.max(4 * (nh + 1)).next_power_of_two();
-    let nx = significant(&eh.displacement, &eh.displacement_noise);
+    let nx = significant(&state.displacement, &state.displacement_noise);
     let w = eh.omega_rad_s;
     let one = |_| Complex64::new(1.0, 0.0);
-    let x = synthesize(&eh.displacement[..=nx], l, one);
-    let v = synthesize(&eh.displacement[..=nx], l, |n| {
+    let x = synthesize(&state.displacement[..=nx], l, one);
+    let v = synthesize(&state.displacement[..=nx], l, |n| {
         Complex64::new(0.0, n as f64 * w)
     });
     let g: Vec<f64> = synthesize(&eh.force, l, one)
@@ -127,7 +132,7 @@ pub fn step_cycle(
     Ok(StepCycle {
         step: an.step,
         frequency_hz: an.frequency_hz,
-        amplitude_m: eh.displacement.get(1).map_or(0.0, |c| c.norm()),
+        amplitude_m: state.displacement.get(1).map_or(0.0, |c| c.norm()),
         displacement_m: x,
         velocity_mps: v,
         force_n: g,
@@ -137,6 +142,7 @@ pub fn step_cycle(
             g_rms
         },
         harmonics: nh,
+        lowpass_hz,
         force_harmonic_noise_n: eh.force_noise.iter().map(|s| s * mass_factor).collect(),
         stuck: false,
     })

@@ -55,19 +55,23 @@ fn columns(
         cols.push(bouc_wen_cycle(&c.velocity_mps, 1.0 / c.frequency_hz, zy));
     }
     // The measured force is rebuilt from harmonics 0..=N only; a model force is compared in
-    // the same band (a jump rebuilt from N harmonics rings, and so must the prediction).
+    // the same band (a jump rebuilt from N harmonics rings, and so must the prediction), and
+    // through the same sensor low-pass, if the cycle's state had one undone.
     cols.iter()
-        .map(|col| band_limited(col, c.harmonics))
+        .map(|col| as_measured(col, c.harmonics, c.frequency_hz, c.lowpass_hz))
         .collect()
 }
 
-/// `h` (one period on a uniform grid) keeping only harmonics 0..=n.
-fn band_limited(h: &[f64], n: usize) -> Vec<f64> {
-    if n + 1 >= h.len() / 2 {
-        return h.to_vec();
+/// `h` (one period on a uniform grid) keeping only harmonics 0..=n, each passed through a
+/// first-order low-pass of cutoff `lowpass_hz` if given (`frequency_hz` is the fundamental).
+fn as_measured(h: &[f64], n: usize, frequency_hz: f64, lowpass_hz: Option<f64>) -> Vec<f64> {
+    match lowpass_hz {
+        None if n + 1 >= h.len() / 2 => h.to_vec(),
+        None => synthesize(&harmonics_of(h, n), h.len(), |_| Complex64::new(1.0, 0.0)),
+        Some(fc) => synthesize(&harmonics_of(h, n), h.len(), |k| {
+            Complex64::new(1.0, k as f64 * frequency_hz / fc).inv()
+        }),
     }
-    let c = harmonics_of(h, n);
-    synthesize(&c, h.len(), |_| Complex64::new(1.0, 0.0))
 }
 
 fn kept(c: &StepCycle) -> Vec<bool> {
@@ -329,6 +333,30 @@ fn stribeck_velocity(t: &dyn Term) -> f64 {
 mod tests {
     use super::*;
     use crate::basis::StribeckVelocity;
+
+    #[test]
+    fn as_measured_applies_the_first_order_lowpass_per_harmonic() {
+        // cos(3 w t) through 1 / (1 + j 3 f / fc): gain 1 / sqrt(1 + (3 f / fc)^2), phase
+        // -atan(3 f / fc); harmonics above n are dropped.
+        let l = 256;
+        let (f, fc) = (2.0, 5.0);
+        let t = |i: usize| std::f64::consts::TAU * i as f64 / l as f64;
+        let h: Vec<f64> = (0..l)
+            .map(|i| (3.0 * t(i)).cos() + 0.5 * (9.0 * t(i)).cos())
+            .collect();
+        let y = as_measured(&h, 5, f, Some(fc));
+        let r = 3.0 * f / fc;
+        let (gain, phase) = (1.0 / (1.0 + r * r).sqrt(), -r.atan());
+        for (i, yi) in y.iter().enumerate() {
+            let want = gain * (3.0 * t(i) + phase).cos();
+            assert!((yi - want).abs() < 1e-12, "{i}: {yi} vs {want}");
+        }
+        // Without a low-pass only the band limit acts.
+        let y = as_measured(&h, 5, f, None);
+        for (i, yi) in y.iter().enumerate() {
+            assert!((yi - (3.0 * t(i)).cos()).abs() < 1e-12);
+        }
+    }
 
     #[test]
     fn stribeck_velocity_is_recovered_from_the_term() {
