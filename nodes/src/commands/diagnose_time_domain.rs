@@ -140,6 +140,9 @@ pub fn run(args: &DiagnoseArgs, data: &Path) -> anyhow::Result<()> {
                 .join(", ")
         );
     }
+    if let Some(top) = d.ranked_effects.first() {
+        println!("  {}", removable_text(&d, top.effect.name()));
+    }
     match (d.verdict, d.top_effect) {
         (Verdict::Explained, Some(e)) => println!(
             "verdict: explained by {}: {:.2} % -> {:.2} %",
@@ -163,6 +166,21 @@ pub fn run(args: &DiagnoseArgs, data: &Path) -> anyhow::Result<()> {
             .join(", ")
     );
     Ok(())
+}
+
+/// How much of the removable gap (gap - floor) the top candidate removes, against the rule's
+/// thresholds.
+fn removable_text(d: &AxisDiagnosis, top: &str) -> String {
+    let removable = d.gap_before_percent - d.floor.floor_percent;
+    let removed = d.gap_before_percent - d.gap_after_percent;
+    format!(
+        "removable gap (gap - floor) {removable:.2} %-points; {top} removes {removed:.2} of them ({:.0} %); explained needs at least half of them, a shrink above max(floor, 10 % of the gap, 0.2) = {:.2} %-points and a penalised score below the baseline's",
+        100.0 * removed / removable.max(f64::MIN_POSITIVE),
+        d.floor
+            .floor_percent
+            .max(0.1 * d.gap_before_percent)
+            .max(0.2)
+    )
 }
 
 fn fmt_params(list: &[ParameterValue]) -> String {
@@ -374,6 +392,12 @@ fn html(d: &AxisDiagnosis, fit: &Path, val: &Path, figures: &[(&str, String)]) -
         d.floor.flexible_law_fit_percent,
         d.floor.flexible_laws_tried,
     ));
+    if let Some(top) = d.ranked_effects.first() {
+        h.push_str(&format!(
+            "<p>{}.</p>\n",
+            html_escape(&removable_text(d, top.effect.name()))
+        ));
+    }
     h.push_str(&format!(
         "<p>Published (EMPS): {}.</p>\n",
         PUBLISHED
