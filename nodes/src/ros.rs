@@ -8,10 +8,11 @@ use std::time::Duration;
 
 use anyhow::{Context as _, bail};
 use ros2_client::{
-    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
-    QosProfile, Subscription,
+    Context, ContextOptions, MessageInfo, MessageTypeName, Name, Node, NodeName, NodeOptions,
+    Publisher, QosProfile, Subscription,
     qos::{Durability, History, WhenFull},
 };
+use tokio::sync::mpsc;
 
 use crate::params::{Params, read_params};
 
@@ -323,6 +324,53 @@ impl RosNode {
             .create_subscription::<M>(&topic, Some(qos))
             .map_err(|e| anyhow::anyhow!("subscription to {name}: {e:?}"))
     }
+}
+
+/// What a forwarding task ([`forward`]) does when a message cannot be taken (it does not
+/// deserialise, or the reader failed).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OnTakeError {
+    /// Log `warning: receiving WHAT: ERROR` and go on with the next message.
+    Warn(&'static str),
+    /// End the task without a word (the subscription goes with it).
+    Stop,
+}
+
+/// Spawns the task that feeds a node's event loop from a subscription: each message taken is
+/// turned into an event by `wrap` (given the message and its info; `None` drops the message)
+/// and sent into `tx`. The task ends when the receiver is gone, or at a take error when
+/// `on_error` is [`OnTakeError::Stop`]. One helper rather than a loop per topic and node, so
+/// that take errors and a closed channel are handled in one place.
+pub fn forward<M, E, F>(
+    subscription: Subscription<M>,
+    tx: mpsc::UnboundedSender<E>,
+    on_error: OnTakeError,
+    mut wrap: F,
+) -> tokio::task::JoinHandle<()>
+where
+    M: serde::de::DeserializeOwned + Send + Sync + 'static,
+    E: Send + 'static,
+    F: FnMut(M, MessageInfo) -> Option<E> + Send + 'static,
+{
+    tokio::spawn(async move {
+        loop {
+            match subscription.async_take().await {
+                Ok((m, info)) => {
+                    if let Some(event) = wrap(m, info)
+                        && tx.send(event).is_err()
+                    {
+                        break;
+                    }
+                }
+                Err(e) => match on_error {
+                    OnTakeError::Warn(what) => {
+                        crate::log_line!("warning: receiving {what}: {e:?}")
+                    }
+                    OnTakeError::Stop => break,
+                },
+            }
+        }
+    })
 }
 
 /// `pkg/msg/Type` as ros2-client wants it.

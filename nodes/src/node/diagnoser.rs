@@ -21,7 +21,7 @@ use tokio::sync::mpsc;
 
 use crate::log_line;
 use crate::node::identifier::setup_for;
-use crate::ros::{NodeSetup, RosNode, now_time, qos, topics};
+use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg, topics};
 
 /// The diagnoser's own topic (relative to the namespace).
 pub const DIAGNOSIS_TOPIC: &str = "diagnosis";
@@ -73,22 +73,11 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;
 
     let (tx, mut rx) = mpsc::unbounded_channel::<Input>();
-    let txp = tx.clone();
-    tokio::spawn(async move {
-        while let Ok((m, _)) = phasors.async_take().await {
-            if txp.send(Input::Phasors(Box::new(m))).is_err() {
-                break;
-            }
-        }
+    forward(phasors, tx.clone(), OnTakeError::Stop, |m, _| {
+        Some(Input::Phasors(Box::new(m)))
     });
-    tokio::spawn(async move {
-        while let Ok((m, _)) = rig.async_take().await {
-            if let Some(v) = crate::ros::rig_mass_kg(&m)
-                && tx.send(Input::RigMass(v)).is_err()
-            {
-                break;
-            }
-        }
+    forward(rig, tx, OnTakeError::Stop, |m, _| {
+        rig_mass_kg(&m).map(Input::RigMass)
     });
 
     log_line!(

@@ -21,7 +21,7 @@ use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
 use crate::log_line;
-use crate::ros::{NodeSetup, RosNode, now_time, qos, topics};
+use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, topics};
 use crate::steps::{StepAssembler, StepError, StepPlan};
 
 /// Samples of a step whose excitation state has not arrived are held this long (the two topics
@@ -182,32 +182,18 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;
 
     let (tx, mut rx) = mpsc::unbounded_channel::<Input>();
-    let tx_s = tx.clone();
-    tokio::spawn(async move {
-        loop {
-            match samples.async_take().await {
-                Ok((m, _)) => {
-                    if tx_s.send(Input::Sample(m)).is_err() {
-                        break;
-                    }
-                }
-                Err(e) => log_line!("warning: receiving a sample: {e:?}"),
-            }
-        }
-    });
-    let tx_e = tx.clone();
-    tokio::spawn(async move {
-        loop {
-            match excitation.async_take().await {
-                Ok((m, _)) => {
-                    if tx_e.send(Input::Excitation(m)).is_err() {
-                        break;
-                    }
-                }
-                Err(e) => log_line!("warning: receiving an excitation state: {e:?}"),
-            }
-        }
-    });
+    forward(
+        samples,
+        tx.clone(),
+        OnTakeError::Warn("a sample"),
+        |m, _| Some(Input::Sample(m)),
+    );
+    forward(
+        excitation,
+        tx.clone(),
+        OnTakeError::Warn("an excitation state"),
+        |m, _| Some(Input::Excitation(m)),
+    );
     tokio::spawn(async move {
         let mut tick = tokio::time::interval(Duration::from_millis(200));
         loop {

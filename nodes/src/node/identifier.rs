@@ -36,7 +36,7 @@ use tokio::sync::mpsc;
 
 use crate::log_line;
 use crate::params::Params;
-use crate::ros::{NodeSetup, RosNode, now_time, qos, topics};
+use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg, topics};
 
 /// What the identifier persists.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -246,32 +246,11 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;
 
     let (tx, mut rx) = mpsc::unbounded_channel::<Input>();
-    let txp = tx.clone();
-    tokio::spawn(async move {
-        loop {
-            match phasors.async_take().await {
-                Ok((m, _)) => {
-                    if txp.send(Input::Phasors(Box::new(m))).is_err() {
-                        break;
-                    }
-                }
-                Err(e) => log_line!("warning: receiving phasors: {e:?}"),
-            }
-        }
+    forward(phasors, tx.clone(), OnTakeError::Warn("phasors"), |m, _| {
+        Some(Input::Phasors(Box::new(m)))
     });
-    tokio::spawn(async move {
-        loop {
-            match rig.async_take().await {
-                Ok((m, _)) => {
-                    if let Some(v) = crate::ros::rig_mass_kg(&m)
-                        && tx.send(Input::RigMass(v)).is_err()
-                    {
-                        break;
-                    }
-                }
-                Err(e) => log_line!("warning: receiving the rig constants: {e:?}"),
-            }
-        }
+    forward(rig, tx, OnTakeError::Warn("the rig constants"), |m, _| {
+        rig_mass_kg(&m).map(Input::RigMass)
     });
 
     log_line!(

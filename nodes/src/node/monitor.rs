@@ -17,7 +17,7 @@ use serde_json::json;
 use tokio::sync::mpsc;
 
 use crate::log_line;
-use crate::ros::{NodeSetup, RosNode, qos, topics};
+use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, qos, topics};
 
 enum Input {
     Theta(IdentifiedParameters, Instant),
@@ -39,29 +39,13 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let excitation = ros.subscription::<ExcitationState>(topics::EXCITATION, qos::excitation())?;
     let rig = ros.subscription::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
     let (tx, mut rx) = mpsc::unbounded_channel::<Input>();
-    let t1 = tx.clone();
-    tokio::spawn(async move {
-        while let Ok((m, _)) = theta.async_take().await {
-            if t1.send(Input::Theta(m, Instant::now())).is_err() {
-                break;
-            }
-        }
+    forward(theta, tx.clone(), OnTakeError::Stop, |m, _| {
+        Some(Input::Theta(m, Instant::now()))
     });
-    let t2 = tx.clone();
-    tokio::spawn(async move {
-        while let Ok((m, _)) = excitation.async_take().await {
-            if t2.send(Input::Excitation(m)).is_err() {
-                break;
-            }
-        }
+    forward(excitation, tx.clone(), OnTakeError::Stop, |m, _| {
+        Some(Input::Excitation(m))
     });
-    tokio::spawn(async move {
-        while let Ok((m, _)) = rig.async_take().await {
-            if tx.send(Input::Rig(m)).is_err() {
-                break;
-            }
-        }
-    });
+    forward(rig, tx, OnTakeError::Stop, |m, _| Some(Input::Rig(m)));
 
     let started = Instant::now();
     let mut truth: BTreeMap<String, f64> = BTreeMap::new();

@@ -25,7 +25,7 @@ use tokio::sync::mpsc;
 
 use crate::bag::{BagWriter, QosProfile as BagQos, TopicId, TopicSpec};
 use crate::log_line;
-use crate::ros::{NodeSetup, RosNode, qos, topics};
+use crate::ros::{NodeSetup, OnTakeError, RosNode, qos, topics};
 
 const DEFAULT_TOPICS: [&str; 6] = [
     topics::SAMPLES,
@@ -104,27 +104,17 @@ where
     M: RosMessage + serde::de::DeserializeOwned + Send + Sync + 'static,
 {
     let sub = ros.subscription::<M>(name, q)?;
-    tokio::spawn(async move {
-        loop {
-            match sub.async_take().await {
-                Ok((m, info)) => {
-                    let log_time = crate::ros::now_time().as_nanos().max(0) as u64;
-                    let publish_time = info
-                        .source_timestamp()
-                        .map_or(log_time, |t| t.to_nanos().max(0) as u64);
-                    let r = Received {
-                        topic: index,
-                        log_time,
-                        publish_time,
-                        cdr: m.to_cdr(),
-                    };
-                    if tx.send(r).is_err() {
-                        break;
-                    }
-                }
-                Err(e) => log_line!("warning: receiving a message: {e:?}"),
-            }
-        }
+    crate::ros::forward(sub, tx, OnTakeError::Warn("a message"), move |m, info| {
+        let log_time = crate::ros::now_time().as_nanos().max(0) as u64;
+        let publish_time = info
+            .source_timestamp()
+            .map_or(log_time, |t| t.to_nanos().max(0) as u64);
+        Some(Received {
+            topic: index,
+            log_time,
+            publish_time,
+            cdr: m.to_cdr(),
+        })
     });
     Ok(())
 }
