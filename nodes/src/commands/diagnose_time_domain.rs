@@ -95,11 +95,7 @@ pub fn run(args: &DiagnoseArgs, data: &Path) -> anyhow::Result<()> {
         data.display(),
         d.baseline_model,
         d.equations,
-        d.baseline_parameters
-            .iter()
-            .map(|p| format!("{} = {:.4}", p.name, p.value))
-            .collect::<Vec<_>>()
-            .join(", ")
+        fmt_params(&d.baseline_parameters)
     );
     println!(
         "gap: relative force error {:.2} % on {} ({:.2} % on the fitting record)",
@@ -133,11 +129,7 @@ pub fn run(args: &DiagnoseArgs, data: &Path) -> anyhow::Result<()> {
             r.fit_percent,
             r.score_percent,
             if r.significant { "yes" } else { "no" },
-            r.added_parameters
-                .iter()
-                .map(|p| format!("{} = {:.4}", p.name, p.value))
-                .collect::<Vec<_>>()
-                .join(", ")
+            fmt_params(&r.added_parameters)
         );
     }
     if let Some(top) = d.ranked_effects.first() {
