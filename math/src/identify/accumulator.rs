@@ -4,8 +4,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{Identification, IdentifyError, Method, Parameter, StepEquations};
-use crate::lstsq::QrAccumulator;
+use super::{Identification, IdentifyError, IdentifyWarning, Method, Parameter, StepEquations};
+use crate::lstsq::{QrAccumulator, WARN_CONDITION_NUMBER};
 use crate::model::Model;
 
 /// At most this many step notes are kept (the rest are counted), so that memory stays flat.
@@ -91,6 +91,14 @@ impl EquationAccumulator {
 
     /// Solves the equations so far.
     pub fn solve(&self) -> Result<Identification, IdentifyError> {
+        self.solve_with_flags().map(|(id, _)| id)
+    }
+
+    /// Solves the equations so far, with the warnings code acts on as flags (in the order
+    /// their texts appear in the identification's `warnings`).
+    pub fn solve_with_flags(
+        &self,
+    ) -> Result<(Identification, Vec<IdentifyWarning>), IdentifyError> {
         if self.blocks == 0 {
             return Err(IdentifyError::NoSteps);
         }
@@ -115,12 +123,23 @@ impl EquationAccumulator {
             warnings.push(format!("... and {} more step notes", self.notes_dropped));
         }
         warnings.extend(sol.warnings.iter().cloned());
-        if (independent as usize) < 2 * p {
-            warnings.push(format!(
-                "few equations: {independent:.0} independent real equations for {p} parameters"
-            ));
+        let mut flags = Vec::new();
+        // The solver's only warning is this one, given under the same test.
+        if sol.condition_number > WARN_CONDITION_NUMBER {
+            flags.push(IdentifyWarning::BadlyConditioned {
+                condition_number: sol.condition_number,
+                text: sol.warnings.join("; "),
+            });
         }
-        Ok(Identification {
+        if (independent as usize) < 2 * p {
+            let few = IdentifyWarning::FewEquations {
+                independent,
+                parameters: p,
+            };
+            warnings.push(few.to_string());
+            flags.push(few);
+        }
+        let id = Identification {
             model: self.model.clone(),
             method: self.method.clone(),
             parameters: names
@@ -146,6 +165,63 @@ impl EquationAccumulator {
             residual_rms: sol.residual_rms,
             steps_used: self.steps_used.clone(),
             warnings,
-        })
+        };
+        Ok((id, flags))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{DMatrix, DVector};
+
+    use super::*;
+    use crate::model::ModelOptions;
+
+    fn block(step: usize, a: DMatrix<f64>, b: DVector<f64>, independent: f64) -> StepEquations {
+        StepEquations {
+            step,
+            a,
+            b,
+            independent_equations: independent,
+            term_rms: vec![1.0; 2],
+            notes: vec![],
+        }
+    }
+
+    /// The flags are what the warnings' texts say, in the same order.
+    #[test]
+    fn warning_flags_match_the_warning_texts() {
+        let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
+        assert_eq!(model.terms.len(), 2);
+        let mut acc = EquationAccumulator::new(&model, Method::FdMulti);
+        // Well conditioned and plenty of equations: no flags.
+        let a = DMatrix::from_row_slice(4, 2, &[1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, -1.0]);
+        let b = DVector::from_column_slice(&[1.0, 2.0, 3.1, -0.9]);
+        acc.add(&block(0, a, b, 4.0)).unwrap();
+        let (id, flags) = acc.solve_with_flags().unwrap();
+        assert!(flags.is_empty(), "{flags:?}");
+        assert!(id.warnings.is_empty(), "{:?}", id.warnings);
+
+        // Two nearly parallel columns and only three equations: both flags.
+        let mut acc = EquationAccumulator::new(&model, Method::FdMulti);
+        let a = DMatrix::from_row_slice(3, 2, &[1.0, 1.0, 2.0, 2.0 + 1e-8, 3.0, 3.0]);
+        let b = DVector::from_column_slice(&[1.0, 2.0, 3.0]);
+        acc.add(&block(0, a, b, 3.0)).unwrap();
+        let (id, flags) = acc.solve_with_flags().unwrap();
+        assert!(matches!(
+            flags.as_slice(),
+            [
+                IdentifyWarning::BadlyConditioned { .. },
+                IdentifyWarning::FewEquations { parameters: 2, .. }
+            ]
+        ));
+        let texts: Vec<String> = flags.iter().map(|f| f.to_string()).collect();
+        assert_eq!(id.warnings, texts);
+        assert!(texts[0].starts_with("badly conditioned"), "{}", texts[0]);
+        assert_eq!(
+            texts[1],
+            "few equations: 3 independent real equations for 2 parameters"
+        );
+        assert_eq!(acc.solve().unwrap().warnings, id.warnings);
     }
 }

@@ -197,6 +197,34 @@ pub struct Parameter {
     pub std: f64,
 }
 
+/// A warning about a solution that code acts on (the identifier node's WARN on /diagnostics), as
+/// [`EquationAccumulator::solve_with_flags`] gives it; its Display is the warning's text in
+/// [`Identification::warnings`], so callers decide by the kind rather than by the wording.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum IdentifyWarning {
+    /// The column-scaled condition number is above [`crate::lstsq::WARN_CONDITION_NUMBER`];
+    /// `text` is the least-squares solver's warning, which names the weakly determined
+    /// parameters.
+    BadlyConditioned { condition_number: f64, text: String },
+    /// Fewer than twice as many independent real equations as parameters.
+    FewEquations { independent: f64, parameters: usize },
+}
+
+impl std::fmt::Display for IdentifyWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            IdentifyWarning::BadlyConditioned { text, .. } => f.write_str(text),
+            IdentifyWarning::FewEquations {
+                independent,
+                parameters,
+            } => write!(
+                f,
+                "few equations: {independent:.0} independent real equations for {parameters} parameters"
+            ),
+        }
+    }
+}
+
 /// The result of an identification.
 #[derive(Debug, Clone, Serialize)]
 pub struct Identification {

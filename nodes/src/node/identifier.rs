@@ -349,8 +349,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             if let Some(path) = &state_file {
                 st.save(path)?;
             }
-            match st.accumulator.solve() {
-                Ok(id) => {
+            match st.accumulator.solve_with_flags() {
+                Ok((id, flags)) => {
                     log_line!(
                         "step {step}: {} ({} equations, cond {:.2e})",
                         theta_line(&id),
@@ -364,22 +364,11 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                     if let Err(e) = theta_pub.async_publish(msg).await {
                         log_line!("error: publishing theta: {e:?}");
                     }
-                    let (level, message) = if id.warnings.iter().any(|w| {
-                        w.starts_with("badly conditioned") || w.starts_with("few equations")
-                    }) {
-                        (
-                            DiagnosticStatus::WARN,
-                            id.warnings
-                                .iter()
-                                .find(|w| {
-                                    w.starts_with("badly conditioned")
-                                        || w.starts_with("few equations")
-                                })
-                                .cloned()
-                                .unwrap_or_default(),
-                        )
-                    } else {
-                        (DiagnosticStatus::OK, format!("theta after step {step}"))
+                    // Each flag (badly conditioned, few equations) is a WARN; the first is
+                    // the message.
+                    let (level, message) = match flags.first() {
+                        Some(w) => (DiagnosticStatus::WARN, w.to_string()),
+                        None => (DiagnosticStatus::OK, format!("theta after step {step}")),
                     };
                     publish_status(&diag_pub, &status_name, level, &message, st).await;
                 }
