@@ -26,15 +26,7 @@ fn linear_sim_against_the_coulomb_rig_is_diagnosed_live_as_coulomb_friction() {
     recorder.wait_for("recording 2 topics", Duration::from_secs(30));
     let _harmonic = NodeProcess::start("harmonic", d, &[]);
     let diagnoser = NodeProcess::start("diagnoser", d, &["baseline:=linear".into()]);
-    let mut sensor = NodeProcess::start(
-        "sensor",
-        d,
-        &[
-            "source:=bag".into(),
-            format!("bag:={}", repo().join("bags/rig_40db").display()),
-            "rate_factor:=0.0".into(),
-        ],
-    );
+    let mut sensor = play_bag(d, &repo().join("bags/rig_40db"), 0.0);
     let line = diagnoser.wait_for("after 10 steps:", Duration::from_secs(120));
     assert!(line.contains("explained by coulomb_friction"), "{line}");
     assert!(sensor.wait_exit(Duration::from_secs(60)).success());
@@ -83,15 +75,7 @@ fn the_true_model_is_adequate_live() {
     let d = domain(9);
     let _harmonic = NodeProcess::start("harmonic", d, &[]);
     let diagnoser = NodeProcess::start("diagnoser", d, &["baseline:=coulomb".into()]);
-    let mut sensor = NodeProcess::start(
-        "sensor",
-        d,
-        &[
-            "source:=bag".into(),
-            format!("bag:={}", repo().join("bags/rig_40db").display()),
-            "rate_factor:=0.0".into(),
-        ],
-    );
+    let mut sensor = play_bag(d, &repo().join("bags/rig_40db"), 0.0);
     let line = diagnoser.wait_for("after 10 steps:", Duration::from_secs(120));
     assert!(line.contains("after 10 steps: adequate"), "{line}");
     assert!(sensor.wait_exit(Duration::from_secs(60)).success());

@@ -32,15 +32,7 @@ fn identifier_killed_mid_run_resumes_and_ends_with_the_undisturbed_theta() {
     let _harmonic = NodeProcess::start("harmonic", d, &[]);
     let identifier = NodeProcess::start("identifier", d, &id_params);
     // 10x real time: a 13 s step every 1.3 s.
-    let mut sensor = NodeProcess::start(
-        "sensor",
-        d,
-        &[
-            "source:=bag".into(),
-            format!("bag:={}", bag.display()),
-            "rate_factor:=10.0".into(),
-        ],
-    );
+    let mut sensor = play_bag(d, &bag, 10.0);
     identifier.wait_for("step 2:", Duration::from_secs(60));
     identifier.signal("KILL");
     drop(identifier);
@@ -80,15 +72,7 @@ fn recorder_killed_leaves_a_bag_that_recover_restores() {
         ],
     );
     recorder.wait_for("recording 3 topics", Duration::from_secs(30));
-    let mut sensor = NodeProcess::start(
-        "sensor",
-        d,
-        &[
-            "source:=bag".into(),
-            format!("bag:={}", source.display()),
-            "rate_factor:=10.0".into(),
-        ],
-    );
+    let mut sensor = play_bag(d, &source, 10.0);
     sensor.wait_for("step 3:", Duration::from_secs(60));
     // Wait for a flush after step 3 began, then kill without warning.
     let n0 = recorder

@@ -29,15 +29,7 @@ fn replay(
     );
     let _harmonic = NodeProcess::start("harmonic", domain_id, &[]);
     let _identifier = NodeProcess::start("identifier", domain_id, identifier_params);
-    let mut sensor = NodeProcess::start(
-        "sensor",
-        domain_id,
-        &[
-            "source:=bag".into(),
-            format!("bag:={}", bag.display()),
-            "rate_factor:=0.0".into(),
-        ],
-    );
+    let mut sensor = play_bag(domain_id, &bag, 0.0);
     assert!(sensor.wait_exit(Duration::from_secs(120)).success());
     assert!(monitor.wait_exit(Duration::from_secs(60)).success());
     (summary_theta(&summary), offline_theta(&bag, offline_args))

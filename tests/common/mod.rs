@@ -133,6 +133,20 @@ impl Drop for NodeProcess {
     }
 }
 
+/// A sensor node playing `bag` at `rate_factor` (0: as fast as the subscribers acknowledge),
+/// the source of most graph tests; one place for the parameters it needs.
+pub fn play_bag(domain: u16, bag: &Path, rate_factor: f64) -> NodeProcess {
+    NodeProcess::start(
+        "sensor",
+        domain,
+        &[
+            "source:=bag".into(),
+            format!("bag:={}", bag.display()),
+            format!("rate_factor:={rate_factor:?}"),
+        ],
+    )
+}
+
 /// Parameter names and values.
 pub type Theta = Vec<(String, f64)>;
 
