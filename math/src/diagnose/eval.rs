@@ -208,7 +208,7 @@ impl Element for CompressibleOilDamper {
     }
 }
 
-fn truth_element(t: &Truth) -> Box<dyn Element> {
+pub fn truth_element_of(t: &Truth) -> Box<dyn Element> {
     match t.oil_stiffness_n_per_m {
         Some(k) => Box::new(CompressibleOilDamper {
             rest: TruthElement {
@@ -234,7 +234,7 @@ pub fn simulate_case(case: &CaseSpec) -> Result<(Truth, Vec<Record>), SimError> 
         run.steps
             .push(paper_rig_random_step(band, PAPER_RIG_RANDOM_RMS_M));
     }
-    let element = truth_element(&truth);
+    let element = truth_element_of(&truth);
     let mut out = simulate_rig(
         element.as_ref(),
         run.nominal_mass_kg,
@@ -289,7 +289,7 @@ pub fn run_case(case: &CaseSpec) -> Result<CaseResult, DiagnoseError> {
         ..DiagnoseOptions::default()
     };
     let d = diagnose(&setup, &baseline, &records, &[], &options)?.diagnosis;
-    let element = truth_element(&truth);
+    let element = truth_element_of(&truth);
     let transform = Transform {
         delay_s: truth.effects.exciter_delay_s,
         lowpass_hz: truth.effects.sensor_lowpass_hz,
@@ -444,6 +444,29 @@ fn rate(hits: usize, of: usize) -> Rate {
 /// ([`CaseResult::effect_gap_percent`]), so the noise, which no effect causes, is not counted.
 pub const QUALIFYING_GAP_PERCENT: f64 = 2.0;
 
+/// The effect pairs that look alike and must be told apart (each shows something the other
+/// cannot: see [`Effect::signature`]).
+pub const CONFUSABLE_PAIRS: [[Effect; 2]; 6] = [
+    [Effect::ExciterDelay, Effect::MassError],
+    [Effect::SensorLowpass, Effect::ExciterDelay],
+    [Effect::CoulombFriction, Effect::Hysteresis],
+    [Effect::CoulombFriction, Effect::QuadraticDamping],
+    [Effect::AsymmetricDamping, Effect::QuadraticStiffness],
+    [Effect::FreePlay, Effect::CubicStiffness],
+];
+
+/// How often one effect of a confusable pair was named as the other.
+#[derive(Debug, Clone, Serialize)]
+pub struct ConfusablePair {
+    pub effects: [Effect; 2],
+    /// Single-effect cases planting either effect.
+    pub cases: usize,
+    /// Cases planting the first, named the second.
+    pub first_named_second: usize,
+    /// Cases planting the second, named the first.
+    pub second_named_first: usize,
+}
+
 /// The scores of an evaluation.
 #[derive(Debug, Clone, Serialize)]
 pub struct EvalSummary {
@@ -473,6 +496,8 @@ pub struct EvalSummary {
     pub shrink_mean_true_percent: f64,
     /// Rows: planted; columns: named ("adequate", "unexplained" or an effect); counts.
     pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
+    /// The pairs the issue names as confusable, over single-effect cases at every SNR.
+    pub confusable_pairs: Vec<ConfusablePair>,
     pub lower_snr_db: f64,
 }
 
@@ -603,6 +628,29 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
         shrink_mean_abs_error_percent: err / ne,
         shrink_mean_true_percent: tru / ne,
         confusion,
+        confusable_pairs: CONFUSABLE_PAIRS
+            .iter()
+            .map(|&[a, b]| {
+                let planted = |e: Effect| {
+                    move |r: &&&CaseResult| {
+                        matches!(r.case.planted, Planted::One { effect, .. } if effect == e)
+                    }
+                };
+                let count = |e: Effect, named: Effect| {
+                    ok.iter()
+                        .filter(planted(e))
+                        .filter(|r| r.named == named.name())
+                        .count()
+                };
+                ConfusablePair {
+                    effects: [a, b],
+                    cases: ok.iter().filter(planted(a)).count()
+                        + ok.iter().filter(planted(b)).count(),
+                    first_named_second: count(a, b),
+                    second_named_first: count(b, a),
+                }
+            })
+            .collect(),
         lower_snr_db,
     }
 }

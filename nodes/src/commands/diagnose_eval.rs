@@ -134,6 +134,19 @@ fn print_summary(args: &DiagnoseEvalArgs, s: &EvalSummary, results: &[Result<Cas
             .collect::<Vec<_>>()
             .join(", ")
     );
+    println!("confusable pairs (single effects, every SNR; planted as the one, named the other):");
+    for p in &s.confusable_pairs {
+        println!(
+            "  {} / {}: {} cases, {} named {}, {} named {}",
+            p.effects[0].name(),
+            p.effects[1].name(),
+            p.cases,
+            p.first_named_second,
+            p.effects[1].name(),
+            p.second_named_first,
+            p.effects[0].name()
+        );
+    }
     for e in &s.failed {
         println!("failed: {e}");
     }
