@@ -1,7 +1,7 @@
 //! `forcemap diagnose DATA --model BASELINE`: the sim-to-real gap diagnosis (library:
 //! `forcemap_math::diagnose`), as a summary, JSON, or an HTML report with SVG plots.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{Context, bail};
 use forcemap_math::diagnose::{self, DiagnoseOptions, DiagnosisDetail, Located, Verdict};
@@ -17,7 +17,7 @@ use plotters::prelude::*;
 use crate::cli::DiagnoseArgs;
 use crate::csv_export::CsvProfile;
 use crate::params::{Params, read_params};
-use crate::plot::write_atomically;
+use crate::plot::{draw_err, html_escape, span, write_atomically, write_dir_atomically};
 
 /// SNR of the built-in demo [dB] (the reproduction's rig SNR).
 pub const DEMO_SNR_DB: f64 = 40.0;
@@ -300,23 +300,6 @@ fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
 
 // ---- report ----
 
-fn draw_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow::anyhow!("drawing the plot: {e:?}")
-}
-
-fn span(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
-    let (lo, hi) = values
-        .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(v), h.max(v))
-        });
-    if !lo.is_finite() {
-        return -1.0..1.0;
-    }
-    let pad = 0.05 * (hi - lo).max(1e-12);
-    (lo - pad)..(hi + pad)
-}
-
 /// Measured against predicted mass acceleration of one held-out record, before and after.
 fn svg_heldout(
     h_before: &diagnose::score::HeldOut,
@@ -564,35 +547,14 @@ fn svg_harmonics(before: &Located, after: Option<&Located>) -> anyhow::Result<St
     Ok(svg)
 }
 
-fn html_escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
-
-/// Writes the report into a temporary sibling directory, then renames it to `dir`, so a
-/// failure leaves nothing half-written.
+/// Writes the report (nothing half-written: see [`write_dir_atomically`]).
 fn write_report(
     dir: &Path,
     detail: &DiagnosisDetail,
     data: &Data,
     demo: bool,
 ) -> anyhow::Result<()> {
-    let parent = dir
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = dir
-        .file_name()
-        .and_then(|n| n.to_str())
-        .context("the report directory needs a name")?;
-    let tmp: PathBuf = parent.join(format!(".{name}.tmp-{}", std::process::id()));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp)
-            .with_context(|| format!("removing the stale {}", tmp.display()))?;
-    }
-    std::fs::create_dir_all(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
-    let result = (|| -> anyhow::Result<()> {
+    write_dir_atomically(dir, |tmp| {
         let d = &detail.diagnosis;
         let fs = data
             .records
@@ -688,13 +650,6 @@ fn write_report(
             "<p>Rule: {}</p>\n</body></html>\n",
             html_escape(&d.rule)
         ));
-        write_atomically(&tmp.join("index.html"), &html)?;
-        std::fs::rename(&tmp, dir)
-            .with_context(|| format!("renaming {} to {}", tmp.display(), dir.display()))?;
-        Ok(())
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result
+        write_atomically(&tmp.join("index.html"), &html)
+    })
 }
