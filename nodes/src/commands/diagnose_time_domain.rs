@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::{Context, bail};
 use forcemap_math::diagnose::time_domain::{
-    AxisBaseline, AxisDiagnosis, AxisRecord, TimeDomainOptions, diagnose_axis,
+    AxisBaseline, AxisDiagnosis, AxisRecord, SHRINK_T_MIN, TimeDomainOptions, diagnose_axis,
 };
 use forcemap_math::diagnose::{ParameterValue, Verdict};
 use plotters::style::colors::BLACK;
@@ -118,16 +118,17 @@ pub fn run(args: &DiagnoseArgs, data: &Path) -> anyhow::Result<()> {
         println!("  {s}");
     }
     println!(
-        "  {:<20} {:>9} {:>9} {:>9} {:>4}  added parameters",
-        "effect", "val %", "fit %", "score %", "sig"
+        "  {:<20} {:>9} {:>9} {:>9} {:>7} {:>4}  added parameters",
+        "effect", "val %", "fit %", "score %", "t", "sig"
     );
     for r in &d.ranked_effects {
         println!(
-            "  {:<20} {:>9.3} {:>9.3} {:>9.3} {:>4}  {}",
+            "  {:<20} {:>9.3} {:>9.3} {:>9.3} {:>7.2} {:>4}  {}",
             r.effect.name(),
             r.gap_after_percent,
             r.fit_percent,
             r.score_percent,
+            r.shrink_t,
             if r.significant { "yes" } else { "no" },
             fmt_params(&r.added_parameters)
         );
@@ -166,12 +167,10 @@ fn removable_text(d: &AxisDiagnosis, top: &str) -> String {
     let removable = d.gap_before_percent - d.floor.floor_percent;
     let removed = d.gap_before_percent - d.gap_after_percent;
     format!(
-        "removable gap (gap - floor) {removable:.2} %-points; {top} removes {removed:.2} of them ({:.0} %); explained needs at least half of them, a shrink above max(floor, 10 % of the gap, 0.2) = {:.2} %-points and a penalised score below the baseline's",
+        "removable gap (gap - floor) {removable:.2} %-points; {top} removes {removed:.2} of them ({:.0} %); explained needs at least half of them, a shrink above max(10 % of the gap, 0.2) = {:.2} %-points, consistent over the validation record (block t >= {}), and a penalised score below the baseline's",
         100.0 * removed / removable.max(f64::MIN_POSITIVE),
-        d.floor
-            .floor_percent
-            .max(0.1 * d.gap_before_percent)
-            .max(0.2)
+        (0.1 * d.gap_before_percent).max(0.2),
+        SHRINK_T_MIN
     )
 }
 
@@ -402,14 +401,15 @@ fn html(d: &AxisDiagnosis, fit: &Path, val: &Path, figures: &[(&str, String)]) -
     for s in &d.located.summary {
         h.push_str(&format!("<li>{}</li>\n", html_escape(s)));
     }
-    h.push_str("</ul>\n<h2>Candidates</h2>\n<table><tr><th>effect</th><th>validation [%]</th><th>fit [%]</th><th>score [%]</th><th>significant</th><th>added</th><th>signature</th></tr>\n");
+    h.push_str("</ul>\n<h2>Candidates</h2>\n<table><tr><th>effect</th><th>validation [%]</th><th>fit [%]</th><th>score [%]</th><th>t</th><th>significant</th><th>added</th><th>signature</th></tr>\n");
     for r in &d.ranked_effects {
         h.push_str(&format!(
-            "<tr><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{}</td><td>{}</td><td style=\"text-align:left\">{}</td></tr>\n",
+            "<tr><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.2}</td><td>{}</td><td>{}</td><td style=\"text-align:left\">{}</td></tr>\n",
             r.effect.name(),
             r.gap_after_percent,
             r.fit_percent,
             r.score_percent,
+            r.shrink_t,
             if r.significant { "yes" } else { "no" },
             html_escape(&fmt_params(&r.added_parameters)),
             html_escape(&r.signature)
