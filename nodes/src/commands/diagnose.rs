@@ -17,7 +17,10 @@ use plotters::prelude::*;
 use crate::cli::DiagnoseArgs;
 use crate::csv_export::CsvProfile;
 use crate::params::{Params, read_params};
-use crate::plot::{draw_err, html_escape, span, write_atomically, write_dir_atomically};
+use crate::plot::{
+    AFTER_COLOR, BASELINE_COLOR, Line, draw_err, html_escape, lines_svg, span, write_atomically,
+    write_dir_atomically,
+};
 
 /// SNR of the built-in demo [dB] (the reproduction's rig SNR).
 pub const DEMO_SNR_DB: f64 = 40.0;
@@ -307,65 +310,29 @@ fn svg_heldout(
     fs: f64,
     title: &str,
 ) -> anyhow::Result<String> {
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (1200, 420)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let n = h_before.measured_mps2.len();
-        let t: Vec<f64> = (0..n).map(|i| i as f64 / fs).collect();
-        let y = span(
-            h_before
-                .measured_mps2
-                .iter()
-                .chain(&h_before.predicted_mps2)
-                .copied(),
-        );
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 18))
-            .margin(10)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0.0..t[n - 1].max(1e-9), y)
-            .map_err(draw_err)?;
-        chart
-            .configure_mesh()
-            .x_desc("time [s]")
-            .y_desc("mass acceleration [m/s^2]")
-            .draw()
-            .map_err(draw_err)?;
-        let series: Vec<(&str, &Vec<f64>, RGBColor)> = [
-            Some(("measured", &h_before.measured_mps2, BLACK)),
-            Some(("baseline", &h_before.predicted_mps2, RGBColor(214, 39, 40))),
-            h_after.map(|h| {
-                (
-                    "with the top effect",
-                    &h.predicted_mps2,
-                    RGBColor(31, 119, 180),
-                )
-            }),
-        ]
-        .into_iter()
-        .flatten()
+    let t: Vec<f64> = (0..h_before.measured_mps2.len())
+        .map(|i| i as f64 / fs)
         .collect();
-        for (label, ys, color) in series {
-            chart
-                .draw_series(LineSeries::new(
-                    t.iter().copied().zip(ys.iter().copied()),
-                    color.stroke_width(1),
-                ))
-                .map_err(draw_err)?
-                .label(label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(draw_err)?;
-        root.present().map_err(draw_err)?;
+    let mut lines = vec![
+        Line {
+            label: "measured",
+            values: &h_before.measured_mps2,
+            color: BLACK,
+        },
+        Line {
+            label: "baseline",
+            values: &h_before.predicted_mps2,
+            color: BASELINE_COLOR,
+        },
+    ];
+    if let Some(h) = h_after {
+        lines.push(Line {
+            label: "with the top effect",
+            values: &h.predicted_mps2,
+            color: AFTER_COLOR,
+        });
     }
-    Ok(svg)
+    lines_svg(title, &t, "time [s]", "mass acceleration [m/s^2]", &lines)
 }
 
 /// Residual element force over the state plane (against velocity and against displacement),
@@ -433,8 +400,8 @@ fn svg_state_plane(detail: &DiagnosisDetail) -> anyhow::Result<String> {
                 .draw()
                 .map_err(draw_err)?;
             for (set, color) in [
-                (Some(&before), RGBColor(214, 39, 40)),
-                (after.as_ref(), RGBColor(31, 119, 180)),
+                (Some(&before), BASELINE_COLOR),
+                (after.as_ref(), AFTER_COLOR),
             ] {
                 let Some(set) = set else { continue };
                 for (c, r) in cycles.iter().zip(set) {
