@@ -107,9 +107,13 @@ pub fn step_cycle(
 ) -> Result<StepCycle, IdentifyError> {
     // The force as measured; the state as the element saw it (the low-pass undone).
     let eh = element_harmonics(setup, an, false)?;
+    let unfiltered_state;
     let state = match lowpass_hz {
-        Some(fc) => element_harmonics(setup, &unfiltered(an, fc), false)?,
-        None => eh.clone(),
+        Some(fc) => {
+            unfiltered_state = element_harmonics(setup, &unfiltered(an, fc), false)?;
+            &unfiltered_state
+        }
+        None => &eh,
     };
     let nh = eh.harmonics();
     let l = CYCLE_POINTS.max(4 * (nh + 1)).next_power_of_two();

@@ -208,7 +208,7 @@ impl Element for CompressibleOilDamper {
     }
 }
 
-pub fn truth_element_of(t: &Truth) -> Box<dyn Element> {
+fn truth_element(t: &Truth) -> Box<dyn Element> {
     match t.oil_stiffness_n_per_m {
         Some(k) => Box::new(CompressibleOilDamper {
             rest: TruthElement {
@@ -234,7 +234,7 @@ pub fn simulate_case(case: &CaseSpec) -> Result<(Truth, Vec<Record>), SimError> 
         run.steps
             .push(paper_rig_random_step(band, PAPER_RIG_RANDOM_RMS_M));
     }
-    let element = truth_element_of(&truth);
+    let element = truth_element(&truth);
     let mut out = simulate_rig(
         element.as_ref(),
         run.nominal_mass_kg,
@@ -289,7 +289,7 @@ pub fn run_case(case: &CaseSpec) -> Result<CaseResult, DiagnoseError> {
         ..DiagnoseOptions::default()
     };
     let d = diagnose(&setup, &baseline, &records, &[], &options)?.diagnosis;
-    let element = truth_element_of(&truth);
+    let element = truth_element(&truth);
     let transform = Transform {
         delay_s: truth.effects.exciter_delay_s,
         lowpass_hz: truth.effects.sensor_lowpass_hz,
