@@ -6,7 +6,7 @@ set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 out="${1:-$here}"
 if [ -z "${FORCEMAP:-}" ]; then
-  cargo build --release --quiet -p forcemap_nodes --bin forcemap --manifest-path "$here/../Cargo.toml"
+  cargo build --release --quiet -p forcemap_cli --bin forcemap --manifest-path "$here/../Cargo.toml"
   FORCEMAP="$here/../target/release/forcemap"
 fi
 mkdir -p "$out"

@@ -42,7 +42,7 @@ fn cyclone_dds_publishes_samples_and_receives_the_offline_theta() {
     let bag = repo().join("bags/rig_40db");
     let dir = tempfile::tempdir().unwrap();
     // The bag's excitation states and samples, in order, for the Cyclone publisher.
-    let reader = forcemap_nodes::bag::BagReader::open(&bag).unwrap();
+    let reader = forcemap_io::bag::BagReader::open(&bag).unwrap();
     let mut list = Vec::new();
     for m in reader
         .messages_on(&["/rig/excitation", "/rig/samples"])

@@ -33,7 +33,7 @@ fn linear_sim_against_the_coulomb_rig_is_diagnosed_live_as_coulomb_friction() {
     std::thread::sleep(Duration::from_millis(500));
     assert!(recorder.stop().success());
 
-    let reader = forcemap_nodes::bag::BagReader::open(&bag).unwrap();
+    let reader = forcemap_io::bag::BagReader::open(&bag).unwrap();
     let last: GapDiagnosis = reader
         .messages_on(&["/rig/diagnosis"])
         .unwrap()

@@ -135,8 +135,8 @@ fn recorder_killed_leaves_a_bag_that_recover_restores() {
     );
 
     // Every recovered sample is the one the source bag holds at the same place.
-    let orig = forcemap_nodes::rig_bag::read_rig_bag(&source).unwrap();
-    let got = forcemap_nodes::bag::BagReader::open(&restored).unwrap();
+    let orig = forcemap_io::rig_bag::read_rig_bag(&source).unwrap();
+    let got = forcemap_io::bag::BagReader::open(&restored).unwrap();
     let mut n = 0usize;
     let samples: Vec<f64> = orig
         .records

@@ -77,9 +77,9 @@ fn simulated_rig_runs_end_to_end_through_the_graph() {
     // The recorded bag holds the run: 12 records (10 sine, 2 random) and the live theta, and
     // identifying it offline gives the live theta.
     let bag = out.join("bag");
-    let run = forcemap_nodes::rig_bag::read_rig_bag(&bag).unwrap();
+    let run = forcemap_io::rig_bag::read_rig_bag(&bag).unwrap();
     assert_eq!(run.records.len(), 12);
-    let info = forcemap_nodes::bag::BagReader::open(&bag).unwrap();
+    let info = forcemap_io::bag::BagReader::open(&bag).unwrap();
     assert_eq!(info.topic("/rig/theta").unwrap().message_count, 10);
     let live = summary_theta(&out.join("summary.json"));
     assert_same_theta(&live, &offline_theta(&bag, &["--model", "coulomb"]), 1e-9);
@@ -152,7 +152,7 @@ fn ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished() {
     let bag = out.join("bag");
     assert!(bag.join("metadata.yaml").exists());
     // The step cut by Ctrl-C is left out with the reason; the complete ones are kept.
-    let run = forcemap_nodes::rig_bag::read_rig_bag(&bag).unwrap();
+    let run = forcemap_io::rig_bag::read_rig_bag(&bag).unwrap();
     assert!(!run.records.is_empty());
     assert!(run.records.iter().all(|r| r.len() == 1300));
     if let Some(why) = &run.left_out {

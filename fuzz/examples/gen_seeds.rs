@@ -10,7 +10,7 @@ use forcemap_msgs::msg::{
     AxisSample, ExcitationState, HarmonicPhasors, IdentifiedParameters, RigSample,
 };
 use forcemap_msgs::std_msgs::Header;
-use forcemap_nodes::bag::{BagWriter, BagWriterOptions, TopicSpec};
+use forcemap_io::bag::{BagWriter, BagWriterOptions, TopicSpec};
 
 fn write(dir: &Path, name: &str, bytes: &[u8]) {
     fs::create_dir_all(dir).unwrap();
@@ -254,12 +254,12 @@ fn main() {
         ("drive_point.csv", fs::read(out.join("csv_import/drive_point.csv")).unwrap()),
         ("all_channels.csv", fs::read(out.join("csv_import/all_channels.csv")).unwrap()),
     ] {
-        if let Err(e) = forcemap_nodes::csv_export::read_csv_from(&bytes[..], Path::new(name)) {
+        if let Err(e) = forcemap_io::csv_export::read_csv_from(&bytes[..], Path::new(name)) {
             panic!("seed {name} does not import: {e}");
         }
     }
     for name in ["plain.mcap", "zstd.mcap", "real_schemas.mcap"] {
-        let bag = forcemap_nodes::bag::BagReader::open(out.join("bag_read").join(name))
+        let bag = forcemap_io::bag::BagReader::open(out.join("bag_read").join(name))
             .unwrap_or_else(|e| panic!("seed {name} does not open: {e}"));
         assert_eq!(bag.summary().message_count, 6, "{name}");
     }

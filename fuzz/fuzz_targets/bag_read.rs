@@ -4,7 +4,7 @@
 //! hold the messages the report counts (the writer is the project's own).
 #![no_main]
 
-use forcemap_nodes::bag::{BagReader, recover};
+use forcemap_io::bag::{BagReader, recover};
 use libfuzzer_sys::fuzz_target;
 
 /// Reads at most this many messages per pass (the input is small; this only bounds the time).

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use forcemap_nodes::csv_export::read_csv_from;
+use forcemap_io::csv_export::read_csv_from;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

@@ -1,8 +1,8 @@
 //! forcemap_math: the mathematics of frequency-domain force-state mapping (FD-FSM).
 //!
 //! No I/O, no async, no ROS: everything here is a pure function of its inputs so it can be
-//! read, tested and benchmarked alone. The `forcemap` command and the ROS 2 nodes
-//! (crate `forcemap_nodes`) are thin adapters around it.
+//! read, tested and benchmarked alone. File formats (`forcemap_io`), the ROS 2 nodes
+//! (`forcemap_nodes`) and the `forcemap` command (`forcemap_cli`) are built on it.
 //!
 //! Sign and phasor conventions used throughout:
 //! - The element force `g(x, x')` acts between its two ends; `x` is the relative

@@ -35,8 +35,6 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, bail};
 use serde::Deserialize;
 
-use crate::cli::LaunchArgs;
-
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct LaunchFile {
@@ -338,10 +336,13 @@ fn signal(child: &Child, sig: nix::sys::signal::Signal) {
     let _ = nix::sys::signal::kill(nix::unistd::Pid::from_raw(child.id() as i32), sig);
 }
 
-pub fn run(args: &LaunchArgs) -> anyhow::Result<()> {
-    let nodes = plan(&args.file, &args.args)?;
+/// Starts the nodes of the launch file `file` with launch arguments `args` (`name:=value`) as
+/// children of this process (`forcemap node KIND ...`), or with `dry_run` prints their command
+/// lines only.
+pub fn run(file: &Path, args: &[String], dry_run: bool) -> anyhow::Result<()> {
+    let nodes = plan(file, args)?;
     let exe = std::env::current_exe().context("finding the forcemap executable")?;
-    if args.dry_run {
+    if dry_run {
         for n in &nodes {
             println!("{} node {} {}", exe.display(), n.exec, n.args.join(" "));
         }

@@ -1,15 +1,6 @@
-//! forcemap_nodes: the `forcemap` command and (later) the ROS 2 nodes, thin adapters around
-//! `forcemap_math`.
-pub mod bag;
-pub mod cli;
-pub mod commands;
-pub mod csv_export;
-pub mod emps;
-pub mod input;
+//! forcemap_nodes: forcemap's ROS 2 nodes, each a process (`forcemap node KIND`), and the
+//! launcher that starts a graph of them from a ROS 2 YAML launch file. The nodes are thin
+//! shells on ros2-client and tokio around `forcemap_math` and `forcemap_io`.
 pub mod launch;
 pub mod node;
-pub mod params;
-pub mod plot;
-pub mod rig_bag;
 pub mod ros;
-pub mod steps;

@@ -14,28 +14,7 @@ use ros2_client::{
 };
 use tokio::sync::mpsc;
 
-use crate::params::{Params, read_params};
-
-/// The ROS 2 distribution the nodes are built for (cargo feature `jazzy`, the default, or
-/// `humble`): it decides the wire format ros2-client speaks (e.g. 16- or 24-byte GIDs).
-pub const BUILT_FOR_DISTRO: &str = if cfg!(feature = "jazzy") {
-    "jazzy"
-} else if cfg!(feature = "humble") {
-    "humble"
-} else {
-    ""
-};
-
-/// The topics of a rig, relative to the rig's namespace (so `/rig/samples` for namespace `/rig`).
-pub mod topics {
-    pub const SAMPLES: &str = "samples";
-    pub const EXCITATION: &str = "excitation";
-    /// Rig constants (`mass_kg`, ...) as a diagnostic_msgs/DiagnosticStatus.
-    pub const PARAMETERS: &str = "parameters";
-    pub const PHASORS: &str = "phasors";
-    pub const THETA: &str = "theta";
-    pub const DIAGNOSTICS: &str = "/diagnostics";
-}
+use forcemap_io::params::{Params, read_params};
 
 /// QoS per topic. Samples: reliable with a deep queue (a step's samples must all arrive).
 /// Excitation state, rig constants and the latest theta: transient local, so a late joiner
@@ -187,7 +166,7 @@ impl NodeSetup {
             let file = match read_params(f, Some(&fq)) {
                 Ok(p) => p,
                 // A shared file without an entry for this node is fine (ros2 does the same).
-                Err(crate::params::ParamsError::NoMatchingNode { .. }) => continue,
+                Err(forcemap_io::params::ParamsError::NoMatchingNode { .. }) => continue,
                 Err(e) => return Err(e.into()),
             };
             for (k, v) in file.iter() {

@@ -5,7 +5,7 @@
 //!
 //! # Preprocessing ([`TimeDomainOptions`])
 //! One implementation, used by the diagnosis and by the EMPS reference fit of the nodes crate
-//! (`forcemap_nodes::emps::fit_reference_model`), after the published identification script
+//! (`forcemap_io::emps::fit_reference_model`), after the published identification script
 //! of the benchmark (Janot, Gautier, Brunot 2019):
 //! 1. the position is low-passed without phase shift by a 4th-order Butterworth filter run
 //!    forwards and backwards (the script's `filtfilt(butter(4, 100 / 500), qm)`: 100 Hz);
@@ -25,7 +25,7 @@
 //! and as the anti-alias filter: -12 dB at 40 Hz, so the force content between 20 and 40 Hz
 //! was attenuated) and 4.01 / 6.36 % (4th-order Butterworth forwards and backwards, position
 //! at 40 Hz, anti-alias -6 dB at 40 Hz); this one gives 4.04 / 5.95 % and the parameters within
-//! 0.2 % of the published ones (`nodes/tests/emps_fit.rs`), and 3.06 % with the asymmetric
+//! 0.2 % of the published ones (`io/tests/emps_fit.rs`), and 3.06 % with the asymmetric
 //! friction (published 3.11 %).
 //!
 //! # Candidates

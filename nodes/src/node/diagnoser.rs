@@ -21,10 +21,8 @@ use tokio::sync::mpsc;
 
 use crate::log_line;
 use crate::node::identifier::setup_for;
-use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg, topics};
-
-/// The diagnoser's own topic (relative to the namespace).
-pub const DIAGNOSIS_TOPIC: &str = "diagnosis";
+use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg};
+use forcemap_io::topics;
 
 /// The message of a set of findings.
 pub fn diagnosis_message(baseline: &str, f: &PhasorFindings, header: Header) -> GapDiagnosis {
@@ -69,7 +67,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let mut ros = RosNode::start(setup.clone())?;
     let phasors = ros.subscription::<HarmonicPhasors>(topics::PHASORS, qos::phasors())?;
     let rig = ros.subscription::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
-    let diagnosis_pub = ros.publisher::<GapDiagnosis>(DIAGNOSIS_TOPIC, qos::theta())?;
+    let diagnosis_pub = ros.publisher::<GapDiagnosis>(topics::DIAGNOSIS, qos::theta())?;
     let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;
 
     let (tx, mut rx) = mpsc::unbounded_channel::<Input>();

@@ -21,8 +21,9 @@ use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
 use crate::log_line;
-use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, topics};
-use crate::steps::{StepAssembler, StepError, StepPlan};
+use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos};
+use forcemap_io::steps::{StepAssembler, StepError, StepPlan};
+use forcemap_io::topics;
 
 /// Samples of a step whose excitation state has not arrived are held this long (the two topics
 /// are not ordered with respect to each other).

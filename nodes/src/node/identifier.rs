@@ -35,8 +35,9 @@ use serde::{Deserialize, Serialize};
 use tokio::sync::mpsc;
 
 use crate::log_line;
-use crate::params::Params;
-use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg, topics};
+use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg};
+use forcemap_io::params::Params;
+use forcemap_io::topics;
 
 /// What the identifier persists.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -174,7 +175,7 @@ pub fn setup_for(
 ) -> anyhow::Result<Option<Setup>> {
     let has = |c: Channel| analysis.channels.iter().any(|ch| ch.channel == c);
     if has(Channel::ForceN) && has(Channel::DrivePointDisplacementM) {
-        let s = crate::commands::identify::substructure(params, "the identifier's parameters")?;
+        let s = forcemap_io::rig_constants::substructure(params, "the identifier's parameters")?;
         return Ok(Some(Setup::DrivePoint { substructure: s }));
     }
     Ok(mass_kg.map(|mass_kg| Setup::BaseExcited { mass_kg }))

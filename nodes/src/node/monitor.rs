@@ -17,7 +17,8 @@ use serde_json::json;
 use tokio::sync::mpsc;
 
 use crate::log_line;
-use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, qos, topics};
+use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, qos};
+use forcemap_io::topics;
 
 enum Input {
     Theta(IdentifiedParameters, Instant),
@@ -154,7 +155,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             "live_updates": updates,
             "parameters": rows,
         });
-        crate::plot::write_atomically(&path, &serde_json::to_string_pretty(&doc)?)
+        forcemap_io::atomic::write_atomically(&path, &serde_json::to_string_pretty(&doc)?)
             .with_context(|| format!("writing {}", path.display()))?;
         log_line!("summary written to {}", path.display());
     }

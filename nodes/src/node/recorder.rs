@@ -23,9 +23,10 @@ use forcemap_msgs::msg::{
 use ros2_client::QosProfile;
 use tokio::sync::mpsc;
 
-use crate::bag::{BagWriter, QosProfile as BagQos, TopicId, TopicSpec};
 use crate::log_line;
-use crate::ros::{NodeSetup, OnTakeError, RosNode, qos, topics};
+use crate::ros::{NodeSetup, OnTakeError, RosNode, qos};
+use forcemap_io::bag::{BagWriter, QosProfile as BagQos, TopicId, TopicSpec};
+use forcemap_io::topics;
 
 const DEFAULT_TOPICS: [&str; 6] = [
     topics::SAMPLES,
@@ -72,7 +73,7 @@ fn known_type(name: &str, explicit: Option<&str>) -> anyhow::Result<(&'static st
         topics::PHASORS => HarmonicPhasors::TYPE_NAME,
         topics::THETA => IdentifiedParameters::TYPE_NAME,
         "diagnostics" => DiagnosticArray::TYPE_NAME,
-        crate::node::diagnoser::DIAGNOSIS_TOPIC => GapDiagnosis::TYPE_NAME,
+        topics::DIAGNOSIS => GapDiagnosis::TYPE_NAME,
         _ => bail!(
             "topic {name}: unknown type; write it as {name}:pkg/msg/Type (e.g. forcemap_msgs/msg/RigSample)"
         ),

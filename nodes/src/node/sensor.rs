@@ -32,9 +32,10 @@ use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
 use forcemap_msgs::std_msgs::Header;
 
-use crate::bag::BagReader;
 use crate::log_line;
-use crate::ros::{NodeSetup, RosNode, qos, topics};
+use crate::ros::{NodeSetup, RosNode, qos};
+use forcemap_io::bag::BagReader;
+use forcemap_io::topics;
 
 /// One message the sensor publishes, in time order.
 pub enum Out {
@@ -68,7 +69,7 @@ pub fn simulated_run(
     let seed = seed as u64;
     let mut constants = DiagnosticStatus::new(
         DiagnosticStatus::OK,
-        crate::rig_bag::PARAMETERS_NAME,
+        forcemap_io::rig_bag::PARAMETERS_NAME,
         "rig constants (simulated rig; truth.* are the simulator's true element values)",
         setup.fully_qualified_name(),
     );

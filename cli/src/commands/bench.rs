@@ -1,0 +1,358 @@
+//! `forcemap bench graph`: what the node graph sustains, measured on this machine (a benchmark,
+//! not a test: figures go in the README with the command that produced them).
+//!
+//! The harmonic node and the identifier run as separate processes, as in a launch; this
+//! process plays the sensor (a simulated rig run published as fast as the graph acknowledges,
+//! or at a rate factor) and a control node (it subscribes to theta). It reports:
+//! - samples per second published with no loss (every step analysed, none dropped);
+//! - latency from the last sample of a step (when its publish returned) to the theta that
+//!   includes that step (when it arrived here), p50 and p99 over the steps;
+//! - CPU (% of one core) and resident memory of each node, sampled from /proc during the run,
+//!   with RSS early and late in the run (memory must stay flat).
+
+use std::collections::BTreeMap;
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail};
+use forcemap_math::sim::excitation::PAPER_RIG_FREQUENCIES_HZ;
+use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
+use forcemap_msgs::msg::{ExcitationState, IdentifiedParameters, RigSample};
+use serde_json::json;
+
+use crate::cli::BenchGraphArgs;
+use forcemap_io::params::{ParamValue, Params};
+use forcemap_io::topics;
+use forcemap_nodes::node::sensor::{Out, messages_of, publish_blocking, simulated_run};
+use forcemap_nodes::ros::{NodeSetup, RosNode, qos};
+
+/// CPU time (s) and resident memory (bytes) of a process, from /proc.
+fn proc_usage(pid: u32) -> Option<(f64, u64)> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // Fields after the command name (which may hold spaces) in parentheses.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = 100.0; // USER_HZ on Linux
+    let cpu = (f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?) / ticks;
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let rss_kb: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))?
+        .trim()
+        .trim_end_matches(" kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some((cpu, rss_kb * 1024))
+}
+
+/// (seconds since the start, node, CPU seconds, RSS bytes).
+type UsageSample = (f64, &'static str, f64, u64);
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let i = ((p / 100.0) * (sorted.len() - 1) as f64).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+struct Spawned {
+    name: &'static str,
+    child: Child,
+    lines: Arc<Mutex<Vec<String>>>,
+}
+
+fn spawn(kind: &'static str, domain: u16, params: &[&str]) -> anyhow::Result<Spawned> {
+    let exe = std::env::current_exe().context("finding the forcemap executable")?;
+    let mut args = vec!["node", kind, "--ros-args", "-r", "__ns:=/rig"];
+    for p in params {
+        args.push("-p");
+        args.push(p);
+    }
+    let mut child = Command::new(exe)
+        .args(&args)
+        .env("ROS_DOMAIN_ID", domain.to_string())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .with_context(|| format!("starting the {kind} node"))?;
+    let lines = Arc::new(Mutex::new(Vec::new()));
+    for out in [
+        Box::new(child.stdout.take().expect("piped")) as Box<dyn std::io::Read + Send>,
+        Box::new(child.stderr.take().expect("piped")),
+    ] {
+        let l = lines.clone();
+        std::thread::spawn(move || {
+            use std::io::BufRead;
+            for line in std::io::BufReader::new(out).lines().map_while(Result::ok) {
+                l.lock().expect("lines lock").push(line);
+            }
+        });
+    }
+    Ok(Spawned {
+        name: kind,
+        child,
+        lines,
+    })
+}
+
+fn now_ns() -> i64 {
+    forcemap_nodes::ros::now_time().as_nanos()
+}
+
+pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
+    if args.steps == 0 {
+        bail!("--steps must be at least 1");
+    }
+    let domain = forcemap_nodes::ros::domain_id()?;
+    // The run: the paper's frequencies, cycled, no random records.
+    let freqs: Vec<f64> = (0..args.steps)
+        .map(|k| PAPER_RIG_FREQUENCIES_HZ[k % PAPER_RIG_FREQUENCIES_HZ.len()])
+        .collect();
+    let mut params = Params::new();
+    params.set("system", ParamValue::String("rig".into()));
+    params.set("sample_rate_hz", ParamValue::Double(args.sample_rate_hz));
+    params.set("step_duration_s", ParamValue::Double(args.step_duration_s));
+    params.set("snr_db", ParamValue::Double(40.0));
+    params.set("include_random", ParamValue::Bool(false));
+    params.set("frequencies_hz", ParamValue::DoubleArray(freqs));
+    let setup = NodeSetup {
+        name: "bench_sensor".into(),
+        namespace: "/rig".into(),
+        params,
+        remaps: BTreeMap::new(),
+    };
+    eprintln!(
+        "simulating {} steps at {} Hz ...",
+        args.steps, args.sample_rate_hz
+    );
+    let (records, driven, constants) = simulated_run(&setup)?;
+    let samples_per_step = records.first().map_or(0, |r| r.len());
+
+    let harmonic = spawn("harmonic", domain, &[])?;
+    let identifier = spawn("identifier", domain, &["model:=coulomb", "mass_kg:=36.0"])?;
+    let mut children = vec![harmonic, identifier];
+
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    let result = rt.block_on(async {
+        let mut ros = RosNode::start(setup.clone())?;
+        let samples_pub = ros.publisher::<RigSample>(topics::SAMPLES, qos::samples())?;
+        let excitation_pub =
+            ros.publisher::<ExcitationState>(topics::EXCITATION, qos::excitation())?;
+        let parameters_pub =
+            ros.publisher::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
+        let theta_sub = ros.subscription::<IdentifiedParameters>(topics::THETA, qos::theta())?;
+        let received: Arc<Mutex<BTreeMap<u32, i64>>> = Arc::new(Mutex::new(BTreeMap::new()));
+        let rec = received.clone();
+        tokio::spawn(async move {
+            while let Ok((t, _)) = theta_sub.async_take().await {
+                let at = now_ns();
+                if let Some(last) = t.steps_used.last() {
+                    rec.lock().expect("lock").entry(*last).or_insert(at);
+                }
+            }
+        });
+        let t0 = Instant::now();
+        while samples_pub.get_subscription_count(&ros.node) < 1 {
+            if t0.elapsed() > Duration::from_secs(30) {
+                bail!("the harmonic node did not subscribe within 30 s");
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        tokio::time::sleep(Duration::from_millis(500)).await;
+
+        let run_start = Time::from_nanos(now_ns());
+        let messages = messages_of(&records, driven, constants, run_start, "rig");
+        let first_stamp = messages.iter().find_map(|m| match m {
+            Out::Sample(s) => Some(s.header.stamp),
+            _ => None,
+        });
+        let pids: Vec<(&'static str, u32)> =
+            children.iter().map(|c| (c.name, c.child.id())).collect();
+        let usage: Arc<Mutex<Vec<UsageSample>>> = Arc::new(Mutex::new(Vec::new()));
+        let us = usage.clone();
+        let sampler_start = Instant::now();
+        let sampler = tokio::spawn(async move {
+            loop {
+                for (name, pid) in &pids {
+                    if let Some((cpu, rss)) = proc_usage(*pid) {
+                        us.lock().expect("lock").push((
+                            sampler_start.elapsed().as_secs_f64(),
+                            name,
+                            cpu,
+                            rss,
+                        ));
+                    }
+                }
+                tokio::time::sleep(Duration::from_millis(250)).await;
+            }
+        });
+
+        let wall0 = Instant::now();
+        let mut last_sample_at: BTreeMap<u32, i64> = BTreeMap::new();
+        let mut published = 0usize;
+        let bar = indicatif::ProgressBar::new(
+            messages
+                .iter()
+                .filter(|m| matches!(m, Out::Sample(_)))
+                .count() as u64,
+        );
+        for m in messages {
+            if args.rate_factor > 0.0
+                && let (Some(t0s), Out::Sample(s)) = (first_stamp, &m)
+            {
+                let due = wall0
+                    + Duration::from_secs_f64(
+                        (s.header.stamp.secs_since(t0s) / args.rate_factor).max(0.0),
+                    );
+                let now = Instant::now();
+                if due > now {
+                    tokio::time::sleep(due - now).await;
+                }
+            }
+            match m {
+                Out::Sample(s) => {
+                    let step = s.step;
+                    publish_blocking(&samples_pub, s).await?;
+                    published += 1;
+                    if published.is_multiple_of(samples_per_step.max(1)) {
+                        last_sample_at.insert(step, now_ns());
+                    }
+                    if published.is_multiple_of(1000) {
+                        bar.set_position(published as u64);
+                    }
+                }
+                Out::Excitation(e) => publish_blocking(&excitation_pub, e).await?,
+                Out::Parameters(p) => publish_blocking(&parameters_pub, p).await?,
+            }
+        }
+        let publish_s = wall0.elapsed().as_secs_f64();
+        bar.finish_and_clear();
+        // Wait for the last theta.
+        let last_step = (args.steps - 1) as u32;
+        let t1 = Instant::now();
+        while !received.lock().expect("lock").contains_key(&last_step) {
+            if t1.elapsed() > Duration::from_secs(60) {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        let total_s = wall0.elapsed().as_secs_f64();
+        sampler.abort();
+        let received = received.lock().expect("lock").clone();
+        let usage = usage.lock().expect("lock").clone();
+        Ok::<_, anyhow::Error>((
+            published,
+            publish_s,
+            total_s,
+            last_sample_at,
+            received,
+            usage,
+        ))
+    });
+    // Stop the nodes cleanly.
+    for c in &children {
+        let _ = nix::sys::signal::kill(
+            nix::unistd::Pid::from_raw(c.child.id() as i32),
+            nix::sys::signal::Signal::SIGINT,
+        );
+    }
+    for c in children.iter_mut() {
+        let _ = c.child.wait();
+    }
+    let (published, publish_s, total_s, last_sample_at, received, usage) = result?;
+
+    let dropped: Vec<String> = children
+        .iter()
+        .flat_map(|c| c.lines.lock().expect("lock").clone())
+        .filter(|l| l.contains("DROPPED"))
+        .collect();
+    let mut latencies_ms: Vec<f64> = last_sample_at
+        .iter()
+        .filter_map(|(step, t)| received.get(step).map(|r| (r - t) as f64 / 1e6))
+        .collect();
+    latencies_ms.sort_by(f64::total_cmp);
+    let lossless = dropped.is_empty() && received.len() == args.steps;
+
+    let mut per_node = Vec::new();
+    for name in ["harmonic", "identifier"] {
+        let s: Vec<&UsageSample> = usage.iter().filter(|u| u.1 == name).collect();
+        if s.len() < 2 {
+            continue;
+        }
+        let (first, last) = (s[0], s[s.len() - 1]);
+        let cpu_percent = 100.0 * (last.2 - first.2) / (last.0 - first.0).max(1e-9);
+        // RSS early (after the first 20 % of the run) and at the end.
+        let early = s[s.len() / 5].3;
+        let max = s.iter().map(|u| u.3).max().unwrap_or(0);
+        per_node.push(json!({
+            "node": name, "cpu_percent": cpu_percent,
+            "rss_early_mib": early as f64 / 1048576.0, "rss_end_mib": last.3 as f64 / 1048576.0,
+            "rss_max_mib": max as f64 / 1048576.0,
+        }));
+    }
+    let report = json!({
+        "sample_rate_hz": args.sample_rate_hz,
+        "steps": args.steps,
+        "samples": published,
+        "rate_factor": args.rate_factor,
+        "publish_s": publish_s,
+        "samples_per_s": published as f64 / publish_s,
+        "lossless": lossless,
+        "theta_updates": received.len(),
+        "dropped": dropped,
+        "latency_ms_p50": percentile(&latencies_ms, 50.0),
+        "latency_ms_p99": percentile(&latencies_ms, 99.0),
+        "latency_ms_max": latencies_ms.last().copied().unwrap_or(f64::NAN),
+        "total_s": total_s,
+        "nodes": per_node,
+    });
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "{} samples at {} Hz ({} steps of {samples_per_step}) published in {publish_s:.2} s: {:.0} samples/s, {}",
+            published,
+            args.sample_rate_hz,
+            args.steps,
+            published as f64 / publish_s,
+            if lossless {
+                "no loss (every step analysed, theta after each)".to_string()
+            } else {
+                format!(
+                    "LOSS: {} theta updates for {} steps, dropped: {:?}",
+                    received.len(),
+                    args.steps,
+                    dropped
+                )
+            }
+        );
+        println!(
+            "last sample of a step -> theta: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms over {} steps",
+            percentile(&latencies_ms, 50.0),
+            percentile(&latencies_ms, 99.0),
+            latencies_ms.last().copied().unwrap_or(f64::NAN),
+            latencies_ms.len()
+        );
+        for n in &per_node {
+            println!(
+                "{:<10} CPU {:>5.1} % of a core, RSS {:.1} MiB early, {:.1} MiB at the end (max {:.1})",
+                n["node"].as_str().unwrap_or(""),
+                n["cpu_percent"].as_f64().unwrap_or(f64::NAN),
+                n["rss_early_mib"].as_f64().unwrap_or(f64::NAN),
+                n["rss_end_mib"].as_f64().unwrap_or(f64::NAN),
+                n["rss_max_mib"].as_f64().unwrap_or(f64::NAN),
+            );
+        }
+    }
+    if !lossless {
+        bail!("the graph lost data at this rate");
+    }
+    Ok(())
+}

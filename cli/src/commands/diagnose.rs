@@ -1,0 +1,620 @@
+//! `forcemap diagnose DATA --model BASELINE`: the sim-to-real gap diagnosis (library:
+//! `forcemap_math::diagnose`), as a summary, JSON, or an HTML report with SVG plots.
+
+use std::path::Path;
+
+use anyhow::{Context, bail};
+use forcemap_math::diagnose::{self, DiagnoseOptions, DiagnosisDetail, Located, Verdict};
+use forcemap_math::identify::Setup;
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::record::Record;
+use forcemap_math::sim::excitation::{
+    PAPER_RIG_RANDOM_BANDS_HZ, PAPER_RIG_RANDOM_RMS_M, paper_rig_random_step,
+};
+use forcemap_math::sim::{self, RigRun, SimSpec, TruthElement};
+use plotters::prelude::*;
+
+use crate::cli::DiagnoseArgs;
+use crate::plot::{AFTER_COLOR, BASELINE_COLOR, Line, draw_err, html_escape, lines_svg, span};
+use forcemap_io::atomic::{write_atomically, write_dir_atomically};
+use forcemap_io::csv_export::CsvProfile;
+use forcemap_io::params::{Params, read_params};
+
+/// SNR of the built-in demo [dB] (the reproduction's rig SNR).
+pub const DEMO_SNR_DB: f64 = 40.0;
+
+/// The paper's validation errors, linear then Coulomb (Table 2): NMSE_1, NMSE_2 [%].
+const PAPER_LINEAR_NMSE: [f64; 2] = [11.0, 17.2];
+const PAPER_COULOMB_NMSE: [f64; 2] = [4.0, 6.5];
+
+struct Data {
+    records: Vec<Record>,
+    validation: Vec<Record>,
+    setup: Setup,
+    source: String,
+}
+
+fn mass_from(
+    args: &DiagnoseArgs,
+    params: &Params,
+    carried: Option<f64>,
+    file: &str,
+) -> anyhow::Result<f64> {
+    let m = match (args.mass_kg, params.opt_f64("mass_kg")?, carried) {
+        (Some(m), _, _) | (None, Some(m), _) | (None, None, Some(m)) => m,
+        (None, None, None) => bail!(
+            "{file}: the rig's mass is needed: give --mass-kg 36 or mass_kg in a --params file"
+        ),
+    };
+    if !(m > 0.0 && m.is_finite()) {
+        bail!("mass_kg = {m}: the rig's mass must be a positive number of kg");
+    }
+    Ok(m)
+}
+
+fn load(args: &DiagnoseArgs, path: &Path) -> anyhow::Result<Data> {
+    let file = path.display().to_string();
+    let import = forcemap_io::input::load(path)?;
+    if import.profile != CsvProfile::Rig {
+        bail!(
+            "{file}: the diagnosis needs the base-excited rig channels (base and relative displacement, mass acceleration); this is a {} export",
+            import.profile
+        );
+    }
+    let params = match &args.params {
+        Some(p) => read_params(p, None)?,
+        None => Params::new(),
+    };
+    let mass_kg = mass_from(
+        args,
+        &params,
+        import.parameters.get("mass_kg").copied(),
+        &file,
+    )?;
+    let validation = match &args.validate {
+        Some(v) => {
+            let vi = forcemap_io::input::load(v)?;
+            if vi.profile != CsvProfile::Rig {
+                bail!(
+                    "{}: validation data must hold the rig channels",
+                    v.display()
+                );
+            }
+            vi.records
+        }
+        None => Vec::new(),
+    };
+    Ok(Data {
+        records: import.records,
+        validation,
+        setup: Setup::BaseExcited { mass_kg },
+        source: file,
+    })
+}
+
+/// The demo data: the paper's Coulomb rig (k 6380, c 184, F_d 12.3) at 40 dB with the two
+/// band-random validation records.
+fn demo_data() -> anyhow::Result<Data> {
+    let mut run = RigRun {
+        snr_db: Some(DEMO_SNR_DB),
+        seed: 1,
+        ..RigRun::paper_sine(TruthElement::rig_coulomb())
+    };
+    for band in PAPER_RIG_RANDOM_BANDS_HZ {
+        run.steps
+            .push(paper_rig_random_step(band, PAPER_RIG_RANDOM_RMS_M));
+    }
+    let records = sim::simulate(&SimSpec::Rig(run))?;
+    Ok(Data {
+        records,
+        validation: Vec::new(),
+        setup: Setup::BaseExcited {
+            mass_kg: sim::rig::PAPER_RIG_MASS_KG,
+        },
+        source: format!("built-in demo (simulated rig, Coulomb friction 12.3 N, {DEMO_SNR_DB} dB)"),
+    })
+}
+
+pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
+    if let Some(data) = &args.data
+        && super::diagnose_time_domain::is_emps(data)
+    {
+        return super::diagnose_time_domain::run(args, data);
+    }
+    // Refuse an existing report directory before any work.
+    if let Some(dir) = &args.report
+        && dir.exists()
+    {
+        bail!(
+            "{}: the report directory exists already; remove it or choose a new one",
+            dir.display()
+        );
+    }
+    let (data, model_name) = if args.demo {
+        (demo_data()?, "linear".to_string())
+    } else {
+        let path = args
+            .data
+            .as_ref()
+            .expect("clap requires DATA without --demo");
+        let model = args
+            .model
+            .clone()
+            .expect("clap requires --model without --demo");
+        (load(args, path)?, model)
+    };
+    let baseline = Model::by_name(
+        &model_name,
+        &ModelOptions {
+            atan_slope_s_per_m: args.atan_m,
+            polynomial_order: None,
+        },
+    )?;
+    let pb = super::progress_spinner();
+    pb.set_message(format!("diagnosing {} against {}", model_name, data.source));
+    let options = DiagnoseOptions {
+        holdout_steps: args.holdout_steps.clone(),
+        ..DiagnoseOptions::default()
+    };
+    let detail = diagnose::diagnose(
+        &data.setup,
+        &baseline,
+        &data.records,
+        &data.validation,
+        &options,
+    )
+    .with_context(|| format!("{}: diagnosing baseline '{model_name}'", data.source));
+    pb.finish_and_clear();
+    let detail = detail?;
+    if let Some(dir) = &args.report {
+        write_report(dir, &detail, &data, args.demo)?;
+        eprintln!("wrote {}", dir.join("index.html").display());
+    }
+    if args.json {
+        let mut v = serde_json::to_value(&detail.diagnosis)?;
+        if args.demo {
+            v["paper"] = serde_json::json!({
+                "linear_nmse_percent": PAPER_LINEAR_NMSE,
+                "coulomb_nmse_percent": PAPER_COULOMB_NMSE,
+            });
+        }
+        println!("{v}");
+    } else {
+        print_summary(&data.source, &detail, args.demo);
+    }
+    Ok(())
+}
+
+fn fmt_params(list: &[diagnose::ParameterValue]) -> String {
+    list.iter()
+        .map(|p| match p.std {
+            Some(s) => format!("{} = {:.4e} +/- {:.1e}", p.name, p.value, s),
+            None => format!("{} = {:.4e}", p.name, p.value),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
+    let d = &detail.diagnosis;
+    println!(
+        "{source}: baseline {} fitted on sine steps {:?}: {}",
+        d.baseline_model,
+        d.fit_steps,
+        fmt_params(&d.baseline_parameters)
+    );
+    println!(
+        "gap: held-out NMSE of the mass acceleration {:.2} % (records {:?}: {}); noise floor ~{:.2} %",
+        d.gap_before_percent,
+        d.heldout_records,
+        d.gap_before_by_record_percent
+            .iter()
+            .map(|v| format!("{v:.2} %"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        d.noise_floor_percent
+    );
+    println!("where:");
+    for s in &d.located.summary {
+        println!("  {s}");
+    }
+    println!("  per step (frequency, relative amplitude, element-force mismatch):");
+    for s in &d.located.by_step {
+        println!(
+            "    step {:>2} {:>5.2} Hz {:>6.2} mm {:>7.2} %",
+            s.step,
+            s.frequency_hz,
+            1e3 * s.amplitude_m,
+            s.mismatch_percent
+        );
+    }
+    println!("candidates (held-out NMSE with the effect; score = NMSE with the BIC penalty):");
+    println!(
+        "  {:<20} {:>9} {:>9} {:>8} {:>4}  added parameters",
+        "effect", "after %", "score %", "CV %", "sig"
+    );
+    for r in &d.ranked_effects {
+        println!(
+            "  {:<20} {:>9.3} {:>9.3} {:>8} {:>4}  {}",
+            r.effect.name(),
+            r.gap_after_percent,
+            r.score_percent,
+            r.phasor_cv_percent
+                .map_or("-".into(), |v| format!("{v:.2}")),
+            if r.significant { "yes" } else { "no" },
+            fmt_params(&r.added_parameters)
+        );
+    }
+    if let Some(p) = &d.best_pair {
+        println!(
+            "best pair: {} + {}: held-out NMSE {:.3} % ({})",
+            p.effects[0].name(),
+            p.effects[1].name(),
+            p.gap_after_percent,
+            fmt_params(&p.added_parameters)
+        );
+    }
+    match (d.verdict, d.top_effect) {
+        (Verdict::Explained, Some(e)) => {
+            let r = &d.ranked_effects[0];
+            println!(
+                "verdict: explained by {}: {:.2} % -> {:.2} %",
+                e.name(),
+                d.gap_before_percent,
+                d.gap_after_percent
+            );
+            println!("  signature: {}", r.signature);
+        }
+        (v, _) => println!(
+            "verdict: {} (gap {:.2} %, best candidate leaves {:.2} %)",
+            v.name(),
+            d.gap_before_percent,
+            d.gap_after_percent
+        ),
+    }
+    for n in &d.notes {
+        println!("note: {n}");
+    }
+    if demo {
+        let by = &d.gap_before_by_record_percent;
+        let after: Vec<f64> = detail
+            .after_heldout
+            .iter()
+            .map(|h| h.nmse_percent)
+            .collect();
+        if by.len() == 2 && after.len() == 2 {
+            println!(
+                "demo: held-out NMSE (1.5-2.5 Hz, 2.5-3.5 Hz) {:.1} / {:.1} % -> {:.1} / {:.1} %; the paper's rig: {:.1} / {:.1} % -> {:.1} / {:.1} %",
+                by[0],
+                by[1],
+                after[0],
+                after[1],
+                PAPER_LINEAR_NMSE[0],
+                PAPER_LINEAR_NMSE[1],
+                PAPER_COULOMB_NMSE[0],
+                PAPER_COULOMB_NMSE[1]
+            );
+        }
+    }
+    println!("rule: {}", d.rule);
+}
+
+// ---- report ----
+
+/// Measured against predicted mass acceleration of one held-out record, before and after.
+fn svg_heldout(
+    h_before: &diagnose::score::HeldOut,
+    h_after: Option<&diagnose::score::HeldOut>,
+    fs: f64,
+    title: &str,
+) -> anyhow::Result<String> {
+    let t: Vec<f64> = (0..h_before.measured_mps2.len())
+        .map(|i| i as f64 / fs)
+        .collect();
+    let mut lines = vec![
+        Line {
+            label: "measured",
+            values: &h_before.measured_mps2,
+            color: BLACK,
+        },
+        Line {
+            label: "baseline",
+            values: &h_before.predicted_mps2,
+            color: BASELINE_COLOR,
+        },
+    ];
+    if let Some(h) = h_after {
+        lines.push(Line {
+            label: "with the top effect",
+            values: &h.predicted_mps2,
+            color: AFTER_COLOR,
+        });
+    }
+    lines_svg(title, &t, "time [s]", "mass acceleration [m/s^2]", &lines)
+}
+
+/// Residual element force over the state plane (against velocity and against displacement),
+/// before and after, from the step cycles.
+fn svg_state_plane(detail: &DiagnosisDetail) -> anyhow::Result<String> {
+    let cycles = &detail.search.cycles;
+    let before: Vec<Vec<f64>> = cycles
+        .iter()
+        .map(|c| {
+            let p = detail.search.baseline.predict(c);
+            c.force_n.iter().zip(&p).map(|(g, p)| g - p).collect()
+        })
+        .collect();
+    let after: Option<Vec<Vec<f64>>> = detail
+        .after_fit
+        .as_ref()
+        .filter(|f| f.transform().lowpass_hz.is_none() && f.transform().mass_factor == 1.0)
+        .map(|f| {
+            cycles
+                .iter()
+                .map(|c| {
+                    let p = f.predict(c);
+                    c.force_n.iter().zip(&p).map(|(g, p)| g - p).collect()
+                })
+                .collect()
+        });
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1200, 520)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let root = root
+            .titled("residual element force over the state plane (sine steps): baseline (red), with the top effect (blue)", ("sans-serif", 18))
+            .map_err(draw_err)?;
+        let panels = root.split_evenly((1, 2));
+        let r_range = span(
+            before
+                .iter()
+                .flatten()
+                .chain(after.iter().flatten().flatten())
+                .copied(),
+        );
+        for (k, panel) in panels.iter().enumerate() {
+            let pick = |c: &diagnose::cycles::StepCycle| {
+                if k == 0 {
+                    c.velocity_mps.clone()
+                } else {
+                    c.displacement_m.clone()
+                }
+            };
+            let x_range = span(cycles.iter().flat_map(&pick));
+            let mut chart = ChartBuilder::on(panel)
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(60)
+                .build_cartesian_2d(x_range, r_range.clone())
+                .map_err(draw_err)?;
+            chart
+                .configure_mesh()
+                .x_desc(if k == 0 {
+                    "relative velocity x' [m/s]"
+                } else {
+                    "relative displacement x [m]"
+                })
+                .y_desc("residual force [N]")
+                .draw()
+                .map_err(draw_err)?;
+            for (set, color) in [
+                (Some(&before), BASELINE_COLOR),
+                (after.as_ref(), AFTER_COLOR),
+            ] {
+                let Some(set) = set else { continue };
+                for (c, r) in cycles.iter().zip(set) {
+                    let xs = pick(c);
+                    chart
+                        .draw_series(
+                            xs.iter()
+                                .zip(r)
+                                .step_by(2)
+                                .map(|(x, y)| Circle::new((*x, *y), 1, color.filled())),
+                        )
+                        .map_err(draw_err)?;
+                }
+            }
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
+/// Per-harmonic residual (DC to 5th) against frequency and against amplitude, before (solid)
+/// and after (dashed markers).
+fn svg_harmonics(before: &Located, after: Option<&Located>) -> anyhow::Result<String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1200, 520)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let root = root
+            .titled("residual force harmonics per step: baseline (lines), with the top effect (crosses)", ("sans-serif", 18))
+            .map_err(draw_err)?;
+        let panels = root.split_evenly((1, 2));
+        let palette = [
+            RGBColor(127, 127, 127),
+            RGBColor(31, 119, 180),
+            RGBColor(255, 127, 14),
+            RGBColor(44, 160, 44),
+            RGBColor(214, 39, 40),
+            RGBColor(148, 103, 189),
+        ];
+        let all = before
+            .by_step
+            .iter()
+            .chain(after.iter().flat_map(|a| a.by_step.iter()));
+        let ymax = all
+            .flat_map(|s| s.harmonic_residual_n.iter().copied())
+            .fold(0.0f64, f64::max)
+            .max(1e-9);
+        for (k, panel) in panels.iter().enumerate() {
+            let key = |s: &diagnose::locate::StepGap| {
+                if k == 0 {
+                    s.frequency_hz
+                } else {
+                    1e3 * s.amplitude_m
+                }
+            };
+            let x_range = span(before.by_step.iter().map(key));
+            let mut chart = ChartBuilder::on(panel)
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(60)
+                .build_cartesian_2d(x_range, 0.0..ymax * 1.05)
+                .map_err(draw_err)?;
+            chart
+                .configure_mesh()
+                .x_desc(if k == 0 {
+                    "excitation frequency [Hz]"
+                } else {
+                    "relative displacement amplitude [mm]"
+                })
+                .y_desc("|residual harmonic| [N]")
+                .draw()
+                .map_err(draw_err)?;
+            for n in 0..diagnose::locate::ORDERS {
+                let color = palette[n % palette.len()];
+                let mut pts: Vec<(f64, f64)> = before
+                    .by_step
+                    .iter()
+                    .map(|s| (key(s), s.harmonic_residual_n[n]))
+                    .collect();
+                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let label = match n {
+                    0 => "DC".to_string(),
+                    1 => "1st".into(),
+                    2 => "2nd".into(),
+                    3 => "3rd".into(),
+                    _ => format!("{n}th"),
+                };
+                chart
+                    .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+                    .map_err(draw_err)?
+                    .label(label)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+                if let Some(a) = after {
+                    chart
+                        .draw_series(a.by_step.iter().map(|s| {
+                            Cross::new((key(s), s.harmonic_residual_n[n]), 4, color.stroke_width(1))
+                        }))
+                        .map_err(draw_err)?;
+                }
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
+/// Writes the report (nothing half-written: see [`write_dir_atomically`]).
+fn write_report(
+    dir: &Path,
+    detail: &DiagnosisDetail,
+    data: &Data,
+    demo: bool,
+) -> anyhow::Result<()> {
+    write_dir_atomically(dir, |tmp| {
+        let d = &detail.diagnosis;
+        let fs = data
+            .records
+            .iter()
+            .chain(&data.validation)
+            .find(|r| {
+                detail
+                    .baseline_heldout
+                    .first()
+                    .is_some_and(|h| h.step == r.step)
+            })
+            .map_or(100.0, |r| r.sample_rate_hz);
+        let mut figures = Vec::new();
+        for (i, hb) in detail.baseline_heldout.iter().enumerate() {
+            let ha = detail.after_heldout.get(i);
+            let title = format!(
+                "held-out record {}: NMSE {:.2} % (baseline){}",
+                hb.step,
+                hb.nmse_percent,
+                ha.map_or(String::new(), |h| format!(
+                    ", {:.2} % with {}",
+                    h.nmse_percent,
+                    d.ranked_effects[0].effect.name()
+                ))
+            );
+            let file = format!("heldout_{}.svg", hb.step);
+            write_atomically(&tmp.join(&file), &svg_heldout(hb, ha, fs, &title)?)?;
+            figures.push((
+                file,
+                "measured against predicted mass acceleration".to_string(),
+            ));
+        }
+        write_atomically(&tmp.join("state_plane.svg"), &svg_state_plane(detail)?)?;
+        figures.push((
+            "state_plane.svg".into(),
+            "residual over the state plane".into(),
+        ));
+        write_atomically(
+            &tmp.join("harmonics.svg"),
+            &svg_harmonics(&d.located, detail.after_located.as_ref())?,
+        )?;
+        figures.push((
+            "harmonics.svg".into(),
+            "per-harmonic residuals against frequency and amplitude".into(),
+        ));
+        let mut html = String::new();
+        html.push_str("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>forcemap gap diagnosis</title>\n<style>body{font-family:sans-serif;max-width:1250px;margin:auto}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td:first-child{text-align:left}</style></head><body>\n");
+        html.push_str(&format!(
+            "<h1>Gap diagnosis: baseline {}</h1>\n<p>{}</p>\n",
+            html_escape(&d.baseline_model),
+            html_escape(&data.source)
+        ));
+        let verdict = match (d.verdict, d.top_effect) {
+            (Verdict::Explained, Some(e)) => format!("explained by <b>{}</b>", e.name()),
+            (v, _) => v.name().to_string(),
+        };
+        html.push_str(&format!(
+            "<h2>Verdict: {verdict}</h2>\n<p>Held-out NMSE of the mass acceleration: {:.2} % before, {:.2} % after (noise floor ~{:.2} %).</p>\n",
+            d.gap_before_percent, d.gap_after_percent, d.noise_floor_percent
+        ));
+        if demo {
+            html.push_str(&format!(
+                "<p>The paper's rig: linear {:.1} / {:.1} %, with Coulomb friction {:.1} / {:.1} % (Table 2).</p>\n",
+                PAPER_LINEAR_NMSE[0], PAPER_LINEAR_NMSE[1], PAPER_COULOMB_NMSE[0], PAPER_COULOMB_NMSE[1]
+            ));
+        }
+        html.push_str("<h2>Where</h2>\n<ul>\n");
+        for s in &d.located.summary {
+            html.push_str(&format!("<li>{}</li>\n", html_escape(s)));
+        }
+        html.push_str("</ul>\n<h2>Candidates</h2>\n<table><tr><th>effect</th><th>after [%]</th><th>score [%]</th><th>CV [%]</th><th>significant</th><th>added</th><th>signature</th></tr>\n");
+        for r in &d.ranked_effects {
+            html.push_str(&format!(
+                "<tr><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{}</td><td>{}</td><td>{}</td><td style=\"text-align:left\">{}</td></tr>\n",
+                r.effect.name(),
+                r.gap_after_percent,
+                r.score_percent,
+                r.phasor_cv_percent.map_or("-".into(), |v| format!("{v:.2}")),
+                if r.significant { "yes" } else { "no" },
+                html_escape(&fmt_params(&r.added_parameters)),
+                html_escape(&r.signature)
+            ));
+        }
+        html.push_str("</table>\n");
+        for (file, caption) in &figures {
+            html.push_str(&format!(
+                "<h3>{}</h3>\n<img src=\"{file}\" alt=\"{}\">\n",
+                html_escape(caption),
+                html_escape(caption)
+            ));
+        }
+        html.push_str(&format!(
+            "<p>Rule: {}</p>\n</body></html>\n",
+            html_escape(&d.rule)
+        ));
+        write_atomically(&tmp.join("index.html"), &html)
+    })
+}

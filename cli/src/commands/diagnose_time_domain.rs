@@ -1,0 +1,432 @@
+//! `forcemap diagnose FILE.mat --model emps-viscous|emps-coulomb --validate PULSES.mat`: the
+//! time-domain path of the gap diagnosis on the EMPS benchmark (library:
+//! `forcemap_math::diagnose::time_domain`).
+
+use std::path::Path;
+
+use anyhow::{Context, bail};
+use forcemap_math::diagnose::time_domain::{
+    AxisBaseline, AxisDiagnosis, AxisRecord, SHRINK_T_MIN, TimeDomainOptions, diagnose_axis,
+};
+use forcemap_math::diagnose::{ParameterValue, Verdict};
+use plotters::style::colors::BLACK;
+
+use crate::cli::DiagnoseArgs;
+use crate::plot::{
+    AFTER_COLOR, BASELINE_COLOR, BinnedMean, Line, ScatterPanel, heatmap_panels_svg, html_escape,
+    lines_svg, scatter_panels_svg,
+};
+use forcemap_io::atomic::{write_atomically, write_dir_atomically};
+use forcemap_io::emps::read_emps;
+
+/// Published relative force errors (METHOD.md section 6) [%].
+const PUBLISHED: [(&str, f64); 3] = [
+    ("symmetric Coulomb, fit record", 4.08),
+    ("asymmetric friction, fit record", 3.11),
+    ("symmetric Coulomb, pulses validation", 5.98),
+];
+
+/// True for a MATLAB file (the EMPS benchmark).
+pub fn is_emps(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mat"))
+}
+
+fn axis(path: &Path) -> anyhow::Result<AxisRecord> {
+    let d = read_emps(path)?;
+    let fs = d.sample_rate_hz();
+    if !(fs.is_finite() && fs > 0.0) {
+        bail!(
+            "{}: no sample rate (fewer than two samples or constant time)",
+            path.display()
+        );
+    }
+    Ok(AxisRecord {
+        sample_rate_hz: fs,
+        position_m: d.position_m,
+        force_n: d.force_n,
+    })
+}
+
+pub fn run(args: &DiagnoseArgs, data: &Path) -> anyhow::Result<()> {
+    let model = args.model.as_deref().unwrap_or_default();
+    let Some(baseline) = AxisBaseline::from_name(model) else {
+        bail!(
+            "{}: an EMPS record takes the baseline emps-viscous (M q'' + Fv q' + offset) or emps-coulomb (+ Fc sgn(q')), not '{model}'",
+            data.display()
+        );
+    };
+    // Refuse an existing report directory before any work.
+    if let Some(dir) = &args.report
+        && dir.exists()
+    {
+        bail!(
+            "{}: the report directory exists already; remove it or choose a new one",
+            dir.display()
+        );
+    }
+    let Some(val_path) = &args.validate else {
+        bail!(
+            "{}: the time-domain path scores on another record: give --validate (e.g. DATA_EMPS_PULSES.mat)",
+            data.display()
+        );
+    };
+    let fit = axis(data)?;
+    let val = axis(val_path)?;
+    let d = diagnose_axis(baseline, &fit, &val, &TimeDomainOptions::default())
+        .with_context(|| format!("{}: diagnosing baseline {model}", data.display()))?;
+    if let Some(dir) = &args.report {
+        write_report(dir, &d, data, val_path)
+            .with_context(|| format!("writing the report {}", dir.display()))?;
+        eprintln!("wrote {}", dir.join("index.html").display());
+    }
+    if args.json {
+        let mut v = serde_json::to_value(&d)?;
+        v["published"] = serde_json::json!(
+            PUBLISHED
+                .iter()
+                .map(|(w, e)| serde_json::json!({"what": w, "relative_error_percent": e}))
+                .collect::<Vec<_>>()
+        );
+        println!("{v}");
+        return Ok(());
+    }
+    println!(
+        "{}: baseline {} fitted ({} equations): {}",
+        data.display(),
+        d.baseline_model,
+        d.equations,
+        fmt_params(&d.baseline_parameters)
+    );
+    println!(
+        "gap: relative force error {:.2} % on {} ({:.2} % on the fitting record)",
+        d.gap_before_percent,
+        val_path.display(),
+        d.fit_before_percent
+    );
+    println!(
+        "floor: {:.2} % (set by {}): what no element effect removes, the smallest validation error of a memoryless force law fitted on the fitting record",
+        d.floor.floor_percent, d.floor.set_by,
+    );
+    println!(
+        "  best of {} flexible laws: {:.2} % on the validation record, {:.2} % on the fitting record: {}",
+        d.floor.flexible_laws_tried,
+        d.floor.flexible_law_percent,
+        d.floor.flexible_law_fit_percent,
+        d.floor.flexible_law
+    );
+    for s in &d.located.summary {
+        println!("  {s}");
+    }
+    println!(
+        "  {:<20} {:>9} {:>9} {:>9} {:>7} {:>4}  added parameters",
+        "effect", "val %", "fit %", "score %", "t", "sig"
+    );
+    for r in &d.ranked_effects {
+        println!(
+            "  {:<20} {:>9.3} {:>9.3} {:>9.3} {:>7.2} {:>4}  {}",
+            r.effect.name(),
+            r.gap_after_percent,
+            r.fit_percent,
+            r.score_percent,
+            r.shrink_t,
+            if r.significant { "yes" } else { "no" },
+            fmt_params(&r.added_parameters)
+        );
+    }
+    if let Some(top) = d.ranked_effects.first() {
+        println!("  {}", removable_text(&d, top.effect.name()));
+    }
+    match (d.verdict, d.top_effect) {
+        (Verdict::Explained, Some(e)) => println!(
+            "verdict: explained by {}: {:.2} % -> {:.2} %",
+            e.name(),
+            d.gap_before_percent,
+            d.gap_after_percent
+        ),
+        (v, _) => println!(
+            "verdict: {} (best candidate {:.2} % -> {:.2} %)",
+            v.name(),
+            d.gap_before_percent,
+            d.gap_after_percent
+        ),
+    }
+    println!(
+        "published: {}",
+        PUBLISHED
+            .iter()
+            .map(|(w, e)| format!("{e:.2} % ({w})"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}
+
+/// How much of the removable gap (gap - floor) the top candidate removes, against the rule's
+/// thresholds.
+fn removable_text(d: &AxisDiagnosis, top: &str) -> String {
+    let removable = d.gap_before_percent - d.floor.floor_percent;
+    let removed = d.gap_before_percent - d.gap_after_percent;
+    format!(
+        "removable gap (gap - floor) {removable:.2} %-points; {top} removes {removed:.2} of them ({:.0} %); explained needs at least half of them, a shrink above max(10 % of the gap, 0.2) = {:.2} %-points, consistent over the validation record (block t >= {}), and a penalised score below the baseline's",
+        100.0 * removed / removable.max(f64::MIN_POSITIVE),
+        (0.1 * d.gap_before_percent).max(0.2),
+        SHRINK_T_MIN
+    )
+}
+
+fn fmt_params(list: &[ParameterValue]) -> String {
+    list.iter()
+        .map(|p| format!("{} = {:.4}", p.name, p.value))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Length of the readable window of the force trace [s].
+const WINDOW_S: f64 = 5.0;
+/// Bins of the state-plane map (position x velocity).
+const STATE_BINS: (usize, usize) = (16, 16);
+
+/// The index range of the `WINDOW_S` window (in whole seconds) where the baseline's residual
+/// energy is largest.
+fn worst_window(time_s: &[f64], residual: &[f64]) -> std::ops::Range<usize> {
+    let n = time_s.len();
+    if n < 2 {
+        return 0..n;
+    }
+    let dt = (time_s[n - 1] - time_s[0]) / (n - 1) as f64;
+    let width = ((WINDOW_S / dt).round() as usize).clamp(1, n);
+    let step = ((1.0 / dt).round() as usize).max(1);
+    let energy = |start: usize| {
+        residual[start..start + width]
+            .iter()
+            .map(|r| r * r)
+            .sum::<f64>()
+    };
+    let best = (0..=n - width)
+        .step_by(step)
+        .max_by(|a, b| energy(*a).total_cmp(&energy(*b)))
+        .unwrap_or(0);
+    best..best + width
+}
+
+/// The HTML report: measured against predicted force on the validation record (a window and
+/// the whole), the residual against velocity and over the state plane, before and after the
+/// top candidate.
+fn write_report(dir: &Path, d: &AxisDiagnosis, fit: &Path, val: &Path) -> anyhow::Result<()> {
+    let tr = &d.traces;
+    let top = d.ranked_effects.first();
+    let top_name = top.map_or("", |r| r.effect.name());
+    let after_label = format!("with {top_name}");
+    let residual = |model: &[f64]| -> Vec<f64> {
+        tr.measured_n
+            .iter()
+            .zip(model)
+            .map(|(m, p)| m - p)
+            .collect()
+    };
+    let before = residual(&tr.baseline_n);
+    let after = tr.top_n.as_deref().map(residual);
+    write_dir_atomically(dir, |tmp| {
+        let mut figures: Vec<(&str, String)> = Vec::new();
+        let mut lines = vec![
+            Line {
+                label: "measured",
+                values: &tr.measured_n,
+                color: BLACK,
+            },
+            Line {
+                label: &d.baseline_model,
+                values: &tr.baseline_n,
+                color: BASELINE_COLOR,
+            },
+        ];
+        if let Some(t) = &tr.top_n {
+            lines.push(Line {
+                label: &after_label,
+                values: t,
+                color: AFTER_COLOR,
+            });
+        }
+        let errors = format!(
+            "{:.2} % {}{}",
+            d.gap_before_percent,
+            d.baseline_model,
+            top.map_or(String::new(), |r| format!(
+                ", {:.2} % {after_label}",
+                r.gap_after_percent
+            ))
+        );
+        let w = worst_window(&tr.time_s, &before);
+        let window: Vec<Line> = lines
+            .iter()
+            .map(|l| Line {
+                label: l.label,
+                values: &l.values[w.clone()],
+                color: l.color,
+            })
+            .collect();
+        write_atomically(
+            &tmp.join("force_window.svg"),
+            &lines_svg(
+                &format!(
+                    "validation record, the {WINDOW_S:.0} s with the largest baseline residual"
+                ),
+                &tr.time_s[w.clone()],
+                "time [s]",
+                "force [N]",
+                &window,
+            )?,
+        )?;
+        figures.push((
+            "force_window.svg",
+            format!("Measured against predicted force, {WINDOW_S:.0} s of the validation record where the baseline is worst (relative force error over the whole record: {errors})"),
+        ));
+        write_atomically(
+            &tmp.join("force_whole.svg"),
+            &lines_svg(
+                "validation record, whole",
+                &tr.time_s,
+                "time [s]",
+                "force [N]",
+                &lines,
+            )?,
+        )?;
+        figures.push((
+            "force_whole.svg",
+            "Measured against predicted force, the whole validation record".into(),
+        ));
+        let mut panels = vec![ScatterPanel {
+            caption: format!("{} ({:.2} %)", d.baseline_model, d.gap_before_percent),
+            x: &tr.velocity_mps,
+            y: &before,
+            color: BASELINE_COLOR,
+        }];
+        if let (Some(a), Some(r)) = (&after, top) {
+            panels.push(ScatterPanel {
+                caption: format!("{after_label} ({:.2} %)", r.gap_after_percent),
+                x: &tr.velocity_mps,
+                y: a,
+                color: AFTER_COLOR,
+            });
+        }
+        write_atomically(
+            &tmp.join("residual_velocity.svg"),
+            &scatter_panels_svg(
+                "residual force (measured - model) against velocity, validation record",
+                "velocity q' [m/s]",
+                "residual force [N]",
+                &panels,
+            )?,
+        )?;
+        figures.push((
+            "residual_velocity.svg",
+            "Residual against velocity, before and after the top candidate".into(),
+        ));
+        let (nq, nv) = STATE_BINS;
+        let mut maps = vec![(
+            d.baseline_model.clone(),
+            BinnedMean::new(&tr.position_m, &tr.velocity_mps, &before, nq, nv),
+        )];
+        if let Some(a) = &after {
+            maps.push((
+                after_label.clone(),
+                BinnedMean::new(&tr.position_m, &tr.velocity_mps, a, nq, nv),
+            ));
+        }
+        write_atomically(
+            &tmp.join("state_plane.svg"),
+            &heatmap_panels_svg(
+                "mean residual force over the state plane, validation record",
+                "position q [m]",
+                "velocity q' [m/s]",
+                "N",
+                &maps,
+            )?,
+        )?;
+        figures.push((
+            "state_plane.svg",
+            format!("Mean residual force in {nq} x {nv} bins of position and velocity, before and after the top candidate"),
+        ));
+        write_atomically(&tmp.join("index.html"), &html(d, fit, val, &figures))
+    })
+}
+
+fn html(d: &AxisDiagnosis, fit: &Path, val: &Path, figures: &[(&str, String)]) -> String {
+    let mut h = String::new();
+    h.push_str("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>forcemap gap diagnosis (time domain)</title>\n<style>body{font-family:sans-serif;max-width:1250px;margin:auto}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td:first-child{text-align:left}</style></head><body>\n");
+    h.push_str(&format!(
+        "<h1>Gap diagnosis (time domain): baseline {}</h1>\n<p>Fitted on {} ({} equations), scored on {} ({} equations); relative force error of the decimated force.</p>\n<p>Baseline parameters: {}</p>\n",
+        html_escape(&d.baseline_model),
+        html_escape(&fit.display().to_string()),
+        d.equations,
+        html_escape(&val.display().to_string()),
+        d.validation_equations,
+        html_escape(&fmt_params(&d.baseline_parameters))
+    ));
+    let verdict = match (d.verdict, d.top_effect) {
+        (Verdict::Explained, Some(e)) => format!("explained by <b>{}</b>", e.name()),
+        (v, _) => v.name().to_string(),
+    };
+    h.push_str(&format!(
+        "<h2>Verdict: {verdict}</h2>\n<p>Relative force error on the validation record: {:.2} % with the baseline, {:.2} % with the top candidate ({:.2} % and {} on the fitting record). Floor {:.2} % (set by {}): {}.</p>\n<p>Best flexible law: {} ({:.2} % on the validation record, {:.2} % on the fitting record; best of {}).</p>\n",
+        d.gap_before_percent,
+        d.gap_after_percent,
+        d.fit_before_percent,
+        d.ranked_effects
+            .first()
+            .map_or("-".into(), |r| format!("{:.2} %", r.fit_percent)),
+        d.floor.floor_percent,
+        html_escape(&d.floor.set_by),
+        html_escape(&d.floor.what),
+        html_escape(&d.floor.flexible_law),
+        d.floor.flexible_law_percent,
+        d.floor.flexible_law_fit_percent,
+        d.floor.flexible_laws_tried,
+    ));
+    if let Some(top) = d.ranked_effects.first() {
+        h.push_str(&format!(
+            "<p>{}.</p>\n",
+            html_escape(&removable_text(d, top.effect.name()))
+        ));
+    }
+    h.push_str(&format!(
+        "<p>Published (EMPS): {}.</p>\n",
+        PUBLISHED
+            .iter()
+            .map(|(w, e)| format!("{e:.2} % ({})", html_escape(w)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    h.push_str("<h2>Where</h2>\n<ul>\n");
+    for s in &d.located.summary {
+        h.push_str(&format!("<li>{}</li>\n", html_escape(s)));
+    }
+    h.push_str("</ul>\n<h2>Candidates</h2>\n<table><tr><th>effect</th><th>validation [%]</th><th>fit [%]</th><th>score [%]</th><th>t</th><th>significant</th><th>added</th><th>signature</th></tr>\n");
+    for r in &d.ranked_effects {
+        h.push_str(&format!(
+            "<tr><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.2}</td><td>{}</td><td>{}</td><td style=\"text-align:left\">{}</td></tr>\n",
+            r.effect.name(),
+            r.gap_after_percent,
+            r.fit_percent,
+            r.score_percent,
+            r.shrink_t,
+            if r.significant { "yes" } else { "no" },
+            html_escape(&fmt_params(&r.added_parameters)),
+            html_escape(&r.signature)
+        ));
+    }
+    h.push_str("</table>\n");
+    for (file, caption) in figures {
+        h.push_str(&format!(
+            "<h3>{}</h3>\n<img src=\"{file}\" alt=\"{}\">\n",
+            html_escape(caption),
+            html_escape(caption)
+        ));
+    }
+    h.push_str(&format!(
+        "<p>Rule: {}</p>\n</body></html>\n",
+        html_escape(&d.rule)
+    ));
+    h
+}

@@ -1,0 +1,75 @@
+//! `forcemap import csv|emps FILE --out BAG`.
+
+use anyhow::bail;
+
+use crate::cli::{ImportArgs, ImportCommand};
+use forcemap_io::csv_export::read_csv;
+use forcemap_io::params::read_params;
+use forcemap_io::rig_bag::{DEFAULT_RUN_START, write_rig_bag};
+
+pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
+    match &args.command {
+        ImportCommand::Csv {
+            file,
+            out,
+            mass_kg,
+            params,
+        } => {
+            let csv = read_csv(file)?;
+            if !csv.ignored_columns.is_empty() {
+                eprintln!(
+                    "notice: {}: ignored columns not in the contract: {}",
+                    file.display(),
+                    csv.ignored_columns.join(", ")
+                );
+            }
+            let from_params = match params {
+                Some(p) => read_params(p, None)?.opt_f64("mass_kg")?,
+                None => None,
+            };
+            let mass = mass_kg.or(from_params);
+            if let Some(m) = mass.filter(|m| !(*m > 0.0 && m.is_finite())) {
+                bail!("mass_kg = {m}: the rig's mass must be a positive number of kg");
+            }
+            let parameters: Vec<(&str, f64)> = mass.map(|m| ("mass_kg", m)).into_iter().collect();
+            let dir = write_rig_bag(
+                out,
+                &csv.records,
+                csv.profile.driven_channel(),
+                &parameters,
+                DEFAULT_RUN_START,
+            )?;
+            eprintln!(
+                "wrote {} ({} records, {} samples{})",
+                dir.display(),
+                csv.records.len(),
+                csv.records.iter().map(|r| r.len()).sum::<usize>(),
+                if parameters.is_empty() {
+                    ", no rig constants: give --mass-kg to store them"
+                } else {
+                    ""
+                }
+            );
+            Ok(())
+        }
+        ImportCommand::Emps { file, out } => {
+            let s = forcemap_io::emps::import_emps(file, out)?;
+            eprintln!(
+                "wrote {} ({} samples at {:.1} Hz over {:.2} s; gains gtau {} N/V, kp {}, kv {} on /emps/parameters{})",
+                s.bag.display(),
+                s.samples,
+                s.sample_rate_hz,
+                s.duration_s,
+                s.gtau,
+                s.kp,
+                s.kv,
+                if s.extra_variables.is_empty() {
+                    String::new()
+                } else {
+                    format!(", with {}", s.extra_variables.join(", "))
+                }
+            );
+            Ok(())
+        }
+    }
+}

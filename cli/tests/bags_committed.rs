@@ -1,0 +1,164 @@
+//! The committed sample bags in bags/: regenerating them gives identical messages, independent
+//! readers decode them, and identification on them finds the truth of their simulation.
+
+mod common;
+
+use common::forcemap;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use forcemap_io::bag::BagReader;
+use forcemap_msgs::RosMessage;
+use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
+use forcemap_msgs::msg::{ExcitationState, RigSample};
+
+const BAGS: [&str; 3] = ["rig_40db", "three_dof_case_i", "three_dof_case_ii"];
+
+fn bags_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../bags")
+}
+
+#[test]
+fn regenerating_the_committed_bags_gives_identical_messages() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = Command::new("bash")
+        .arg(bags_dir().join("regenerate.sh"))
+        .arg(tmp.path())
+        .env("FORCEMAP", env!("CARGO_BIN_EXE_forcemap"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for name in BAGS {
+        let committed = BagReader::open(bags_dir().join(name)).unwrap();
+        let fresh = BagReader::open(tmp.path().join(name)).unwrap();
+        let a: Vec<_> = committed.messages().unwrap().map(|m| m.unwrap()).collect();
+        let b: Vec<_> = fresh.messages().unwrap().map(|m| m.unwrap()).collect();
+        assert_eq!(a.len(), b.len(), "{name}: message count");
+        for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+            assert!(
+                x.topic.name == y.topic.name && x.log_time == y.log_time && x.data == y.data,
+                "{name}: message {i} differs ({} at {})",
+                x.topic.name,
+                x.log_time
+            );
+        }
+    }
+}
+
+/// The numeric top-level fields of each message, as the Python check compares them.
+fn expected_fields(bag: &Path) -> serde_json::Value {
+    let reader = BagReader::open(bag).unwrap();
+    let mut out = Vec::new();
+    for m in reader.messages().unwrap() {
+        let m = m.unwrap();
+        let mut f = serde_json::Map::new();
+        match m.topic.type_name.as_str() {
+            t if t == RigSample::TYPE_NAME => {
+                let s = RigSample::from_cdr(&m.data).unwrap();
+                f.insert("step".into(), s.step.into());
+                f.insert("present_channels".into(), s.present_channels.into());
+                for c in s.present() {
+                    f.insert(c.name().into(), s.channel(c).unwrap().into());
+                }
+            }
+            t if t == ExcitationState::TYPE_NAME => {
+                let s = ExcitationState::from_cdr(&m.data).unwrap();
+                f.insert("step".into(), s.step.into());
+                f.insert("kind".into(), s.kind.into());
+                f.insert("frequency_hz".into(), s.frequency_hz.into());
+                f.insert("amplitude".into(), s.amplitude.into());
+            }
+            t if t == DiagnosticStatus::TYPE_NAME => {
+                let s = DiagnosticStatus::from_cdr(&m.data).unwrap();
+                f.insert("level".into(), s.level.into());
+            }
+            other => panic!("unexpected type {other}"),
+        }
+        out.push(serde_json::json!({"topic": m.topic.name, "log_time": m.log_time, "fields": f}));
+    }
+    serde_json::Value::Array(out)
+}
+
+#[test]
+fn python_readers_decode_every_committed_bag() {
+    for name in BAGS {
+        let bag = bags_dir().join(name);
+        common::python_bag_check(&bag, &expected_fields(&bag));
+    }
+}
+
+#[test]
+fn identification_on_the_committed_bags_finds_their_truth() {
+    // the rig bag carries its mass on /rig/parameters: no --mass-kg needed
+    let theta = common::identified_values(&bags_dir().join("rig_40db"), &["--model", "coulomb"]);
+    for (v, t) in theta.iter().zip([6380.0, 184.0, 12.3]) {
+        assert!((v / t - 1.0).abs() < 0.02, "rig: {theta:?}");
+    }
+    let params =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch_configs/three_dof.params.yaml");
+    for (bag, tol) in [("three_dof_case_i", 0.02), ("three_dof_case_ii", 0.005)] {
+        let theta = common::identified_values(
+            &bags_dir().join(bag),
+            &[
+                "--model",
+                "coulomb-cubic",
+                "--params",
+                params.to_str().unwrap(),
+            ],
+        );
+        for (v, t) in theta.iter().zip([8000.0, 20.0, 5.0, 3e8]) {
+            assert!((v / t - 1.0).abs() < tol, "{bag}: {theta:?}");
+        }
+    }
+}
+
+#[test]
+fn bag_info_lists_the_steps() {
+    let path = bags_dir().join("rig_40db");
+    let o = forcemap(&["bag", "info", path.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let steps = v["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 12);
+    assert_eq!(steps[0]["kind"], "sine");
+    assert_eq!(steps[0]["frequency_hz"], 1.6);
+    assert_eq!(steps[9]["frequency_hz"], 3.4);
+    assert_eq!(steps[10]["kind"], "random");
+    assert_eq!(steps[0]["driven_channel"], "base_displacement_m");
+    // 1300 samples at 100 Hz per step
+    let dt =
+        steps[1]["start_time_s"].as_f64().unwrap() - steps[0]["start_time_s"].as_f64().unwrap();
+    assert!((dt - 13.0).abs() < 1e-6, "{dt}");
+}
+
+#[test]
+fn a_bag_without_the_samples_topic_or_with_another_type_is_refused_by_name() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("other");
+    let mut w = forcemap_io::bag::BagWriter::create(&out).unwrap();
+    let id = w
+        .add_topic(&forcemap_io::bag::TopicSpec::new(
+            "/rig/samples",
+            "std_msgs/msg/Float64",
+            "float64 data\n",
+        ))
+        .unwrap();
+    w.write(id, 1, 1, &[0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+        .unwrap();
+    w.finish().unwrap();
+    let o = forcemap(&[
+        "identify",
+        out.to_str().unwrap(),
+        "--model",
+        "linear",
+        "--mass-kg",
+        "36",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("/rig/samples") && e.contains("std_msgs/msg/Float64") && e.contains("RigSample"),
+        "{e}"
+    );
+}

@@ -1,0 +1,15 @@
+//! forcemap_io: the file formats and data plumbing of forcemap, with no ROS runtime and no
+//! async: rosbag2 MCAP bags, test-bench CSV exports, the EMPS MAT import, ROS 2 params files,
+//! the assembly of samples into step records, topic names and atomic writes. The nodes and the
+//! command build on it; it builds on `forcemap_math` and `forcemap_msgs` only.
+pub mod atomic;
+pub mod bag;
+pub mod csv_export;
+pub mod distro;
+pub mod emps;
+pub mod input;
+pub mod params;
+pub mod rig_bag;
+pub mod rig_constants;
+pub mod steps;
+pub mod topics;

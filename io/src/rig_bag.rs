@@ -1,0 +1,299 @@
+//! A rig run as a rosbag2 bag: the sensor node's topics, written from records and read back
+//! into records.
+//!
+//! Topics (under the rig's namespace, `/rig` by default):
+//! - `/rig/samples` (`forcemap_msgs/msg/RigSample`): one message per sample, stamped with the
+//!   sample time;
+//! - `/rig/excitation` (`forcemap_msgs/msg/ExcitationState`, transient local): one message per
+//!   step, when the step starts;
+//! - `/rig/parameters` (`diagnostic_msgs/msg/DiagnosticStatus`, transient local, optional): the
+//!   rig constants (e.g. `mass_kg`) as key/value pairs, so that a bag carries what its analysis
+//!   needs.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use forcemap_math::record::{Channel, Record};
+use forcemap_msgs::RosMessage;
+use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
+use forcemap_msgs::msg::{ExcitationState, RigSample};
+use forcemap_msgs::std_msgs::Header;
+
+use crate::bag::{BagError, BagReader, BagWriter, QosProfile, TopicSpec};
+use crate::steps::{StepAssembler, StepError, StepPlan};
+use crate::topics::{RIG_EXCITATION, RIG_PARAMETERS, RIG_SAMPLES};
+
+/// Name of the parameters status message.
+pub const PARAMETERS_NAME: &str = "rig parameters";
+/// Time of t = 0 of a simulated or imported run unless told otherwise: 2026-01-01T00:00:00Z.
+/// Fixed, so that regenerating a bag gives identical messages.
+pub const DEFAULT_RUN_START: Time = Time {
+    sec: 1_767_225_600,
+    nanosec: 0,
+};
+
+#[derive(Debug, thiserror::Error)]
+pub enum RigBagError {
+    #[error(transparent)]
+    Bag(#[from] BagError),
+    #[error("{path}: topic {topic} holds {found}, expected {expected}")]
+    WrongType {
+        path: String,
+        topic: String,
+        found: String,
+        expected: String,
+    },
+    #[error(
+        "{path}: topic {topic}: the {type_name} schema in the bag does not match this forcemap's definition ({detail})"
+    )]
+    SchemaMismatch {
+        path: String,
+        topic: String,
+        type_name: String,
+        detail: String,
+    },
+    #[error("{path}: topic {topic}, message {index}: {problem}")]
+    Message {
+        path: String,
+        topic: String,
+        index: usize,
+        problem: String,
+    },
+    #[error("{path}: step {step}: {problem}")]
+    Step {
+        path: String,
+        step: usize,
+        problem: String,
+    },
+    #[error("{path}: no samples on {topic}")]
+    Empty { path: String, topic: String },
+}
+
+/// The field lines ("type name") of the top-level section of a ros2msg schema, without
+/// comments and constants: what must agree for the bytes to decode as the type.
+fn schema_fields(schema: &str) -> Vec<String> {
+    schema
+        .split(&"=".repeat(80))
+        .next()
+        .unwrap_or("")
+        .lines()
+        .map(|l| l.split('#').next().unwrap_or("").trim())
+        .filter(|l| !l.is_empty() && !l.contains('='))
+        .map(|l| l.split_whitespace().collect::<Vec<_>>().join(" "))
+        .collect()
+}
+
+fn check_topic<M: RosMessage>(
+    reader: &BagReader,
+    path: &str,
+    topic: &str,
+) -> Result<(), RigBagError> {
+    let info = reader.topic(topic)?;
+    if info.type_name != M::TYPE_NAME {
+        return Err(RigBagError::WrongType {
+            path: path.into(),
+            topic: topic.into(),
+            found: info.type_name.clone(),
+            expected: M::TYPE_NAME.into(),
+        });
+    }
+    let (ours, theirs) = (
+        schema_fields(&M::schema()),
+        schema_fields(&info.schema_text),
+    );
+    if ours != theirs {
+        let detail = match ours.iter().zip(&theirs).find(|(a, b)| a != b) {
+            Some((a, b)) => format!("field '{b}' where '{a}' is expected"),
+            None => format!("{} fields where {} are expected", theirs.len(), ours.len()),
+        };
+        return Err(RigBagError::SchemaMismatch {
+            path: path.into(),
+            topic: topic.into(),
+            type_name: M::TYPE_NAME.into(),
+            detail,
+        });
+    }
+    Ok(())
+}
+
+fn nanos(t: Time) -> u64 {
+    t.as_nanos().max(0) as u64
+}
+
+/// Writes `records` (and the rig constants `parameters`, if any) as a bag at `out`
+/// (atomically). `driven` is the channel whose amplitude the excitation gives.
+pub fn write_rig_bag(
+    out: &Path,
+    records: &[Record],
+    driven: Channel,
+    parameters: &[(&str, f64)],
+    run_start: Time,
+) -> Result<PathBuf, RigBagError> {
+    let mut w = BagWriter::create(out)?;
+    let latched = QosProfile {
+        depth: 1,
+        reliable: true,
+        transient_local: true,
+    };
+    let mut spec = TopicSpec::new(RIG_SAMPLES, RigSample::TYPE_NAME, &RigSample::schema());
+    spec.offered_qos_profiles = QosProfile {
+        depth: 1000,
+        reliable: true,
+        transient_local: false,
+    }
+    .to_yaml_string();
+    let samples = w.add_topic(&spec)?;
+    let mut spec = TopicSpec::new(
+        RIG_EXCITATION,
+        ExcitationState::TYPE_NAME,
+        &ExcitationState::schema(),
+    );
+    spec.offered_qos_profiles = latched.to_yaml_string();
+    let excitation = w.add_topic(&spec)?;
+    if !parameters.is_empty() {
+        let mut spec = TopicSpec::new(
+            RIG_PARAMETERS,
+            DiagnosticStatus::TYPE_NAME,
+            &DiagnosticStatus::schema(),
+        );
+        spec.offered_qos_profiles = latched.to_yaml_string();
+        let id = w.add_topic(&spec)?;
+        let mut status = DiagnosticStatus::new(
+            DiagnosticStatus::OK,
+            PARAMETERS_NAME,
+            "rig constants",
+            "rig",
+        );
+        for (k, v) in parameters {
+            status = status.with_value(*k, v);
+        }
+        w.write(id, nanos(run_start), nanos(run_start), &status.to_cdr())?;
+    }
+    for r in records {
+        let start = run_start.add_secs_f64(r.start_time_s);
+        let state = ExcitationState::from_excitation(
+            Header::new(start, "rig"),
+            r.step,
+            start,
+            &r.excitation,
+            driven,
+            r.len(),
+        );
+        w.write(excitation, nanos(start), nanos(start), &state.to_cdr())?;
+        for i in 0..r.len() {
+            let stamp = run_start.add_secs_f64(r.time_s(i));
+            let msg = RigSample::from_record(r, i, Header::new(stamp, "rig"));
+            w.write(samples, nanos(stamp), nanos(stamp), &msg.to_cdr())?;
+        }
+    }
+    Ok(w.finish()?)
+}
+
+/// A rig run read from a bag.
+#[derive(Debug, Clone)]
+pub struct RigBag {
+    pub records: Vec<Record>,
+    /// Rig constants found on `/rig/parameters` (numeric values only).
+    pub parameters: BTreeMap<String, f64>,
+    /// Why a last, unfinished step was left out (a recording stopped in the middle of it).
+    pub left_out: Option<String>,
+}
+
+/// Reads the records of a rig run from a bag directory or a bare .mcap.
+pub fn read_rig_bag(path: &Path) -> Result<RigBag, RigBagError> {
+    let p = path.display().to_string();
+    let reader = BagReader::open(path)?;
+    check_topic::<RigSample>(&reader, &p, RIG_SAMPLES)?;
+    check_topic::<ExcitationState>(&reader, &p, RIG_EXCITATION)?;
+    let decode_err = |topic: &str, index: usize, e: &dyn std::fmt::Display| RigBagError::Message {
+        path: p.clone(),
+        topic: topic.into(),
+        index,
+        problem: e.to_string(),
+    };
+
+    let mut parameters = BTreeMap::new();
+    if reader.topic(RIG_PARAMETERS).is_ok() {
+        check_topic::<DiagnosticStatus>(&reader, &p, RIG_PARAMETERS)?;
+        for (i, m) in reader.messages_on(&[RIG_PARAMETERS])?.enumerate() {
+            let m = m?;
+            let s = DiagnosticStatus::from_cdr(&m.data)
+                .map_err(|e| decode_err(RIG_PARAMETERS, i, &e))?;
+            for kv in s.values {
+                if let Ok(v) = kv.value.parse::<f64>() {
+                    parameters.insert(kv.key, v);
+                }
+            }
+        }
+    }
+
+    let mut plans: BTreeMap<u32, StepPlan> = BTreeMap::new();
+    let mut run_start: Option<Time> = None;
+    for (i, m) in reader.messages_on(&[RIG_EXCITATION])?.enumerate() {
+        let m = m?;
+        let s =
+            ExcitationState::from_cdr(&m.data).map_err(|e| decode_err(RIG_EXCITATION, i, &e))?;
+        // IDLE (the run ended) starts no step but its time is not the run's start either.
+        if let Some(plan) =
+            StepPlan::from_state(&s).map_err(|e| decode_err(RIG_EXCITATION, i, &e))?
+        {
+            run_start = Some(run_start.map_or(s.start_time, |t: Time| t.min(s.start_time)));
+            plans.insert(s.step, plan);
+        }
+    }
+
+    // Samples, grouped by step in time order.
+    let mut assembler = StepAssembler::new();
+    if let Some(t) = run_start {
+        assembler.set_origin(t);
+    }
+    let mut records: Vec<Record> = Vec::new();
+    let step_err = |e: StepError| RigBagError::Step {
+        path: p.clone(),
+        step: e.step,
+        problem: e.problem,
+    };
+    for (i, m) in reader.messages_on(&[RIG_SAMPLES])?.enumerate() {
+        let m = m?;
+        let s = RigSample::from_cdr(&m.data).map_err(|e| decode_err(RIG_SAMPLES, i, &e))?;
+        for done in assembler.push(&s, plans.get(&s.step)) {
+            records.push(done.map_err(step_err)?);
+        }
+    }
+    let mut left_out = None;
+    match assembler.finish() {
+        Some(Ok(r)) => records.push(r),
+        // The recording stopped in the middle of the last step: keep the complete ones.
+        Some(Err(e)) if e.truncated && !records.is_empty() => {
+            left_out = Some(format!("step {} left out: {}", e.step, e.problem));
+        }
+        Some(Err(e)) => return Err(step_err(e)),
+        None => {}
+    }
+    if records.is_empty() {
+        return Err(RigBagError::Empty {
+            path: p,
+            topic: RIG_SAMPLES.into(),
+        });
+    }
+    Ok(RigBag {
+        records,
+        parameters,
+        left_out,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schema_fields_ignore_comments_constants_and_dependencies() {
+        let s = format!(
+            "# c\nuint8 A=1\nstd_msgs/Header header # h\nfloat64  x\n{}\nMSG: std_msgs/Header\nstring frame_id\n",
+            "=".repeat(80)
+        );
+        assert_eq!(schema_fields(&s), ["std_msgs/Header header", "float64 x"]);
+    }
+}
