@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use forcemap_math::identify::{Method, Weighting};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -136,19 +137,6 @@ pub struct ReproduceArgs {
     pub tables: Vec<u8>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum MethodArg {
-    /// The paper's FD-FSM, first harmonic only.
-    Fd,
-    /// All harmonics, slip-phase aware (forcemap's improved method).
-    FdMulti,
-    /// Time-domain FSM (needs mass acceleration; velocity integrated from acceleration).
-    Td,
-    /// fd-multi refined by output error against the exact simulation (3-DOF drive-point
-    /// setups with sgn friction; seconds per identification).
-    OutputError,
-}
-
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {
     /// A bag directory, a bare .mcap, or a test-bench CSV export (see the README).
@@ -156,11 +144,18 @@ pub struct IdentifyArgs {
     /// Model name (see `forcemap models`).
     #[arg(long)]
     pub model: String,
-    #[arg(long, value_enum, default_value_t = MethodArg::FdMulti)]
-    pub method: MethodArg,
-    /// Time points per step for --method td ("all" for every settled sample).
-    #[arg(long, default_value = "20")]
-    pub td_points: String,
+    /// fd (the paper's FD-FSM, first harmonic only), fd-multi (all harmonics, slip-phase
+    /// aware), td (time-domain FSM, 20 points per step; td-N, td-all), output-error (fd-multi
+    /// refined against the exact simulation; 3-DOF drive-point setups with sgn friction).
+    #[arg(long, default_value = "fd-multi")]
+    pub method: Method,
+    /// Time points per step for --method td ("all" for every settled sample; default 20).
+    #[arg(long)]
+    pub td_points: Option<String>,
+    /// How fd-multi weights its equations: noise (each harmonic by its measured noise) or
+    /// uniform.
+    #[arg(long, default_value = "noise")]
+    pub weighting: Weighting,
     /// Mass of the rig [kg] (overrides the params file).
     #[arg(long)]
     pub mass_kg: Option<f64>,

@@ -8,8 +8,9 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::forcemap;
-use forcemap_io::csv_export::{CsvProfile, write_csv};
+use forcemap_io::csv_export::write_csv;
 use forcemap_io::rig_bag::read_rig_bag;
+use forcemap_math::recipe::SetupKind;
 use forcemap_math::sim::{
     self, AsymmetricDamping, BoucWen, FreePlay, RigRun, SimSpec, TruthElement,
 };
@@ -103,7 +104,7 @@ fn the_flags_plant_exactly_the_truth_elements_terms() {
     write_csv(
         &truth,
         &sim::simulate(&SimSpec::Rig(run)).unwrap(),
-        CsvProfile::Rig,
+        SetupKind::BaseExcited,
     )
     .unwrap();
     let cli_text = std::fs::read_to_string(&cli).unwrap();

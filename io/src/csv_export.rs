@@ -6,9 +6,9 @@
 //!
 //! * Always required: `time_s`, `step` (record index 0, 1, 2, ...) and `frequency_hz`
 //!   (excitation frequency of a stepped-sine step; `0` or empty for random excitation).
-//! * [`CsvProfile::Rig`] (base-excited test rig) additionally requires
+//! * [`SetupKind::BaseExcited`] (base-excited test rig) additionally requires
 //!   `base_displacement_m`, `relative_displacement_m`, `mass_acceleration_mps2`.
-//! * [`CsvProfile::DrivePoint`] (force-driven structure, the 3-DOF example) additionally
+//! * [`SetupKind::DrivePoint`] (force-driven structure, the 3-DOF example) additionally
 //!   requires `relative_displacement_m`, `drive_point_displacement_m`, `force_n`.
 //! * Any other [`Channel::name`] column is optional and read when present. Every cell of a
 //!   present channel column must hold a finite number.
@@ -35,12 +35,12 @@
 //! formatting), atomically (temporary file in the same directory, renamed at the end).
 
 use std::collections::HashMap;
-use std::fmt;
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufWriter};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::{Channel, Excitation, Record};
 
 /// Column names of the fixed (non-channel) columns.
@@ -51,60 +51,12 @@ pub const FREQUENCY_COLUMN: &str = "frequency_hz";
 /// Relative tolerance on the sampling interval (uniformity and consistency across steps).
 pub const SAMPLE_INTERVAL_REL_TOL: f64 = 1e-6;
 
-/// Which kind of test the export describes; decides the required columns and the driven
-/// channel.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum CsvProfile {
-    /// Base-excited test rig: driven by the base displacement.
-    Rig,
-    /// Force-driven structure (3-DOF example): driven by the force on the drive point.
-    DrivePoint,
-}
-
-impl CsvProfile {
-    /// The channels this profile requires (in addition to `time_s`, `step`, `frequency_hz`).
-    pub fn required_channels(self) -> [Channel; 3] {
-        match self {
-            CsvProfile::Rig => [
-                Channel::BaseDisplacementM,
-                Channel::RelativeDisplacementM,
-                Channel::MassAccelerationMps2,
-            ],
-            CsvProfile::DrivePoint => [
-                Channel::RelativeDisplacementM,
-                Channel::DrivePointDisplacementM,
-                Channel::ForceN,
-            ],
-        }
-    }
-
-    /// All required column names, fixed columns first.
-    pub fn required_columns(self) -> Vec<&'static str> {
-        let mut v = vec![TIME_COLUMN, STEP_COLUMN, FREQUENCY_COLUMN];
-        v.extend(self.required_channels().iter().map(|c| c.name()));
-        v
-    }
-
-    /// The channel whose amplitude (sine) or RMS (random) is the excitation level.
-    pub fn driven_channel(self) -> Channel {
-        match self {
-            CsvProfile::Rig => Channel::BaseDisplacementM,
-            CsvProfile::DrivePoint => Channel::ForceN,
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            CsvProfile::Rig => "rig",
-            CsvProfile::DrivePoint => "drive-point",
-        }
-    }
-}
-
-impl fmt::Display for CsvProfile {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
+/// The columns an export of `kind` requires, fixed columns first. Which kind of test an
+/// export describes (and so its driven channel) is `SetupKind`'s rule, from its channels.
+pub fn required_columns(kind: SetupKind) -> Vec<&'static str> {
+    let mut v = vec![TIME_COLUMN, STEP_COLUMN, FREQUENCY_COLUMN];
+    v.extend(kind.required_channels().iter().map(|c| c.name()));
+    v
 }
 
 /// The result of [`read_csv`].
@@ -115,7 +67,7 @@ pub struct CsvImport {
     /// Header names that are not part of the contract and were ignored (header order).
     /// The caller decides whether and how to tell the user.
     pub ignored_columns: Vec<String>,
-    pub profile: CsvProfile,
+    pub kind: SetupKind,
 }
 
 /// Errors of [`read_csv`] and [`write_csv`]. Line numbers are 1-based lines of the CSV file,
@@ -147,15 +99,15 @@ pub enum CsvError {
         path.display(),
         missing.join(", "),
         match profile { Some(p) => format!(" for the {p} profile"), None => String::new() },
-        CsvProfile::Rig.required_columns().join(", "),
+        required_columns(SetupKind::BaseExcited).join(", "),
         fmt_missing(missing_rig),
-        CsvProfile::DrivePoint.required_columns().join(", "),
+        required_columns(SetupKind::DrivePoint).join(", "),
         fmt_missing(missing_drive_point),
     )]
     MissingColumns {
         path: PathBuf,
         /// The profile chosen from the header, if any.
-        profile: Option<CsvProfile>,
+        profile: Option<SetupKind>,
         /// Missing columns of the chosen profile, or of both profiles (union) if none.
         missing: Vec<String>,
         missing_rig: Vec<String>,
@@ -346,27 +298,26 @@ pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, C
             });
         }
     }
-    let missing_for = |profile: CsvProfile| -> Vec<String> {
-        profile
-            .required_columns()
+    let missing_for = |profile: SetupKind| -> Vec<String> {
+        required_columns(profile)
             .into_iter()
             .filter(|c| !index.contains_key(c))
             .map(str::to_string)
             .collect()
     };
-    let missing_rig = missing_for(CsvProfile::Rig);
-    let missing_dp = missing_for(CsvProfile::DrivePoint);
+    let missing_rig = missing_for(SetupKind::BaseExcited);
+    let missing_dp = missing_for(SetupKind::DrivePoint);
     let has = |c: Channel| index.contains_key(c.name());
     let profile = if has(Channel::BaseDisplacementM) {
-        Some(CsvProfile::Rig)
+        Some(SetupKind::BaseExcited)
     } else if has(Channel::ForceN) && has(Channel::DrivePointDisplacementM) {
-        Some(CsvProfile::DrivePoint)
+        Some(SetupKind::DrivePoint)
     } else {
         None
     };
     let missing = match profile {
-        Some(CsvProfile::Rig) => missing_rig.clone(),
-        Some(CsvProfile::DrivePoint) => missing_dp.clone(),
+        Some(SetupKind::BaseExcited) => missing_rig.clone(),
+        Some(SetupKind::DrivePoint) => missing_dp.clone(),
         None => {
             let mut all = missing_rig.clone();
             all.extend(
@@ -580,7 +531,7 @@ pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, C
     Ok(CsvImport {
         records,
         ignored_columns,
-        profile,
+        kind: profile,
     })
 }
 
@@ -777,7 +728,7 @@ fn rms_about_mean(x: &[f64]) -> f64 {
 pub fn write_csv(
     path: impl AsRef<Path>,
     records: &[Record],
-    profile: CsvProfile,
+    profile: SetupKind,
 ) -> Result<(), CsvError> {
     let path = path.as_ref();
     let channels = validate_for_write(path, records, profile)?;
@@ -827,7 +778,7 @@ pub fn write_csv(
 fn validate_for_write(
     path: &Path,
     records: &[Record],
-    profile: CsvProfile,
+    profile: SetupKind,
 ) -> Result<Vec<Channel>, CsvError> {
     let bad = |reason: String| CsvError::InvalidRecords {
         path: path.to_path_buf(),
@@ -849,7 +800,7 @@ fn validate_for_write(
             )));
         }
     }
-    if profile == CsvProfile::DrivePoint && channels.contains(&Channel::BaseDisplacementM) {
+    if profile == SetupKind::DrivePoint && channels.contains(&Channel::BaseDisplacementM) {
         return Err(bad(format!(
             "the records carry '{}', which would make the file read back as the rig profile; \
              write them with the rig profile or drop that channel",

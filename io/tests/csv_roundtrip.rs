@@ -2,7 +2,8 @@
 
 use std::f64::consts::PI;
 
-use forcemap_io::csv_export::{CsvProfile, read_csv, write_csv};
+use forcemap_io::csv_export::{read_csv, write_csv};
+use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::{Channel, Excitation, Record};
 
 fn sine_record(step: usize, f: f64, fs: f64, n: usize, start: f64, channels: &[Channel]) -> Record {
@@ -98,9 +99,9 @@ fn rig_round_trip_is_bit_exact() {
     };
     records.push(random);
 
-    write_csv(&path, &records, CsvProfile::Rig).unwrap();
+    write_csv(&path, &records, SetupKind::BaseExcited).unwrap();
     let import = read_csv(&path).unwrap();
-    assert_eq!(import.profile, CsvProfile::Rig);
+    assert_eq!(import.kind, SetupKind::BaseExcited);
     assert!(import.ignored_columns.is_empty());
     assert_eq!(import.records.len(), records.len());
     for (a, b) in records.iter().zip(&import.records) {
@@ -150,9 +151,9 @@ fn drive_point_round_trip_and_non_integer_rate() {
         sine_record(4, 12.5, fs, 400, 10.0, &ch),
         sine_record(5, 13.0, fs, 400, 10.5, &ch),
     ];
-    write_csv(&path, &records, CsvProfile::DrivePoint).unwrap();
+    write_csv(&path, &records, SetupKind::DrivePoint).unwrap();
     let import = read_csv(&path).unwrap();
-    assert_eq!(import.profile, CsvProfile::DrivePoint);
+    assert_eq!(import.kind, SetupKind::DrivePoint);
     for (a, b) in records.iter().zip(&import.records) {
         assert_same_samples(a, b);
         assert!(
@@ -201,7 +202,7 @@ fn amplitude_and_rms_are_estimated_from_the_driven_channel() {
             },
         ),
     ];
-    write_csv(&path, &records, CsvProfile::Rig).unwrap();
+    write_csv(&path, &records, SetupKind::BaseExcited).unwrap();
     let import = read_csv(&path).unwrap();
     match import.records[0].excitation {
         Excitation::Sine { amplitude, .. } => {
@@ -242,7 +243,7 @@ fn ignored_columns_are_reported_and_daq_style_file_is_read() {
     std::fs::write(&path, text).unwrap();
     let import = read_csv(&path).unwrap();
     assert_eq!(import.ignored_columns, vec!["operator", "temperature_c"]);
-    assert_eq!(import.profile, CsvProfile::Rig);
+    assert_eq!(import.kind, SetupKind::BaseExcited);
     assert_eq!(import.records.len(), 3);
     let steps: Vec<usize> = import.records.iter().map(|r| r.step).collect();
     assert_eq!(steps, vec![3, 4, 5]);
@@ -286,6 +287,6 @@ fn header_with_force_and_drive_point_but_no_base_is_the_drive_point_profile() {
     }
     std::fs::write(&path, text).unwrap();
     let import = read_csv(&path).unwrap();
-    assert_eq!(import.profile, CsvProfile::DrivePoint);
+    assert_eq!(import.kind, SetupKind::DrivePoint);
     assert_eq!(import.records[0].sample_rate_hz, 100.0);
 }

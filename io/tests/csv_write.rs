@@ -2,7 +2,8 @@
 
 use std::path::Path;
 
-use forcemap_io::csv_export::{CsvError, CsvProfile, write_csv};
+use forcemap_io::csv_export::{CsvError, write_csv};
+use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::{Channel, Excitation, Record};
 
 fn record(step: usize, channels: &[Channel]) -> Record {
@@ -44,7 +45,7 @@ fn nan_sample_is_refused_and_nothing_is_written() {
     records[1]
         .channel_mut(Channel::RelativeDisplacementM)
         .unwrap()[7] = f64::NAN;
-    let err = write_csv(&path, &records, CsvProfile::Rig).unwrap_err();
+    let err = write_csv(&path, &records, SetupKind::BaseExcited).unwrap_err();
     assert!(
         matches!(
             err,
@@ -73,11 +74,11 @@ fn nan_sample_is_refused_and_nothing_is_written() {
 fn failed_write_keeps_the_previous_file() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("out.csv");
-    write_csv(&path, &[record(0, &RIG)], CsvProfile::Rig).unwrap();
+    write_csv(&path, &[record(0, &RIG)], SetupKind::BaseExcited).unwrap();
     let before = std::fs::read(&path).unwrap();
     let mut bad = record(0, &RIG);
     bad.channel_mut(Channel::MassAccelerationMps2).unwrap()[0] = f64::INFINITY;
-    assert!(write_csv(&path, &[bad], CsvProfile::Rig).is_err());
+    assert!(write_csv(&path, &[bad], SetupKind::BaseExcited).is_err());
     assert_eq!(std::fs::read(&path).unwrap(), before);
     assert_eq!(dir_entries(dir.path()), vec!["out.csv"]);
 }
@@ -87,7 +88,7 @@ fn unwritable_target_leaves_no_file() {
     let dir = tempfile::tempdir().unwrap();
     // Directory does not exist.
     let missing = dir.path().join("no_such_dir").join("out.csv");
-    let err = write_csv(&missing, &[record(0, &RIG)], CsvProfile::Rig).unwrap_err();
+    let err = write_csv(&missing, &[record(0, &RIG)], SetupKind::BaseExcited).unwrap_err();
     assert!(matches!(err, CsvError::Io { .. }), "{err:?}");
     assert!(err.to_string().contains("out.csv"), "{err}");
     assert!(dir_entries(dir.path()).is_empty());
@@ -97,7 +98,7 @@ fn unwritable_target_leaves_no_file() {
     let target = dir.path().join("taken.csv");
     std::fs::create_dir(&target).unwrap();
     std::fs::write(target.join("keep"), "x").unwrap();
-    let err = write_csv(&target, &[record(0, &RIG)], CsvProfile::Rig).unwrap_err();
+    let err = write_csv(&target, &[record(0, &RIG)], SetupKind::BaseExcited).unwrap_err();
     assert!(matches!(err, CsvError::Io { .. }), "{err:?}");
     assert_eq!(dir_entries(dir.path()), vec!["taken.csv"]);
     assert_eq!(dir_entries(&target), vec!["keep"]);
@@ -119,7 +120,12 @@ fn read_only_directory_leaves_no_file() {
         eprintln!("skipped: directory permissions are not enforced for this user");
         return;
     }
-    let err = write_csv(ro.join("out.csv"), &[record(0, &RIG)], CsvProfile::Rig).unwrap_err();
+    let err = write_csv(
+        ro.join("out.csv"),
+        &[record(0, &RIG)],
+        SetupKind::BaseExcited,
+    )
+    .unwrap_err();
     std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o755)).unwrap();
     assert!(matches!(err, CsvError::Io { .. }), "{err:?}");
     assert!(dir_entries(&ro).is_empty());
@@ -129,11 +135,11 @@ fn read_only_directory_leaves_no_file() {
 fn inconsistent_records_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("out.csv");
-    let cases: Vec<(Vec<Record>, CsvProfile, &str)> = vec![
-        (vec![], CsvProfile::Rig, "no records"),
+    let cases: Vec<(Vec<Record>, SetupKind, &str)> = vec![
+        (vec![], SetupKind::BaseExcited, "no records"),
         (
             vec![record(0, &RIG[..2])],
-            CsvProfile::Rig,
+            SetupKind::BaseExcited,
             "mass_acceleration_mps2",
         ),
         (
@@ -141,12 +147,12 @@ fn inconsistent_records_are_refused() {
                 record(0, &RIG),
                 record(1, &[RIG[0], RIG[1], RIG[2], Channel::ForceN]),
             ],
-            CsvProfile::Rig,
+            SetupKind::BaseExcited,
             "same channels",
         ),
         (
             vec![record(0, &RIG), record(2, &RIG)],
-            CsvProfile::Rig,
+            SetupKind::BaseExcited,
             "contiguous",
         ),
         (
@@ -159,7 +165,7 @@ fn inconsistent_records_are_refused() {
                     Channel::DrivePointDisplacementM,
                 ],
             )],
-            CsvProfile::DrivePoint,
+            SetupKind::DrivePoint,
             "rig profile",
         ),
         (
@@ -168,7 +174,7 @@ fn inconsistent_records_are_refused() {
                 r.start_time_s = 0.1; // overlaps record 0 (0 .. 0.19 s)
                 vec![record(0, &RIG), r]
             },
-            CsvProfile::Rig,
+            SetupKind::BaseExcited,
             "does not increase",
         ),
         (
@@ -177,7 +183,7 @@ fn inconsistent_records_are_refused() {
                 r.sample_rate_hz = 0.0;
                 vec![r]
             },
-            CsvProfile::Rig,
+            SetupKind::BaseExcited,
             "sample rate",
         ),
         (
@@ -189,7 +195,7 @@ fn inconsistent_records_are_refused() {
                 };
                 vec![r]
             },
-            CsvProfile::Rig,
+            SetupKind::BaseExcited,
             "sine frequency",
         ),
         (
@@ -200,7 +206,7 @@ fn inconsistent_records_are_refused() {
                 }
                 vec![r]
             },
-            CsvProfile::Rig,
+            SetupKind::BaseExcited,
             "at least 3",
         ),
     ];
@@ -225,7 +231,7 @@ fn random_records_write_frequency_zero_and_values_round_trip_as_text() {
         rms: 1.0,
     };
     r.channel_mut(Channel::BaseDisplacementM).unwrap()[0] = 1e-300;
-    write_csv(&path, &[r], CsvProfile::Rig).unwrap();
+    write_csv(&path, &[r], SetupKind::BaseExcited).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     let second = text.lines().nth(1).unwrap();
     assert!(second.starts_with("0,0,0,1e-300,"), "{second}");

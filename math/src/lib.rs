@@ -21,6 +21,7 @@ pub mod model;
 pub mod paper;
 pub mod phasor;
 pub mod pipeline;
+pub mod recipe;
 pub mod record;
 pub mod reproduce;
 pub mod sim;

@@ -27,12 +27,26 @@ pub const MODEL_NAMES: &[(&str, &str)] = &[
     ),
 ];
 
-#[derive(Debug, Error, PartialEq)]
+#[derive(Debug, Clone, Error, PartialEq)]
 pub enum ModelError {
     #[error("unknown model '{name}'; known models: {known}")]
     Unknown { name: String, known: String },
     #[error("model '{name}' needs the atan slope M (e.g. --atan-m 1000), a positive number")]
     MissingAtanSlope { name: String },
+}
+
+impl ModelError {
+    /// `name` is not one of [`MODEL_NAMES`].
+    pub fn unknown(name: &str) -> ModelError {
+        ModelError::Unknown {
+            name: name.into(),
+            known: MODEL_NAMES
+                .iter()
+                .map(|(n, _)| *n)
+                .collect::<Vec<_>>()
+                .join(", "),
+        }
+    }
 }
 
 /// Options that some named models need.
@@ -103,16 +117,7 @@ impl Model {
                 }
                 terms
             }
-            _ => {
-                return Err(ModelError::Unknown {
-                    name: name.into(),
-                    known: MODEL_NAMES
-                        .iter()
-                        .map(|(n, _)| *n)
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                });
-            }
+            _ => return Err(ModelError::unknown(name)),
         };
         Ok(Model::new(name, terms))
     }

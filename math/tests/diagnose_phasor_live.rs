@@ -17,10 +17,7 @@ fn live_diagnosis_of_the_rig_bag_run() {
         ..RigRun::paper_sine(TruthElement::rig_coulomb())
     }))
     .unwrap();
-    let popts = PhasorOptions {
-        max_harmonic: 100,
-        ..PhasorOptions::default()
-    };
+    let popts = PhasorOptions::for_identification();
     let analyses: Vec<_> = records
         .iter()
         .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))

@@ -3,9 +3,10 @@
 //! the live phasor-only diagnosis agrees on the paper's story.
 
 use forcemap_math::diagnose::eval::{CaseSpec, Planted, run_case, simulate_case};
-use forcemap_math::diagnose::{Effect, PhasorDiagnosis, Verdict, phasor_options};
+use forcemap_math::diagnose::{Effect, PhasorDiagnosis, Verdict};
 use forcemap_math::identify::Setup;
 use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::phasor::analyse_record;
 use forcemap_math::record::Excitation;
 
@@ -114,7 +115,7 @@ fn live_phasor_diagnosis_names_coulomb_friction_and_passes_the_clean_rig() {
             .iter()
             .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
         {
-            live.push(analyse_record(r, &phasor_options()).unwrap());
+            live.push(analyse_record(r, &PhasorOptions::for_identification()).unwrap());
         }
         let f = live.findings().unwrap();
         println!(

@@ -17,8 +17,8 @@ use plotters::prelude::*;
 use crate::cli::DiagnoseArgs;
 use crate::plot::{AFTER_COLOR, BASELINE_COLOR, Line, draw_err, html_escape, lines_svg, span};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
-use forcemap_io::csv_export::CsvProfile;
 use forcemap_io::params::{Params, read_params};
+use forcemap_math::recipe::SetupKind;
 
 /// SNR of the built-in demo [dB] (the reproduction's rig SNR).
 pub const DEMO_SNR_DB: f64 = 40.0;
@@ -34,47 +34,32 @@ struct Data {
     source: String,
 }
 
-fn mass_from(
-    args: &DiagnoseArgs,
-    params: &Params,
-    carried: Option<f64>,
-    file: &str,
-) -> anyhow::Result<f64> {
-    let m = match (args.mass_kg, params.opt_f64("mass_kg")?, carried) {
-        (Some(m), _, _) | (None, Some(m), _) | (None, None, Some(m)) => m,
-        (None, None, None) => bail!(
-            "{file}: the rig's mass is needed: give --mass-kg 36 or mass_kg in a --params file"
-        ),
-    };
-    if !(m > 0.0 && m.is_finite()) {
-        bail!("mass_kg = {m}: the rig's mass must be a positive number of kg");
-    }
-    Ok(m)
-}
-
 fn load(args: &DiagnoseArgs, path: &Path) -> anyhow::Result<Data> {
     let file = path.display().to_string();
     let import = forcemap_io::input::load(path)?;
-    if import.profile != CsvProfile::Rig {
+    if import.kind != SetupKind::BaseExcited {
         bail!(
             "{file}: the diagnosis needs the base-excited rig channels (base and relative displacement, mass acceleration); this is a {} export",
-            import.profile
+            import.kind
         );
     }
     let params = match &args.params {
         Some(p) => read_params(p, None)?,
         None => Params::new(),
     };
-    let mass_kg = mass_from(
-        args,
+    let setup = super::resolve_setup(
+        import.kind,
+        args.mass_kg,
         &params,
-        import.parameters.get("mass_kg").copied(),
+        args.params.as_deref(),
+        &import.parameters,
         &file,
-    )?;
+    )?
+    .setup()?;
     let validation = match &args.validate {
         Some(v) => {
             let vi = forcemap_io::input::load(v)?;
-            if vi.profile != CsvProfile::Rig {
+            if vi.kind != SetupKind::BaseExcited {
                 bail!(
                     "{}: validation data must hold the rig channels",
                     v.display()
@@ -87,7 +72,7 @@ fn load(args: &DiagnoseArgs, path: &Path) -> anyhow::Result<Data> {
     Ok(Data {
         records: import.records,
         validation,
-        setup: Setup::BaseExcited { mass_kg },
+        setup,
         source: file,
     })
 }

@@ -1,34 +1,63 @@
 //! `forcemap identify FILE`: identify a model on a test-bench CSV export.
 
-use anyhow::{Context, bail};
-use forcemap_math::identify::{FdMultiOptions, Identification, Method, Setup, rebuilt_cycle};
+use std::collections::BTreeMap;
+
+use anyhow::{Context, anyhow};
+use forcemap_math::identify::{Identification, Method, Setup, rebuilt_cycle};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
-use forcemap_math::phasor::PhasorOptions;
+use forcemap_math::phasor::{IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
+use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind};
 use forcemap_math::record::Excitation;
 use serde_json::json;
 
-use crate::cli::{IdentifyArgs, MethodArg};
+use crate::cli::IdentifyArgs;
 use crate::plot::{self, ForceStateStep};
-use forcemap_io::csv_export::CsvProfile;
 use forcemap_io::params::{Params, read_params};
 
+/// The method asked for: `--method`, with `--td-points` (a number or `all`) for td.
 fn method(args: &IdentifyArgs) -> anyhow::Result<Method> {
-    Ok(match args.method {
-        MethodArg::Fd => Method::Fd,
-        MethodArg::FdMulti => Method::FdMulti,
-        MethodArg::OutputError => Method::OutputError,
-        MethodArg::Td => {
-            Method::Td {
-                points_per_step: if args.td_points == "all" {
-                    None
-                } else {
-                    Some(args.td_points.parse().ok().filter(|n: &usize| *n > 0).with_context(|| {
-                    format!("--td-points: '{}' is neither a positive whole number nor 'all'", args.td_points)
-                })?)
-                },
-            }
-        }
+    match (args.method, &args.td_points) {
+        (Method::Td { .. }, Some(points)) => format!("td-{points}").parse().map_err(|_| {
+            anyhow!("--td-points: '{points}' is neither a positive whole number nor 'all'")
+        }),
+        (m, _) => Ok(m),
+    }
+}
+
+/// The recipe of `forcemap identify` on data of `kind` with the constants they carry: flags
+/// first, then the params file, then what the data carry.
+pub fn recipe(
+    args: &IdentifyArgs,
+    kind: SetupKind,
+    carried: &BTreeMap<String, f64>,
+    file: &str,
+) -> anyhow::Result<Recipe> {
+    let params = match &args.params {
+        Some(p) => read_params(p, None)?,
+        None => Params::new(),
+    };
+    let setup = super::resolve_setup(
+        kind,
+        args.mass_kg,
+        &params,
+        args.params.as_deref(),
+        carried,
+        file,
+    )?;
+    let model = args.model.parse::<ModelSpec>()?.with_options(ModelOptions {
+        atan_slope_s_per_m: args.atan_m.or(params.opt_f64("atan_m")?),
+        polynomial_order: args.poly_order,
+    });
+    Ok(Recipe {
+        setup,
+        model,
+        method: method(args)?,
+        weighting: args.weighting,
+        phasor: PhasorOptions {
+            max_harmonic: args.max_harmonic.unwrap_or(IDENTIFICATION_MAX_HARMONIC),
+            ..PhasorOptions::for_identification()
+        },
     })
 }
 
@@ -41,57 +70,17 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
             import.ignored_columns.join(", ")
         );
     }
-    let params = match &args.params {
-        Some(p) => read_params(p, None)?,
-        None => Params::new(),
-    };
-    let params_source = args
-        .params
-        .as_ref()
-        .map_or("no --params file".to_string(), |p| p.display().to_string());
-    let setup = match import.profile {
-        CsvProfile::Rig => {
-            // flag, then params file, then the constants the bag carries
-            let mass_kg = match (
-                args.mass_kg,
-                params.opt_f64("mass_kg")?,
-                import.parameters.get("mass_kg"),
-            ) {
-                (Some(m), _, _) | (None, Some(m), _) | (None, None, Some(&m)) => m,
-                (None, None, None) => bail!(
-                    "{file}: the rig's mass is needed: give --mass-kg 36 or mass_kg in a --params file ({params_source})"
-                ),
-            };
-            if !(mass_kg > 0.0 && mass_kg.is_finite()) {
-                bail!("mass_kg = {mass_kg}: the rig's mass must be a positive number of kg");
-            }
-            Setup::BaseExcited { mass_kg }
-        }
-        CsvProfile::DrivePoint => Setup::DrivePoint {
-            substructure: forcemap_io::rig_constants::substructure(&params, &params_source)?,
-        },
-    };
-    let atan_m = args.atan_m.or(params.opt_f64("atan_m")?);
-    let poly = args.poly_order;
-    let model = Model::by_name(
-        &args.model,
-        &ModelOptions {
-            atan_slope_s_per_m: atan_m,
-            polynomial_order: poly,
-        },
-    )?;
-    let method = method(args)?;
-    let phasor_options = PhasorOptions {
-        max_harmonic: args.max_harmonic.unwrap_or(100),
-        ..PhasorOptions::default()
-    };
+    let recipe = recipe(args, import.kind, &import.parameters, &file)?;
+    let setup = recipe.setup.setup()?;
+    let model = recipe.model.build()?;
+    let method = recipe.method;
     let (id, analyses) = pipeline::identify_records_with_analyses(
         &model,
         &setup,
         method,
         &import.records,
-        &phasor_options,
-        &FdMultiOptions::default(),
+        &recipe.phasor,
+        &recipe.fd_options(),
     )
     .with_context(|| {
         format!(
@@ -130,7 +119,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     if args.json {
         println!(
             "{}",
-            identification_json(&id, &validations, &import.ignored_columns)
+            identification_json(&recipe, &id, &validations, &import.ignored_columns)
         );
     } else {
         print_identification(&file, &id, &validations);
@@ -200,12 +189,15 @@ fn write_plots(
     Ok(())
 }
 
+/// The identification as JSON, with the recipe that produced it.
 pub fn identification_json(
+    recipe: &Recipe,
     id: &Identification,
     validations: &[Validation],
     ignored: &[String],
 ) -> serde_json::Value {
     json!({
+        "recipe": recipe,
         "model": id.model,
         "method": id.method,
         "parameters": id.parameters.iter().map(|p| json!({"name": p.name, "value": p.value, "std": p.std})).collect::<Vec<_>>(),

@@ -1,6 +1,6 @@
 //! `forcemap import csv|emps FILE --out BAG`.
 
-use anyhow::bail;
+use forcemap_math::recipe::check_mass_kg;
 
 use crate::cli::{ImportArgs, ImportCommand};
 use forcemap_io::csv_export::read_csv;
@@ -28,14 +28,14 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
                 None => None,
             };
             let mass = mass_kg.or(from_params);
-            if let Some(m) = mass.filter(|m| !(*m > 0.0 && m.is_finite())) {
-                bail!("mass_kg = {m}: the rig's mass must be a positive number of kg");
+            if let Some(m) = mass {
+                check_mass_kg(m)?;
             }
             let parameters: Vec<(&str, f64)> = mass.map(|m| ("mass_kg", m)).into_iter().collect();
             let dir = write_rig_bag(
                 out,
                 &csv.records,
-                csv.profile.driven_channel(),
+                csv.kind.driven_channel(),
                 &parameters,
                 DEFAULT_RUN_START,
             )?;

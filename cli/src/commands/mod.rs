@@ -10,6 +10,13 @@ pub mod import;
 pub mod reproduce;
 pub mod simulate;
 
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use forcemap_io::params::Params;
+use forcemap_io::rig_constants;
+use forcemap_math::recipe::{RecipeError, SetupConstants, SetupKind, SetupSpec};
+
 use crate::cli::Command;
 
 /// Runs a parsed command.
@@ -34,6 +41,34 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+/// The setup of data of `kind` in `file`, from the constants a command was given in their
+/// order of priority: `--mass-kg`, then the `--params` file, then what the data carry.
+pub fn resolve_setup(
+    kind: SetupKind,
+    mass_kg_flag: Option<f64>,
+    params: &Params,
+    params_file: Option<&Path>,
+    carried: &BTreeMap<String, f64>,
+    file: &str,
+) -> anyhow::Result<SetupSpec> {
+    let params_source =
+        params_file.map_or("no --params file".to_string(), |p| p.display().to_string());
+    let given = SetupConstants {
+        mass_kg: mass_kg_flag,
+        substructure: None,
+    };
+    let constants = given
+        .or(rig_constants::from_params(params)?)
+        .or(rig_constants::from_values(carried));
+    kind.resolve(&constants).map_err(|e| match e {
+        RecipeError::MissingMass => anyhow::anyhow!(
+            "{file}: {e}: give --mass-kg 36 or mass_kg in a --params file ({params_source})"
+        ),
+        RecipeError::BadMass(_) => anyhow::anyhow!(e),
+        e => anyhow::anyhow!("{file}: {e} ({params_source})"),
+    })
 }
 
 /// A spinner on stderr for long work (hidden when stderr is not a terminal).

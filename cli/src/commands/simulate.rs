@@ -9,8 +9,9 @@ use forcemap_math::sim::{
 };
 
 use crate::cli::{CaseArg, EffectArgs, SimulateArgs, SystemArg};
-use forcemap_io::csv_export::{CsvProfile, write_csv};
+use forcemap_io::csv_export::write_csv;
 use forcemap_io::rig_bag::{DEFAULT_RUN_START, write_rig_bag};
+use forcemap_math::recipe::SetupKind;
 
 /// The truth element with the planted element effects.
 fn planted_element(mut element: TruthElement, e: &EffectArgs) -> anyhow::Result<TruthElement> {
@@ -244,7 +245,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
                     ));
                 }
             }
-            (SimSpec::Rig(run), CsvProfile::Rig)
+            (SimSpec::Rig(run), SetupKind::BaseExcited)
         }
         SystemArg::ThreeDof => {
             let e = &args.effects;
@@ -267,7 +268,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
                     seed: args.seed,
                     ..run
                 }),
-                CsvProfile::DrivePoint,
+                SetupKind::DrivePoint,
             )
         }
     };
@@ -284,7 +285,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     }
     if let Some(bag) = &args.bag {
         let mut parameters = Vec::new();
-        if profile == CsvProfile::Rig {
+        if profile == SetupKind::BaseExcited {
             parameters.push((
                 "mass_kg".to_string(),
                 forcemap_math::sim::rig::PAPER_RIG_MASS_KG,

@@ -109,15 +109,6 @@ impl Default for DiagnoseOptions {
     }
 }
 
-/// Phasor options of the diagnosis: as many harmonics as the sampling allows (the even
-/// harmonics and DC carry the asymmetric effects).
-pub fn phasor_options() -> PhasorOptions {
-    PhasorOptions {
-        max_harmonic: 100,
-        ..PhasorOptions::default()
-    }
-}
-
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Verdict {
@@ -404,7 +395,8 @@ pub fn diagnose(
             }
         }
     }
-    let popts = phasor_options();
+    // Many harmonics: the even ones and DC carry the asymmetric effects.
+    let popts = PhasorOptions::for_identification();
     let analyses: Vec<HarmonicAnalysis> = fit_records
         .iter()
         .map(|r| analyse_record(r, &popts))

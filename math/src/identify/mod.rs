@@ -62,9 +62,10 @@ impl Setup {
     }
 }
 
-/// Identification method.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-#[serde(rename_all = "kebab-case")]
+/// Identification method. Its name ([`Method::name`], parsed back by `FromStr`) is its
+/// serialised form: `fd`, `fd-multi`, `output-error`, `td-N`, `td-all`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
 pub enum Method {
     /// The paper's first-harmonic FD-FSM.
     Fd,
@@ -93,6 +94,61 @@ impl Method {
     }
 }
 
+/// Time points per step of `td` when no number is given: the paper's 20.
+pub const TD_POINTS_PER_STEP: usize = 20;
+
+impl std::str::FromStr for Method {
+    type Err = crate::recipe::RecipeError;
+
+    fn from_str(name: &str) -> Result<Method, Self::Err> {
+        let unknown = || crate::recipe::RecipeError::UnknownMethod(name.to_string());
+        Ok(match name {
+            "fd" => Method::Fd,
+            "fd-multi" => Method::FdMulti,
+            "output-error" => Method::OutputError,
+            "td" => Method::Td {
+                points_per_step: Some(TD_POINTS_PER_STEP),
+            },
+            "td-all" => Method::Td {
+                points_per_step: None,
+            },
+            _ => {
+                let n = name.strip_prefix("td-").ok_or_else(unknown)?;
+                // Digits only: "td-+5" is not a method name.
+                if !n.bytes().all(|b| b.is_ascii_digit()) {
+                    return Err(unknown());
+                }
+                match n.parse::<usize>() {
+                    Ok(n) if n > 0 => Method::Td {
+                        points_per_step: Some(n),
+                    },
+                    _ => return Err(unknown()),
+                }
+            }
+        })
+    }
+}
+
+impl TryFrom<String> for Method {
+    type Error = crate::recipe::RecipeError;
+
+    fn try_from(name: String) -> Result<Method, Self::Error> {
+        name.parse()
+    }
+}
+
+impl From<Method> for String {
+    fn from(m: Method) -> String {
+        m.name()
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.name())
+    }
+}
+
 /// How the improved method weights its real equations.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -113,12 +169,18 @@ impl Weighting {
             Weighting::Uniform => "uniform",
         }
     }
+}
 
-    pub fn by_name(name: &str) -> Option<Weighting> {
+impl std::str::FromStr for Weighting {
+    type Err = crate::recipe::RecipeError;
+
+    fn from_str(name: &str) -> Result<Weighting, Self::Err> {
         match name {
-            "noise" => Some(Weighting::Noise),
-            "uniform" => Some(Weighting::Uniform),
-            _ => None,
+            "noise" => Ok(Weighting::Noise),
+            "uniform" => Ok(Weighting::Uniform),
+            _ => Err(crate::recipe::RecipeError::UnknownWeighting(
+                name.to_string(),
+            )),
         }
     }
 }

@@ -76,12 +76,18 @@ pub const MIN_SAMPLES_PER_PERIOD: f64 = 3.0;
 /// boundary that falls on a sample up to rounding is placed on that sample.
 const BOUNDARY_TOLERANCE_SAMPLES: f64 = 1e-9;
 
+/// The highest harmonic an identification or diagnosis analyses unless told otherwise: as
+/// many as the sampling allows up to 100 (the improved method drops the harmonics that do not
+/// stand out of their noise; the diagnosis needs the even ones and DC).
+pub const IDENTIFICATION_MAX_HARMONIC: usize = 100;
+
 /// Options of [`analyse_record`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct PhasorOptions {
     /// Highest harmonic `N` wanted; capped at `floor((floor(fs/f) - 1) / 2)` (see module docs).
-    /// `usize::MAX` means "as many as allowed". Default 20.
+    /// `usize::MAX` means "as many as allowed". Default 20 (a single record's analysis);
+    /// identifications use [`PhasorOptions::for_identification`].
     pub max_harmonic: usize,
     /// Fewest whole periods a settled part must have (values below 2 act as 2). Default 2.
     pub min_periods: usize,
@@ -101,6 +107,17 @@ impl Default for PhasorOptions {
             min_periods: 2,
             settle_relative_tolerance: 1e-4,
             settle_noise_factor: 4.0,
+        }
+    }
+}
+
+impl PhasorOptions {
+    /// The options of every identification and diagnosis (the command, the harmonic node, the
+    /// recipe): the defaults with up to [`IDENTIFICATION_MAX_HARMONIC`] harmonics.
+    pub fn for_identification() -> PhasorOptions {
+        PhasorOptions {
+            max_harmonic: IDENTIFICATION_MAX_HARMONIC,
+            ..PhasorOptions::default()
         }
     }
 }

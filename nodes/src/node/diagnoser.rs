@@ -20,9 +20,11 @@ use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
 use crate::log_line;
-use crate::node::identifier::setup_for;
+use crate::node::identifier::step_setup;
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg};
+use forcemap_io::rig_constants;
 use forcemap_io::topics;
+use forcemap_math::recipe::{SetupConstants, check_mass_kg};
 
 /// The message of a set of findings.
 pub fn diagnosis_message(baseline: &str, f: &PhasorFindings, header: Header) -> GapDiagnosis {
@@ -61,7 +63,12 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         },
     )
     .with_context(|| format!("baseline = '{baseline_name}'"))?;
-    let mut mass_kg = p.opt_f64("mass_kg")?;
+    let given = rig_constants::from_params(&p)?;
+    if let Some(m) = given.mass_kg {
+        check_mass_kg(m)?;
+    }
+    // Constants from the rig's parameters topic, used where the node's parameters say nothing.
+    let mut carried = SetupConstants::default();
     let fq = setup.fully_qualified_name();
 
     let mut ros = RosNode::start(setup.clone())?;
@@ -92,8 +99,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         };
         let batch = match input {
             Input::RigMass(m) => {
-                if mass_kg.is_none() && m > 0.0 && m.is_finite() {
-                    mass_kg = Some(m);
+                if carried.mass_kg.is_none() {
+                    carried.mass_kg = Some(m);
                 }
                 std::mem::take(&mut waiting)
             }
@@ -111,10 +118,11 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                     continue;
                 }
             };
-            let Some(step_setup) = setup_for(&analysis, &p, mass_kg)? else {
+            let Some(spec) = step_setup(&analysis, &given.clone().or(carried.clone()))? else {
                 waiting.push(ph);
                 continue;
             };
+            let step_setup = spec.setup()?;
             let d = live.get_or_insert_with(|| PhasorDiagnosis::new(step_setup, baseline.clone()));
             d.push(analysis);
             if d.steps() < MIN_STEPS {

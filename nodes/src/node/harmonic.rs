@@ -12,7 +12,7 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::{Duration, Instant};
 
-use forcemap_math::phasor::{PhasorOptions, analyse_record};
+use forcemap_math::phasor::{IDENTIFICATION_MAX_HARMONIC, PhasorOptions, analyse_record};
 use forcemap_math::record::{Excitation, Record};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
@@ -167,8 +167,10 @@ impl HarmonicState {
 pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let p = &setup.params;
     let mut options = PhasorOptions {
-        max_harmonic: p.opt_usize("max_harmonic")?.unwrap_or(100),
-        ..PhasorOptions::default()
+        max_harmonic: p
+            .opt_usize("max_harmonic")?
+            .unwrap_or(IDENTIFICATION_MAX_HARMONIC),
+        ..PhasorOptions::for_identification()
     };
     if let Some(m) = p.opt_usize("min_periods")? {
         options.min_periods = m;

@@ -20,13 +20,15 @@ use std::time::Duration;
 
 use anyhow::{Context as _, bail};
 use forcemap_math::identify::{
-    EquationAccumulator, FdMultiOptions, Identification, IdentifyError, Method, Setup, Weighting,
-    step_equations,
+    EquationAccumulator, Identification, IdentifyError, Method, Weighting, step_equations,
 };
 use forcemap_math::lstsq::LstsqError;
 use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::phasor::HarmonicAnalysis;
-use forcemap_math::record::Channel;
+use forcemap_math::phasor::{HarmonicAnalysis, PhasorOptions};
+use forcemap_math::recipe::{
+    ModelSpec, Recipe, RecipeError, SetupConstants, SetupKind, SetupSpec, check_mass_kg,
+    live_refusal,
+};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
 use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
@@ -37,6 +39,7 @@ use tokio::sync::mpsc;
 use crate::log_line;
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg};
 use forcemap_io::params::Params;
+use forcemap_io::rig_constants;
 use forcemap_io::topics;
 
 /// What the identifier persists.
@@ -132,59 +135,87 @@ pub fn admit(state: &IdentifierState, step: u32, t_ref: Time) -> Admit {
     }
 }
 
-/// The model, method and options from the node's parameters.
-pub fn model_and_method(p: &Params) -> anyhow::Result<(Model, Method, FdMultiOptions)> {
-    let poly = match p.opt_i64_array("poly_order")? {
-        None => None,
-        Some(v) if v.len() == 2 && v.iter().all(|x| (0..=64).contains(x)) => {
-            Some((v[0] as u32, v[1] as u32))
+/// The parts of the recipe the node's parameters fix from the start: model, method,
+/// weighting and the setup constants it was given (`mass_kg`, `substructure...`). The setup
+/// itself waits for the first step's channels (and, on a rig, for its mass).
+#[derive(Debug, Clone)]
+pub struct RecipeParameters {
+    pub model: ModelSpec,
+    pub method: Method,
+    pub weighting: Weighting,
+    pub constants: SetupConstants,
+}
+
+impl RecipeParameters {
+    /// Reads `model` (`coulomb`), `method` (`fd-multi`), `weighting` (`noise`), `atan_m`,
+    /// `poly_order` (`[P, Q]`), `mass_kg` and `substructure...`; refuses a method the live
+    /// identifier cannot run.
+    pub fn from_params(p: &Params) -> anyhow::Result<RecipeParameters> {
+        let poly = match p.opt_i64_array("poly_order")? {
+            None => None,
+            Some(v) if v.len() == 2 && v.iter().all(|x| (0..=64).contains(x)) => {
+                Some((v[0] as u32, v[1] as u32))
+            }
+            Some(v) => bail!("poly_order = {v:?}: expected [P, Q] with 0 <= P, Q <= 64"),
+        };
+        let model = p
+            .opt_str("model")?
+            .unwrap_or("coulomb")
+            .parse::<ModelSpec>()?
+            .with_options(ModelOptions {
+                atan_slope_s_per_m: p.opt_f64("atan_m")?,
+                polynomial_order: poly,
+            });
+        // The model must build (an atan model needs its slope) before the first step.
+        model.build()?;
+        let method: Method = p.opt_str("method")?.unwrap_or("fd-multi").parse()?;
+        if let Some(why) = live_refusal(method) {
+            bail!("method = {method}: {why}");
         }
-        Some(v) => bail!("poly_order = {v:?}: expected [P, Q] with 0 <= P, Q <= 64"),
-    };
-    let model = Model::by_name(
-        p.opt_str("model")?.unwrap_or("coulomb"),
-        &ModelOptions {
-            atan_slope_s_per_m: p.opt_f64("atan_m")?,
-            polynomial_order: poly,
-        },
-    )?;
-    let method = match p.opt_str("method")?.unwrap_or("fd-multi") {
-        "fd" => Method::Fd,
-        "fd-multi" => Method::FdMulti,
-        "td" => bail!(
-            "method = td: the time-domain FSM needs the samples, which the identifier never keeps; use fd or fd-multi live, or `forcemap identify --method td` on a bag"
-        ),
-        other => bail!("method = '{other}': expected fd or fd-multi"),
-    };
-    let w = p.opt_str("weighting")?.unwrap_or("noise");
-    let weighting = Weighting::by_name(w)
-        .with_context(|| format!("weighting = '{w}': expected noise or uniform"))?;
-    let options = FdMultiOptions {
-        weighting,
-        ..FdMultiOptions::default()
-    };
-    Ok((model, method, options))
-}
-
-/// The setup of a step's phasors: drive point when they carry the force and drive-point
-/// displacement, else the base-excited rig with `mass_kg`.
-pub fn setup_for(
-    analysis: &HarmonicAnalysis,
-    params: &Params,
-    mass_kg: Option<f64>,
-) -> anyhow::Result<Option<Setup>> {
-    let has = |c: Channel| analysis.channels.iter().any(|ch| ch.channel == c);
-    if has(Channel::ForceN) && has(Channel::DrivePointDisplacementM) {
-        let s = forcemap_io::rig_constants::substructure(params, "the identifier's parameters")?;
-        return Ok(Some(Setup::DrivePoint { substructure: s }));
+        let weighting: Weighting = p.opt_str("weighting")?.unwrap_or("noise").parse()?;
+        let constants = rig_constants::from_params(p)?;
+        if let Some(m) = constants.mass_kg {
+            check_mass_kg(m)?;
+        }
+        Ok(RecipeParameters {
+            model,
+            method,
+            weighting,
+            constants,
+        })
     }
-    Ok(mass_kg.map(|mass_kg| Setup::BaseExcited { mass_kg }))
+
+    /// The recipe of a step's phasors, or `None` while the rig's mass is unknown.
+    pub fn recipe_for(
+        &self,
+        analysis: &HarmonicAnalysis,
+        carried: &SetupConstants,
+    ) -> anyhow::Result<Option<Recipe>> {
+        let Some(setup) = step_setup(analysis, &self.constants.clone().or(carried.clone()))? else {
+            return Ok(None);
+        };
+        Ok(Some(Recipe {
+            setup,
+            model: self.model.clone(),
+            method: self.method,
+            weighting: self.weighting,
+            phasor: PhasorOptions::for_identification(),
+        }))
+    }
 }
 
-fn describe_setup(s: &Setup) -> String {
-    match s {
-        Setup::BaseExcited { mass_kg } => format!("base-excited rig, mass {mass_kg} kg"),
-        Setup::DrivePoint { .. } => "drive point of a linear substructure".to_string(),
+/// The setup of a step's phasors, from the channels they hold and the constants known;
+/// `None` while a rig's mass is unknown (the node waits for the rig's parameters topic).
+pub fn step_setup(
+    analysis: &HarmonicAnalysis,
+    constants: &SetupConstants,
+) -> anyhow::Result<Option<SetupSpec>> {
+    let kind = SetupKind::of_channels(|c| analysis.channels.iter().any(|ch| ch.channel == c))
+        .map_err(|e| anyhow::anyhow!("step {}: {e}", analysis.step))?;
+    match kind.resolve(constants) {
+        Ok(s) => Ok(Some(s)),
+        Err(RecipeError::MissingMass) => Ok(None),
+        Err(e) => Err(anyhow::anyhow!("the node's parameters: {e}")),
     }
 }
 
@@ -203,13 +234,11 @@ enum Input {
 
 pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let p = setup.params.clone();
-    let (model, method, options) = model_and_method(&p)?;
-    let mut mass_kg = p.opt_f64("mass_kg")?;
-    if let Some(m) = mass_kg
-        && !(m > 0.0 && m.is_finite())
-    {
-        bail!("mass_kg = {m}: the rig's mass must be a positive number of kg");
-    }
+    let rp = RecipeParameters::from_params(&p)?;
+    let model = rp.model.build()?;
+    let (method, weighting) = (rp.method, rp.weighting);
+    // Constants from the rig's parameters topic, used where the node's parameters say nothing.
+    let mut carried = SetupConstants::default();
     let state_file: Option<PathBuf> = p
         .opt_str("state_file")?
         .filter(|s| !s.is_empty())
@@ -220,7 +249,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     if let Some(path) = &state_file
         && let Some(s) = IdentifierState::load(path)?
     {
-        if s.accumulator.is_for(&model, method) && s.weighting == options.weighting {
+        if s.accumulator.is_for(&model, method) && s.weighting == weighting {
             log_line!(
                 "resuming from {}: {} steps, {} equations, last step {:?}",
                 path.display(),
@@ -259,7 +288,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         model.name,
         model.symbols().join(", "),
         method.name(),
-        options.weighting.name(),
+        weighting.name(),
         setup.absolute_topic(topics::PHASORS)
     );
     let status_name = format!("{fq}: identification");
@@ -276,6 +305,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     }
     // Phasors that arrived before the rig's mass was known.
     let mut waiting: Vec<HarmonicPhasors> = Vec::new();
+    // The recipe of the steps so far, published with every status.
+    let mut current_recipe: Option<Recipe> = None;
     loop {
         let input = tokio::select! {
             i = rx.recv() => match i { Some(i) => i, None => break },
@@ -283,9 +314,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         };
         let batch = match input {
             Input::RigMass(m) => {
-                if mass_kg.is_none() && m > 0.0 && m.is_finite() {
+                if rp.constants.mass_kg.is_none() && carried.mass_kg.is_none() {
                     log_line!("rig mass {m} kg (from the rig's parameters topic)");
-                    mass_kg = Some(m);
+                    carried.mass_kg = Some(m);
                 }
                 std::mem::take(&mut waiting)
             }
@@ -304,7 +335,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                     continue;
                 }
             };
-            let Some(step_setup) = setup_for(&analysis, &p, mass_kg)? else {
+            let Some(recipe) = rp.recipe_for(&analysis, &carried)? else {
                 if waiting.is_empty() {
                     log_line!(
                         "step {step}: waiting for the rig's mass (parameter mass_kg or the rig's parameters topic)"
@@ -313,9 +344,16 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                 waiting.push(ph);
                 continue;
             };
-            let setup_text = describe_setup(&step_setup);
+            let step_setup = recipe.setup.setup()?;
+            let options = recipe.fd_options();
+            let setup_text = recipe.setup.to_string();
+            if current_recipe.as_ref() != Some(&recipe) {
+                log_line!("recipe: {}", serde_json::to_string(&recipe)?);
+                current_recipe = Some(recipe);
+            }
+            let recipe_json = serde_json::to_string(&current_recipe)?;
             let st = state.get_or_insert_with(|| {
-                IdentifierState::new(&model, method, options.weighting, &setup_text)
+                IdentifierState::new(&model, method, weighting, &setup_text)
             });
             match admit(st, step, ph.t_ref) {
                 Admit::Duplicate => {
@@ -326,7 +364,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                     log_line!(
                         "step {step} again, later in time: a new run; starting the equations afresh"
                     );
-                    *st = IdentifierState::new(&model, method, options.weighting, &setup_text);
+                    *st = IdentifierState::new(&model, method, weighting, &setup_text);
                 }
                 Admit::Add => {}
             }
@@ -341,6 +379,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                     DiagnosticStatus::WARN,
                     &format!("step {step} gave no equations: {e}"),
                     st,
+                    &recipe_json,
                 )
                 .await;
                 continue;
@@ -371,7 +410,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                         Some(w) => (DiagnosticStatus::WARN, w.to_string()),
                         None => (DiagnosticStatus::OK, format!("theta after step {step}")),
                     };
-                    publish_status(&diag_pub, &status_name, level, &message, st).await;
+                    publish_status(&diag_pub, &status_name, level, &message, st, &recipe_json)
+                        .await;
                 }
                 Err(IdentifyError::Lstsq(e @ LstsqError::Underdetermined { .. }))
                 | Err(IdentifyError::Lstsq(e @ LstsqError::IllConditioned { .. })) => {
@@ -382,6 +422,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                         DiagnosticStatus::WARN,
                         &e.to_string(),
                         st,
+                        &recipe_json,
                     )
                     .await;
                 }
@@ -393,6 +434,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                         DiagnosticStatus::ERROR,
                         &e.to_string(),
                         st,
+                        &recipe_json,
                     )
                     .await;
                 }
@@ -404,14 +446,18 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The identifier's health on /diagnostics, with the recipe it runs (JSON, as
+/// `forcemap identify --json` prints it) so that a recorded bag keeps it.
 async fn publish_status(
     publisher: &ros2_client::Publisher<DiagnosticArray>,
     name: &str,
     level: u8,
     message: &str,
     st: &IdentifierState,
+    recipe_json: &str,
 ) {
     let status = DiagnosticStatus::new(level, name, message, "identifier")
+        .with_value("recipe", recipe_json)
         .with_value("model", &st.accumulator.model)
         .with_value("method", &st.accumulator.method)
         .with_value("steps_added", st.accumulator.steps_added())

@@ -1,0 +1,546 @@
+//! What an identification is, in one serde type ([`Recipe`]): the setup with its constants,
+//! the model, the method, the weighting and the phasor options. The `forcemap` command, the
+//! identifier node and the diagnoser build it the same way, through the rules here:
+//!
+//! - which setup the data are, from the channels they hold ([`SetupKind::of_channels`]);
+//! - the setup's constants, from whichever sources the user gave, in their order of priority
+//!   ([`SetupConstants::or`]), checked once ([`check_mass_kg`], [`SubstructureSpec::build`]);
+//! - model and method names ([`ModelSpec`], [`Method`] and [`Weighting`] implement `FromStr`).
+//!
+//! A new setup is a new [`SetupKind`] variant (its channels and driven channel), a new
+//! [`SetupSpec`] variant (its constants) and its equations in `identify`.
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::frf::LinearSubstructure;
+use crate::identify::{FdMultiOptions, Method, Setup, Weighting};
+use crate::model::{MODEL_NAMES, Model, ModelError, ModelOptions};
+use crate::phasor::PhasorOptions;
+use crate::record::Channel;
+
+/// Why a recipe cannot be made.
+#[derive(Debug, Clone, Error, PartialEq)]
+pub enum RecipeError {
+    #[error("mass_kg = {0}: the rig's mass must be a positive number of kg")]
+    BadMass(f64),
+    #[error("the rig's mass is needed (mass_kg)")]
+    MissingMass,
+    #[error(
+        "a drive-point setup (force_n, drive_point_displacement_m) needs the linear substructure the element is attached to: \
+         give `substructure: paper_three_dof` or the chain `substructure.masses_kg`, `substructure.springs_n_per_m`, \
+         `substructure.dampers_n_s_per_m` (ground first) and `substructure.drive_dof` \
+         (see launch_configs/three_dof.params.yaml)"
+    )]
+    MissingSubstructure,
+    #[error(
+        "substructure.masses_kg, springs_n_per_m and dampers_n_s_per_m must have the same, non-zero length"
+    )]
+    SubstructureLengths,
+    #[error("substructure.drive_dof = {drive_dof} but the chain has {masses} masses")]
+    DriveDofOutOfRange { drive_dof: usize, masses: usize },
+    #[error("the channels present ({present}) are neither {}", describe_kinds())]
+    UnknownChannels { present: String },
+    #[error(
+        "method '{0}': expected fd, fd-multi, output-error, td (20 points per step), td-all or td-N"
+    )]
+    UnknownMethod(String),
+    #[error("weighting '{0}': expected noise or uniform")]
+    UnknownWeighting(String),
+    #[error(
+        "method {0}: {reason}",
+        reason = live_refusal(*.0).unwrap_or("")
+    )]
+    NotLive(Method),
+    #[error(transparent)]
+    Model(#[from] ModelError),
+}
+
+fn describe_kinds() -> String {
+    SetupKind::ALL
+        .iter()
+        .map(|k| {
+            let names: Vec<&str> = k.required_channels().iter().map(|c| c.name()).collect();
+            format!("the {} channels ({})", k.name(), names.join(", "))
+        })
+        .collect::<Vec<_>>()
+        .join(" nor ")
+}
+
+/// The kinds of setup forcemap identifies, as the channels of the data show them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SetupKind {
+    /// Base-excited test rig with a known mass (eq. 23): driven by the base displacement.
+    #[serde(rename = "rig")]
+    BaseExcited,
+    /// Force-driven structure with the element at the drive point of a known linear
+    /// substructure (eqs. 21-22, the 3-DOF example): driven by the force.
+    DrivePoint,
+}
+
+impl SetupKind {
+    /// Every kind, in the order [`SetupKind::of_channels`] tries them.
+    pub const ALL: [SetupKind; 2] = [SetupKind::BaseExcited, SetupKind::DrivePoint];
+
+    /// The kind's name in exports and messages (`rig`, `drive-point`).
+    pub fn name(self) -> &'static str {
+        match self {
+            SetupKind::BaseExcited => "rig",
+            SetupKind::DrivePoint => "drive-point",
+        }
+    }
+
+    /// The channels a record of this kind must hold.
+    pub fn required_channels(self) -> [Channel; 3] {
+        match self {
+            SetupKind::BaseExcited => [
+                Channel::BaseDisplacementM,
+                Channel::RelativeDisplacementM,
+                Channel::MassAccelerationMps2,
+            ],
+            SetupKind::DrivePoint => [
+                Channel::RelativeDisplacementM,
+                Channel::DrivePointDisplacementM,
+                Channel::ForceN,
+            ],
+        }
+    }
+
+    /// The channel whose amplitude (sine) or RMS (random) is the excitation level.
+    pub fn driven_channel(self) -> Channel {
+        match self {
+            SetupKind::BaseExcited => Channel::BaseDisplacementM,
+            SetupKind::DrivePoint => Channel::ForceN,
+        }
+    }
+
+    /// The kind of data that hold the channels `has` says they hold: the first kind (in
+    /// [`SetupKind::ALL`] order) whose required channels are all there.
+    pub fn of_channels(has: impl Fn(Channel) -> bool) -> Result<SetupKind, RecipeError> {
+        SetupKind::ALL
+            .into_iter()
+            .find(|k| k.required_channels().iter().all(|c| has(*c)))
+            .ok_or_else(|| RecipeError::UnknownChannels {
+                present: {
+                    let p: Vec<&str> = Channel::ALL
+                        .iter()
+                        .filter(|c| has(**c))
+                        .map(|c| c.name())
+                        .collect();
+                    if p.is_empty() {
+                        "none".to_string()
+                    } else {
+                        p.join(", ")
+                    }
+                },
+            })
+    }
+
+    /// The setup of this kind with the constants given.
+    pub fn resolve(self, constants: &SetupConstants) -> Result<SetupSpec, RecipeError> {
+        match self {
+            SetupKind::BaseExcited => {
+                let mass_kg = constants.mass_kg.ok_or(RecipeError::MissingMass)?;
+                Ok(SetupSpec::BaseExcited {
+                    mass_kg: check_mass_kg(mass_kg)?,
+                })
+            }
+            SetupKind::DrivePoint => {
+                let s = constants
+                    .substructure
+                    .clone()
+                    .ok_or(RecipeError::MissingSubstructure)?;
+                s.build()?;
+                Ok(SetupSpec::DrivePoint { substructure: s })
+            }
+        }
+    }
+}
+
+impl fmt::Display for SetupKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The one check of a rig mass.
+pub fn check_mass_kg(mass_kg: f64) -> Result<f64, RecipeError> {
+    if mass_kg > 0.0 && mass_kg.is_finite() {
+        Ok(mass_kg)
+    } else {
+        Err(RecipeError::BadMass(mass_kg))
+    }
+}
+
+/// The linear substructure of a drive-point setup as a user describes it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SubstructureSpec {
+    /// Substructure I of the paper's 3-DOF example.
+    PaperThreeDof,
+    /// A chain ground -(k[0], c[0])- m[0] -(k[1], c[1])- m[1] - ... with the element at
+    /// `drive_dof` (the last mass when absent).
+    Chain {
+        masses_kg: Vec<f64>,
+        springs_n_per_m: Vec<f64>,
+        dampers_n_s_per_m: Vec<f64>,
+        drive_dof: Option<usize>,
+    },
+}
+
+impl SubstructureSpec {
+    /// The substructure, after checking that the chain is consistent.
+    pub fn build(&self) -> Result<LinearSubstructure, RecipeError> {
+        match self {
+            SubstructureSpec::PaperThreeDof => {
+                Ok(LinearSubstructure::paper_three_dof_substructure_i())
+            }
+            SubstructureSpec::Chain {
+                masses_kg,
+                springs_n_per_m,
+                dampers_n_s_per_m,
+                drive_dof,
+            } => {
+                let n = masses_kg.len();
+                if n == 0 || springs_n_per_m.len() != n || dampers_n_s_per_m.len() != n {
+                    return Err(RecipeError::SubstructureLengths);
+                }
+                let drive = drive_dof.unwrap_or(n - 1);
+                if drive >= n {
+                    return Err(RecipeError::DriveDofOutOfRange {
+                        drive_dof: drive,
+                        masses: n,
+                    });
+                }
+                Ok(LinearSubstructure::chain(
+                    masses_kg,
+                    springs_n_per_m,
+                    dampers_n_s_per_m,
+                    drive,
+                ))
+            }
+        }
+    }
+}
+
+/// The constants of a setup as given by one source (a flag, a params file, the constants a
+/// bag or the rig's topic carries); any may be absent.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SetupConstants {
+    pub mass_kg: Option<f64>,
+    pub substructure: Option<SubstructureSpec>,
+}
+
+impl SetupConstants {
+    /// These constants where given, else `fallback`'s: sources merge in their order of
+    /// priority, `flag.or(params).or(bag)`.
+    pub fn or(self, fallback: SetupConstants) -> SetupConstants {
+        SetupConstants {
+            mass_kg: self.mass_kg.or(fallback.mass_kg),
+            substructure: self.substructure.or(fallback.substructure),
+        }
+    }
+}
+
+/// A setup with its constants, as a recipe states it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum SetupSpec {
+    #[serde(rename = "rig")]
+    BaseExcited {
+        mass_kg: f64,
+    },
+    DrivePoint {
+        substructure: SubstructureSpec,
+    },
+}
+
+impl SetupSpec {
+    pub fn kind(&self) -> SetupKind {
+        match self {
+            SetupSpec::BaseExcited { .. } => SetupKind::BaseExcited,
+            SetupSpec::DrivePoint { .. } => SetupKind::DrivePoint,
+        }
+    }
+
+    /// The setup the identification uses.
+    pub fn setup(&self) -> Result<Setup, RecipeError> {
+        Ok(match self {
+            SetupSpec::BaseExcited { mass_kg } => Setup::BaseExcited {
+                mass_kg: check_mass_kg(*mass_kg)?,
+            },
+            SetupSpec::DrivePoint { substructure } => Setup::DrivePoint {
+                substructure: substructure.build()?,
+            },
+        })
+    }
+}
+
+impl fmt::Display for SetupSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SetupSpec::BaseExcited { mass_kg } => write!(f, "base-excited rig, mass {mass_kg} kg"),
+            SetupSpec::DrivePoint { .. } => f.write_str("drive point of a linear substructure"),
+        }
+    }
+}
+
+/// A named model with the options some names need.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelSpec {
+    /// One of [`MODEL_NAMES`].
+    pub name: String,
+    /// Slope M [s/m] of the atan friction term (the `*-atan*` models).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub atan_slope_s_per_m: Option<f64>,
+    /// Orders (P, Q) of the polynomial model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub polynomial_order: Option<(u32, u32)>,
+}
+
+impl ModelSpec {
+    pub fn with_options(mut self, options: ModelOptions) -> ModelSpec {
+        self.atan_slope_s_per_m = options.atan_slope_s_per_m;
+        self.polynomial_order = options.polynomial_order;
+        self
+    }
+
+    pub fn options(&self) -> ModelOptions {
+        ModelOptions {
+            atan_slope_s_per_m: self.atan_slope_s_per_m,
+            polynomial_order: self.polynomial_order,
+        }
+    }
+
+    pub fn build(&self) -> Result<Model, ModelError> {
+        Model::by_name(&self.name, &self.options())
+    }
+}
+
+impl FromStr for ModelSpec {
+    type Err = ModelError;
+
+    /// A model name of [`MODEL_NAMES`], without options.
+    fn from_str(name: &str) -> Result<ModelSpec, ModelError> {
+        if MODEL_NAMES.iter().any(|(n, _)| *n == name) {
+            Ok(ModelSpec {
+                name: name.to_string(),
+                atan_slope_s_per_m: None,
+                polynomial_order: None,
+            })
+        } else {
+            Err(ModelError::unknown(name))
+        }
+    }
+}
+
+/// Why the live identifier cannot run `method` (it keeps equations, never samples), if it
+/// cannot.
+pub fn live_refusal(method: Method) -> Option<&'static str> {
+    match method {
+        Method::Fd | Method::FdMulti => None,
+        Method::Td { .. } => Some(
+            "the time-domain FSM needs the samples, which the identifier never keeps; use fd or fd-multi live, or `forcemap identify --method td` on a bag",
+        ),
+        Method::OutputError => Some(
+            "output error refits against a simulation of every sample, which the identifier never keeps; use fd or fd-multi live, or `forcemap identify --method output-error` on a bag",
+        ),
+    }
+}
+
+/// Everything an identification is.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Recipe {
+    pub setup: SetupSpec,
+    pub model: ModelSpec,
+    pub method: Method,
+    pub weighting: Weighting,
+    pub phasor: PhasorOptions,
+}
+
+impl Recipe {
+    /// The options of the improved method this recipe asks for.
+    pub fn fd_options(&self) -> FdMultiOptions {
+        FdMultiOptions {
+            weighting: self.weighting,
+            ..FdMultiOptions::default()
+        }
+    }
+
+    /// Refuses a recipe the live identifier cannot run.
+    pub fn check_live(&self) -> Result<(), RecipeError> {
+        match live_refusal(self.method) {
+            None => Ok(()),
+            Some(_) => Err(RecipeError::NotLive(self.method)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn present(list: &[Channel]) -> impl Fn(Channel) -> bool + '_ {
+        move |c| list.contains(&c)
+    }
+
+    #[test]
+    fn kinds_come_from_the_channels_present() {
+        let rig = SetupKind::BaseExcited.required_channels();
+        assert_eq!(
+            SetupKind::of_channels(present(&rig)),
+            Ok(SetupKind::BaseExcited)
+        );
+        let dp = SetupKind::DrivePoint.required_channels();
+        assert_eq!(
+            SetupKind::of_channels(present(&dp)),
+            Ok(SetupKind::DrivePoint)
+        );
+        let e = SetupKind::of_channels(present(&[Channel::RelativeDisplacementM])).unwrap_err();
+        let text = e.to_string();
+        assert!(text.contains("relative_displacement_m"), "{text}");
+        assert!(text.contains("rig channels"), "{text}");
+        assert!(text.contains("drive-point channels"), "{text}");
+    }
+
+    #[test]
+    fn the_mass_is_checked_once_for_every_source() {
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let c = SetupConstants {
+                mass_kg: Some(bad),
+                ..SetupConstants::default()
+            };
+            assert!(matches!(
+                SetupKind::BaseExcited.resolve(&c),
+                Err(RecipeError::BadMass(_))
+            ));
+        }
+        assert_eq!(
+            SetupKind::BaseExcited.resolve(&SetupConstants::default()),
+            Err(RecipeError::MissingMass)
+        );
+        let flag = SetupConstants {
+            mass_kg: Some(36.0),
+            ..SetupConstants::default()
+        };
+        let bag = SetupConstants {
+            mass_kg: Some(40.0),
+            ..SetupConstants::default()
+        };
+        assert_eq!(
+            SetupKind::BaseExcited.resolve(&flag.or(bag.clone())),
+            Ok(SetupSpec::BaseExcited { mass_kg: 36.0 })
+        );
+        assert_eq!(
+            SetupKind::BaseExcited.resolve(&SetupConstants::default().or(bag)),
+            Ok(SetupSpec::BaseExcited { mass_kg: 40.0 })
+        );
+    }
+
+    #[test]
+    fn chains_are_checked() {
+        let chain = |m: Vec<f64>, d: Option<usize>| SubstructureSpec::Chain {
+            springs_n_per_m: vec![1.0; m.len()],
+            dampers_n_s_per_m: vec![1.0; m.len()],
+            masses_kg: m,
+            drive_dof: d,
+        };
+        assert_eq!(
+            chain(vec![], None).build(),
+            Err(RecipeError::SubstructureLengths)
+        );
+        assert_eq!(
+            chain(vec![1.0, 2.0], Some(2)).build(),
+            Err(RecipeError::DriveDofOutOfRange {
+                drive_dof: 2,
+                masses: 2
+            })
+        );
+        assert_eq!(chain(vec![1.0, 2.0], None).build().unwrap().drive_dof, 1);
+        assert_eq!(
+            SetupKind::DrivePoint.resolve(&SetupConstants::default()),
+            Err(RecipeError::MissingSubstructure)
+        );
+    }
+
+    #[test]
+    fn names_parse_and_print_back() {
+        for name in ["fd", "fd-multi", "output-error", "td-all", "td-7"] {
+            let m: Method = name.parse().unwrap();
+            assert_eq!(m.name(), name);
+        }
+        assert_eq!(
+            "td".parse::<Method>(),
+            Ok(Method::Td {
+                points_per_step: Some(20)
+            })
+        );
+        for bad in ["", "FD", "td-0", "td-x", "output"] {
+            assert_eq!(
+                bad.parse::<Method>(),
+                Err(RecipeError::UnknownMethod(bad.into()))
+            );
+        }
+        assert_eq!("uniform".parse::<Weighting>(), Ok(Weighting::Uniform));
+        assert!("none".parse::<Weighting>().is_err());
+        for (name, _) in MODEL_NAMES {
+            assert_eq!(name.parse::<ModelSpec>().unwrap().name, *name);
+        }
+        let e = "quadratic".parse::<ModelSpec>().unwrap_err().to_string();
+        assert!(
+            e.contains("unknown model 'quadratic'") && e.contains("coulomb-cubic"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn only_per_step_methods_run_live() {
+        let recipe = |method| Recipe {
+            setup: SetupSpec::BaseExcited { mass_kg: 36.0 },
+            model: "coulomb".parse().unwrap(),
+            method,
+            weighting: Weighting::Noise,
+            phasor: PhasorOptions::default(),
+        };
+        assert!(recipe(Method::Fd).check_live().is_ok());
+        assert!(recipe(Method::FdMulti).check_live().is_ok());
+        for m in [
+            Method::OutputError,
+            Method::Td {
+                points_per_step: None,
+            },
+        ] {
+            let e = recipe(m).check_live().unwrap_err().to_string();
+            assert!(e.contains("never keeps"), "{e}");
+        }
+    }
+
+    #[test]
+    fn a_recipe_survives_a_round_trip_through_serde() {
+        let r = Recipe {
+            setup: SetupSpec::DrivePoint {
+                substructure: SubstructureSpec::PaperThreeDof,
+            },
+            model: "coulomb-atan"
+                .parse::<ModelSpec>()
+                .unwrap()
+                .with_options(ModelOptions {
+                    atan_slope_s_per_m: Some(1000.0),
+                    polynomial_order: None,
+                }),
+            method: Method::Td {
+                points_per_step: Some(20),
+            },
+            weighting: Weighting::Uniform,
+            phasor: PhasorOptions::default(),
+        };
+        let text = serde_json::to_string(&r).unwrap();
+        assert!(text.contains(r#""kind":"drive-point""#), "{text}");
+        let back: Recipe = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, r);
+    }
+}
