@@ -139,7 +139,7 @@ pub struct ReproduceArgs {
 
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {
-    /// A bag directory, a bare .mcap, or a test-bench CSV export (see the README).
+    /// A bag directory, a bare .mcap, or a test-bench CSV export (see docs/data.md).
     pub file: PathBuf,
     /// Model name (see `forcemap models`).
     #[arg(long)]

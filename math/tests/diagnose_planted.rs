@@ -158,8 +158,8 @@ fn stribeck_friction_is_named_despite_stuck_steps() {
     assert_eq!(r.named, "stribeck_friction", "{r:?}");
 }
 
-/// Case `index` of the README's evaluation (`diagnose-eval --cases 200 --seed 1`), checked to
-/// plant `effect`.
+/// Case `index` of the evaluation in docs/diagnosis.md (`diagnose-eval --cases 200 --seed 1`),
+/// checked to plant `effect`.
 fn eval_case(index: usize, effect: Effect) -> CaseSpec {
     eval_case_of_seed(1, index, effect)
 }

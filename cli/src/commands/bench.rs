@@ -1,5 +1,5 @@
 //! `forcemap bench graph`: what the node graph sustains, measured on this machine (a benchmark,
-//! not a test: figures go in the README with the command that produced them).
+//! not a test: figures go in docs/graph.md with the command that produced them).
 //!
 //! The harmonic node and the identifier run as separate processes, as in a launch; this
 //! process plays the sensor (a simulated rig run published as fast as the graph acknowledges,

@@ -66,7 +66,7 @@
 //! blocks at least 3), beyond 10 % of the gap and 0.2 %-points, with a better penalised score.
 //! With the rig's "shrink > floor" a small removable gap on top of a large floor could never
 //! be explained, even when one effect removes nearly all of it, consistently (EMPS with the
-//! Coulomb baseline: 0.62 of 0.69 %-points, t = 5.4; see the README).
+//! Coulomb baseline: 0.62 of 0.69 %-points, t = 5.4; see docs/diagnosis.md).
 //!
 //! Units: the rule's figures here are relative force errors (the benchmark's measure, the root
 //! of a normalised mean square); the rig path applies the rule to an NMSE. Applied to the
