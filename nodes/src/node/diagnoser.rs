@@ -13,6 +13,7 @@ use anyhow::Context as _;
 use forcemap_math::diagnose::phasor::MIN_STEPS;
 use forcemap_math::diagnose::{PhasorDiagnosis, PhasorFindings, Verdict};
 use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::recipe::check_mass_kg;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
 use forcemap_msgs::msg::{GapDiagnosis, HarmonicPhasors};
@@ -20,11 +21,11 @@ use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
 use crate::log_line;
-use crate::node::identifier::step_setup;
+use crate::node::setup_gate::{Input, SetupGate};
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg};
+use forcemap_io::params::Params;
 use forcemap_io::rig_constants;
 use forcemap_io::topics;
-use forcemap_math::recipe::{SetupConstants, check_mass_kg};
 
 /// The message of a set of findings.
 pub fn diagnosis_message(baseline: &str, f: &PhasorFindings, header: Header) -> GapDiagnosis {
@@ -47,29 +48,139 @@ pub fn diagnosis_message(baseline: &str, f: &PhasorFindings, header: Header) -> 
     }
 }
 
-enum Input {
-    Phasors(Box<HarmonicPhasors>),
-    RigMass(f64),
+/// What the diagnoser does about an input.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    Log(String),
+    Diagnosis(GapDiagnosis),
+    /// The verdict for /diagnostics: OK when the baseline is adequate, WARN otherwise.
+    Status(DiagnosticStatus),
 }
 
-pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
-    let p = setup.params.clone();
-    let baseline_name = p.opt_str("baseline")?.unwrap_or("linear").to_string();
-    let baseline = Model::by_name(
-        &baseline_name,
-        &ModelOptions {
-            atan_slope_s_per_m: p.opt_f64("atan_m")?,
-            polynomial_order: None,
-        },
-    )
-    .with_context(|| format!("baseline = '{baseline_name}'"))?;
-    let given = rig_constants::from_params(&p)?;
-    if let Some(m) = given.mass_kg {
-        check_mass_kg(m)?;
+/// The diagnoser's logic without the middleware.
+pub struct DiagnoserCore {
+    baseline_name: String,
+    baseline: Model,
+    gate: SetupGate,
+    live: Option<PhasorDiagnosis>,
+    status_name: String,
+}
+
+impl DiagnoserCore {
+    /// Reads `baseline` (`linear`), `atan_m`, `mass_kg` and `substructure...`.
+    pub fn from_params(p: &Params, status_name: &str) -> anyhow::Result<DiagnoserCore> {
+        let baseline_name = p.opt_str("baseline")?.unwrap_or("linear").to_string();
+        let baseline = Model::by_name(
+            &baseline_name,
+            &ModelOptions {
+                atan_slope_s_per_m: p.opt_f64("atan_m")?,
+                polynomial_order: None,
+            },
+        )
+        .with_context(|| format!("baseline = '{baseline_name}'"))?;
+        let given = rig_constants::from_params(p)?;
+        if let Some(m) = given.mass_kg {
+            check_mass_kg(m)?;
+        }
+        Ok(DiagnoserCore {
+            baseline_name,
+            baseline,
+            gate: SetupGate::new(given),
+            live: None,
+            status_name: status_name.to_string(),
+        })
     }
-    // Constants from the rig's parameters topic, used where the node's parameters say nothing.
-    let mut carried = SetupConstants::default();
+
+    pub fn baseline_name(&self) -> &str {
+        &self.baseline_name
+    }
+
+    /// Handles one input at wall-clock time `now`; refits every candidate on the steps so far
+    /// (seconds of CPU on a long run).
+    pub fn handle(&mut self, input: Input, now: Time) -> anyhow::Result<Vec<Output>> {
+        let mut log = Vec::new();
+        let ready = self.gate.admit(input, &mut log)?;
+        let mut out: Vec<Output> = log.into_iter().map(Output::Log).collect();
+        for r in ready {
+            let setup = r.setup.setup()?;
+            let baseline = &self.baseline;
+            let d = self
+                .live
+                .get_or_insert_with(|| PhasorDiagnosis::new(setup, baseline.clone()));
+            d.push(r.analysis);
+            if d.steps() < MIN_STEPS {
+                out.push(Output::Log(format!(
+                    "after {} steps: waiting for {MIN_STEPS} steps (the diagnosis leaves one step out at a time)",
+                    d.steps()
+                )));
+                continue;
+            }
+            let findings = match d.findings() {
+                Ok(f) => f,
+                Err(e) => {
+                    out.push(Output::Log(format!(
+                        "after {} steps: no diagnosis yet: {e}",
+                        d.steps()
+                    )));
+                    continue;
+                }
+            };
+            out.push(Output::Log(format!(
+                "after {} steps: {}{}; cross-validated gap {:.2} % -> {:.2} % (noise {:.2} %)",
+                findings.steps,
+                findings.verdict.name(),
+                findings
+                    .top_effect
+                    .map_or(String::new(), |e| format!(" by {}", e.name())),
+                findings.gap_before_percent,
+                findings.gap_after_percent,
+                findings.noise_floor_percent
+            )));
+            out.push(Output::Diagnosis(diagnosis_message(
+                &self.baseline_name,
+                &findings,
+                Header::new(now, &r.phasors.header.frame_id),
+            )));
+            out.push(Output::Status(self.status(&findings)));
+        }
+        Ok(out)
+    }
+
+    fn status(&self, findings: &PhasorFindings) -> DiagnosticStatus {
+        let baseline_name = &self.baseline_name;
+        let level = match findings.verdict {
+            Verdict::Adequate => DiagnosticStatus::OK,
+            _ => DiagnosticStatus::WARN,
+        };
+        let message = match (findings.verdict, findings.top_effect) {
+            (Verdict::Explained, Some(e)) => format!(
+                "baseline '{baseline_name}' misses {}: gap {:.2} % -> {:.2} %",
+                e.name(),
+                findings.gap_before_percent,
+                findings.gap_after_percent
+            ),
+            (Verdict::Adequate, _) => format!("baseline '{baseline_name}' is adequate"),
+            _ => format!(
+                "baseline '{baseline_name}' has a gap of {:.2} % that no candidate explains",
+                findings.gap_before_percent
+            ),
+        };
+        let mut status = DiagnosticStatus::new(level, &self.status_name, message, "diagnoser")
+            .with_value("verdict", findings.verdict.name())
+            .with_value("steps", findings.steps)
+            .with_value("gap_before_percent", findings.gap_before_percent)
+            .with_value("gap_after_percent", findings.gap_after_percent);
+        if let Some(e) = findings.top_effect {
+            status = status.with_value("top_effect", e.name());
+        }
+        status
+    }
+}
+
+/// The node: [`DiagnoserCore`] behind its subscriptions and publishers.
+pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let fq = setup.fully_qualified_name();
+    let mut core = DiagnoserCore::from_params(&setup.params, &format!("{fq}: gap diagnosis"))?;
 
     let mut ros = RosNode::start(setup.clone())?;
     let phasors = ros.subscription::<HarmonicPhasors>(topics::PHASORS, qos::phasors())?;
@@ -86,109 +197,34 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     });
 
     log_line!(
-        "diagnosing the gap of baseline '{baseline_name}' from {}",
+        "diagnosing the gap of baseline '{}' from {}",
+        core.baseline_name(),
         setup.absolute_topic(topics::PHASORS)
     );
-    let status_name = format!("{fq}: gap diagnosis");
-    let mut live: Option<PhasorDiagnosis> = None;
-    let mut waiting: Vec<HarmonicPhasors> = Vec::new();
     loop {
         let input = tokio::select! {
             i = rx.recv() => match i { Some(i) => i, None => break },
             _ = crate::ros::shutdown_signal() => break,
         };
-        let batch = match input {
-            Input::RigMass(m) => {
-                if carried.mass_kg.is_none() {
-                    carried.mass_kg = Some(m);
+        // The refits take seconds: keep the runtime's other tasks going meanwhile.
+        let outputs = tokio::task::block_in_place(|| core.handle(input, now_time()))?;
+        for o in outputs {
+            match o {
+                Output::Log(line) => log_line!("{line}"),
+                Output::Diagnosis(msg) => {
+                    if let Err(e) = diagnosis_pub.async_publish(msg).await {
+                        log_line!("error: publishing the diagnosis: {e:?}");
+                    }
                 }
-                std::mem::take(&mut waiting)
-            }
-            Input::Phasors(ph) => {
-                let mut b = std::mem::take(&mut waiting);
-                b.push(*ph);
-                b
-            }
-        };
-        for ph in batch {
-            let analysis = match ph.to_analysis(Time::ZERO) {
-                Ok(a) => a,
-                Err(e) => {
-                    log_line!("step {}: phasors refused: {e}", ph.step);
-                    continue;
+                Output::Status(status) => {
+                    let _ = diag_pub
+                        .async_publish(DiagnosticArray {
+                            header: Header::new(now_time(), ""),
+                            status: vec![status],
+                        })
+                        .await;
                 }
-            };
-            let Some(spec) = step_setup(&analysis, &given.clone().or(carried.clone()))? else {
-                waiting.push(ph);
-                continue;
-            };
-            let step_setup = spec.setup()?;
-            let d = live.get_or_insert_with(|| PhasorDiagnosis::new(step_setup, baseline.clone()));
-            d.push(analysis);
-            if d.steps() < MIN_STEPS {
-                log_line!(
-                    "after {} steps: waiting for {MIN_STEPS} steps (the diagnosis leaves one step out at a time)",
-                    d.steps()
-                );
-                continue;
             }
-            let findings = match tokio::task::block_in_place(|| d.findings()) {
-                Ok(f) => f,
-                Err(e) => {
-                    log_line!("after {} steps: no diagnosis yet: {e}", d.steps());
-                    continue;
-                }
-            };
-            log_line!(
-                "after {} steps: {}{}; cross-validated gap {:.2} % -> {:.2} % (noise {:.2} %)",
-                findings.steps,
-                findings.verdict.name(),
-                findings
-                    .top_effect
-                    .map_or(String::new(), |e| format!(" by {}", e.name())),
-                findings.gap_before_percent,
-                findings.gap_after_percent,
-                findings.noise_floor_percent
-            );
-            let msg = diagnosis_message(
-                &baseline_name,
-                &findings,
-                Header::new(now_time(), &ph.header.frame_id),
-            );
-            if let Err(e) = diagnosis_pub.async_publish(msg).await {
-                log_line!("error: publishing the diagnosis: {e:?}");
-            }
-            let level = match findings.verdict {
-                Verdict::Adequate => DiagnosticStatus::OK,
-                _ => DiagnosticStatus::WARN,
-            };
-            let message = match (findings.verdict, findings.top_effect) {
-                (Verdict::Explained, Some(e)) => format!(
-                    "baseline '{baseline_name}' misses {}: gap {:.2} % -> {:.2} %",
-                    e.name(),
-                    findings.gap_before_percent,
-                    findings.gap_after_percent
-                ),
-                (Verdict::Adequate, _) => format!("baseline '{baseline_name}' is adequate"),
-                _ => format!(
-                    "baseline '{baseline_name}' has a gap of {:.2} % that no candidate explains",
-                    findings.gap_before_percent
-                ),
-            };
-            let mut status = DiagnosticStatus::new(level, &status_name, message, "diagnoser")
-                .with_value("verdict", findings.verdict.name())
-                .with_value("steps", findings.steps)
-                .with_value("gap_before_percent", findings.gap_before_percent)
-                .with_value("gap_after_percent", findings.gap_after_percent);
-            if let Some(e) = findings.top_effect {
-                status = status.with_value("top_effect", e.name());
-            }
-            let _ = diag_pub
-                .async_publish(DiagnosticArray {
-                    header: Header::new(now_time(), ""),
-                    status: vec![status],
-                })
-                .await;
         }
     }
     tokio::time::sleep(Duration::from_millis(200)).await;

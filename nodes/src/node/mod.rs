@@ -14,6 +14,7 @@ pub mod identifier;
 pub mod monitor;
 pub mod recorder;
 pub mod sensor;
+pub mod setup_gate;
 
 use crate::ros::{NodeSetup, RosArgs, run_node};
 

@@ -1,0 +1,303 @@
+//! The identifier's logic without the middleware: phasors and rig constants in, theta, status
+//! and log lines out, so that it can be tested alone (and the live theta compared with
+//! `forcemap identify` without DDS).
+
+use anyhow::bail;
+use forcemap_math::identify::{Identification, IdentifyError, Method, Weighting, step_equations};
+use forcemap_math::lstsq::LstsqError;
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::phasor::PhasorOptions;
+use forcemap_math::recipe::{
+    ModelSpec, Recipe, SetupConstants, SetupSpec, check_mass_kg, live_refusal,
+};
+use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
+use forcemap_msgs::msg::IdentifiedParameters;
+use forcemap_msgs::std_msgs::Header;
+
+use super::state::{Admit, IdentifierState, admit};
+use crate::node::setup_gate::{Input, Ready, SetupGate};
+use forcemap_io::params::Params;
+use forcemap_io::rig_constants;
+
+/// The parts of the recipe the node's parameters fix from the start: model, method,
+/// weighting and the setup constants it was given (`mass_kg`, `substructure...`). The setup
+/// itself waits for the first step's channels (and, on a rig, for its mass).
+#[derive(Debug, Clone)]
+pub struct RecipeParameters {
+    pub model: ModelSpec,
+    pub method: Method,
+    pub weighting: Weighting,
+    pub constants: SetupConstants,
+}
+
+impl RecipeParameters {
+    /// Reads `model` (`coulomb`), `method` (`fd-multi`), `weighting` (`noise`), `atan_m`,
+    /// `poly_order` (`[P, Q]`), `mass_kg` and `substructure...`; refuses a method the live
+    /// identifier cannot run.
+    pub fn from_params(p: &Params) -> anyhow::Result<RecipeParameters> {
+        let poly = match p.opt_i64_array("poly_order")? {
+            None => None,
+            Some(v) if v.len() == 2 && v.iter().all(|x| (0..=64).contains(x)) => {
+                Some((v[0] as u32, v[1] as u32))
+            }
+            Some(v) => bail!("poly_order = {v:?}: expected [P, Q] with 0 <= P, Q <= 64"),
+        };
+        let model = p
+            .opt_str("model")?
+            .unwrap_or("coulomb")
+            .parse::<ModelSpec>()?
+            .with_options(ModelOptions {
+                atan_slope_s_per_m: p.opt_f64("atan_m")?,
+                polynomial_order: poly,
+            });
+        // The model must build (an atan model needs its slope) before the first step.
+        model.build()?;
+        let method: Method = p.opt_str("method")?.unwrap_or("fd-multi").parse()?;
+        if let Some(why) = live_refusal(method) {
+            bail!("method = {method}: {why}");
+        }
+        let weighting: Weighting = p.opt_str("weighting")?.unwrap_or("noise").parse()?;
+        let constants = rig_constants::from_params(p)?;
+        if let Some(m) = constants.mass_kg {
+            check_mass_kg(m)?;
+        }
+        Ok(RecipeParameters {
+            model,
+            method,
+            weighting,
+            constants,
+        })
+    }
+
+    /// The recipe of steps of `setup`.
+    pub fn recipe(&self, setup: SetupSpec) -> Recipe {
+        Recipe {
+            setup,
+            model: self.model.clone(),
+            method: self.method,
+            weighting: self.weighting,
+            phasor: PhasorOptions::for_identification(),
+        }
+    }
+}
+
+/// What the identifier does about it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    Log(String),
+    Theta(IdentifiedParameters),
+    /// The identifier's health for /diagnostics (with the recipe it runs).
+    Status(DiagnosticStatus),
+    /// The accumulated state changed: persist it.
+    Persist,
+}
+
+/// The identifier's state machine.
+pub struct IdentifierCore {
+    parameters: RecipeParameters,
+    model: Model,
+    gate: SetupGate,
+    state: Option<IdentifierState>,
+    /// The recipe of the steps so far, published with every status.
+    recipe: Option<Recipe>,
+    status_name: String,
+}
+
+impl IdentifierCore {
+    /// A core for `parameters`, reporting its status as `status_name`, resuming from `resumed`
+    /// when that holds equations of this model, method and weighting. Returns the log lines
+    /// and, for a resumed state, its theta (a control node may have missed the last one).
+    pub fn new(
+        parameters: RecipeParameters,
+        status_name: &str,
+        resumed: Option<(IdentifierState, String)>,
+        now: Time,
+    ) -> anyhow::Result<(IdentifierCore, Vec<Output>)> {
+        let model = parameters.model.build()?;
+        let mut out = Vec::new();
+        let mut state = None;
+        if let Some((s, source)) = resumed {
+            if s.accumulator.is_for(&model, parameters.method)
+                && s.weighting == parameters.weighting
+            {
+                out.push(Output::Log(format!(
+                    "resuming from {source}: {} steps, {} equations, last step {:?}",
+                    s.accumulator.steps_added(),
+                    s.accumulator.equations(),
+                    s.last_step
+                )));
+                if s.accumulator.steps_added() > 0
+                    && let Ok(id) = s.accumulator.solve()
+                {
+                    out.push(Output::Log(format!("resumed theta: {}", theta_line(&id))));
+                    out.push(Output::Theta(IdentifiedParameters::from_identification(
+                        &id,
+                        Header::new(now, "rig"),
+                    )));
+                }
+                state = Some(s);
+            } else {
+                out.push(Output::Log(format!(
+                    "{source} holds equations of model '{}' by {} ({} weighting): not this identifier's; starting afresh",
+                    s.accumulator.model,
+                    s.accumulator.method,
+                    s.weighting.name()
+                )));
+            }
+        }
+        Ok((
+            IdentifierCore {
+                gate: SetupGate::new(parameters.constants.clone()),
+                parameters,
+                model,
+                state,
+                recipe: None,
+                status_name: status_name.to_string(),
+            },
+            out,
+        ))
+    }
+
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    pub fn parameters(&self) -> &RecipeParameters {
+        &self.parameters
+    }
+
+    /// The accumulated state, once a step has been seen.
+    pub fn state(&self) -> Option<&IdentifierState> {
+        self.state.as_ref()
+    }
+
+    /// The recipe of the steps so far.
+    pub fn recipe(&self) -> Option<&Recipe> {
+        self.recipe.as_ref()
+    }
+
+    /// Handles one input at wall-clock time `now` (the stamp of what it publishes). An error
+    /// is a configuration the node cannot run with (e.g. an inconsistent substructure).
+    pub fn handle(&mut self, input: Input, now: Time) -> anyhow::Result<Vec<Output>> {
+        let mut log = Vec::new();
+        let ready = self.gate.admit(input, &mut log)?;
+        let mut out: Vec<Output> = log.into_iter().map(Output::Log).collect();
+        for r in ready {
+            self.step(r, now, &mut out)?;
+        }
+        Ok(out)
+    }
+
+    fn step(&mut self, ready: Ready, now: Time, out: &mut Vec<Output>) -> anyhow::Result<()> {
+        let Ready {
+            phasors: ph,
+            analysis,
+            setup,
+        } = ready;
+        let step = ph.step;
+        let recipe = self.parameters.recipe(setup);
+        let step_setup = recipe.setup.setup()?;
+        let options = recipe.fd_options();
+        let setup_text = recipe.setup.to_string();
+        if self.recipe.as_ref() != Some(&recipe) {
+            out.push(Output::Log(format!(
+                "recipe: {}",
+                serde_json::to_string(&recipe)?
+            )));
+            self.recipe = Some(recipe);
+        }
+        let (model, method, weighting) = (
+            &self.model,
+            self.parameters.method,
+            self.parameters.weighting,
+        );
+        let st = self
+            .state
+            .get_or_insert_with(|| IdentifierState::new(model, method, weighting, &setup_text));
+        match admit(st, step, ph.t_ref) {
+            Admit::Duplicate => {
+                out.push(Output::Log(format!(
+                    "step {step}: already in the accumulated equations; skipped"
+                )));
+                return Ok(());
+            }
+            Admit::NewRun => {
+                out.push(Output::Log(format!(
+                    "step {step} again, later in time: a new run; starting the equations afresh"
+                )));
+                *st = IdentifierState::new(model, method, weighting, &setup_text);
+            }
+            Admit::Add => {}
+        }
+        let added = step_equations(model, &step_setup, method, &analysis, &options)
+            .map_err(|e| e.to_string())
+            .and_then(|blk| st.accumulator.add(&blk).map_err(|e| e.to_string()));
+        if let Err(e) = added {
+            out.push(Output::Log(format!("step {step}: no equations: {e}")));
+            out.push(self.status(
+                DiagnosticStatus::WARN,
+                &format!("step {step} gave no equations: {e}"),
+            )?);
+            return Ok(());
+        }
+        st.last_step = Some(step);
+        st.last_t_ref = Some(ph.t_ref);
+        out.push(Output::Persist);
+        let solved = st.accumulator.solve_with_flags();
+        match solved {
+            Ok((id, flags)) => {
+                out.push(Output::Log(format!(
+                    "step {step}: {} ({} equations, cond {:.2e})",
+                    theta_line(&id),
+                    id.equations,
+                    id.condition_number
+                )));
+                out.push(Output::Theta(IdentifiedParameters::from_identification(
+                    &id,
+                    Header::new(now, &ph.header.frame_id),
+                )));
+                // Each flag (badly conditioned, few equations) is a WARN; the first is the
+                // message.
+                let (level, message) = match flags.first() {
+                    Some(w) => (DiagnosticStatus::WARN, w.to_string()),
+                    None => (DiagnosticStatus::OK, format!("theta after step {step}")),
+                };
+                out.push(self.status(level, &message)?);
+            }
+            Err(IdentifyError::Lstsq(e @ LstsqError::Underdetermined { .. }))
+            | Err(IdentifyError::Lstsq(e @ LstsqError::IllConditioned { .. })) => {
+                out.push(Output::Log(format!("step {step}: no theta yet: {e}")));
+                out.push(self.status(DiagnosticStatus::WARN, &e.to_string())?);
+            }
+            Err(e) => {
+                out.push(Output::Log(format!("step {step}: {e}")));
+                out.push(self.status(DiagnosticStatus::ERROR, &e.to_string())?);
+            }
+        }
+        Ok(())
+    }
+
+    /// The status for /diagnostics, with the recipe it runs (JSON, as `forcemap identify
+    /// --json` prints it) so that a recorded bag keeps it.
+    fn status(&self, level: u8, message: &str) -> anyhow::Result<Output> {
+        let mut status = DiagnosticStatus::new(level, &self.status_name, message, "identifier")
+            .with_value("recipe", serde_json::to_string(&self.recipe)?);
+        if let Some(st) = &self.state {
+            status = status
+                .with_value("model", &st.accumulator.model)
+                .with_value("method", &st.accumulator.method)
+                .with_value("steps_added", st.accumulator.steps_added())
+                .with_value("equations", st.accumulator.equations());
+        }
+        Ok(Output::Status(status))
+    }
+}
+
+pub fn theta_line(id: &Identification) -> String {
+    id.parameters
+        .iter()
+        .map(|p| format!("{} = {:.6} ± {:.3}", p.name, p.value, p.std))
+        .collect::<Vec<_>>()
+        .join(", ")
+}

@@ -1,0 +1,145 @@
+//! What the identifier persists after every step, and which steps it admits.
+
+use std::path::Path;
+
+use anyhow::{Context as _, bail};
+use forcemap_math::identify::{EquationAccumulator, Method, Weighting};
+use forcemap_math::model::Model;
+use forcemap_msgs::builtin_interfaces::Time;
+use serde::{Deserialize, Serialize};
+
+/// What the identifier persists.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IdentifierState {
+    pub version: u32,
+    pub weighting: Weighting,
+    /// The setup the equations were made with (e.g. `base-excited, mass 36 kg`).
+    pub setup: String,
+    pub accumulator: EquationAccumulator,
+    /// The last step added and its phasors' reference time, to skip steps already added
+    /// (replayed history after a restart) and to notice a new run.
+    pub last_step: Option<u32>,
+    pub last_t_ref: Option<Time>,
+}
+
+const STATE_VERSION: u32 = 1;
+
+impl IdentifierState {
+    pub fn new(model: &Model, method: Method, weighting: Weighting, setup: &str) -> Self {
+        IdentifierState {
+            version: STATE_VERSION,
+            weighting,
+            setup: setup.to_string(),
+            accumulator: EquationAccumulator::new(model, method),
+            last_step: None,
+            last_t_ref: None,
+        }
+    }
+
+    /// Reads a persisted state; `None` when there is no file.
+    pub fn load(path: &Path) -> anyhow::Result<Option<IdentifierState>> {
+        let text = match std::fs::read_to_string(path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(e).with_context(|| format!("reading {}", path.display())),
+        };
+        let s: IdentifierState = serde_json::from_str(&text)
+            .with_context(|| format!("{}: not an identifier state file", path.display()))?;
+        if s.version != STATE_VERSION {
+            bail!(
+                "{}: state version {} (this identifier writes version {STATE_VERSION})",
+                path.display(),
+                s.version
+            );
+        }
+        Ok(Some(s))
+    }
+
+    /// Writes the state atomically (temporary file, fsync, rename), so a crash leaves either
+    /// the old or the new state, never a torn one.
+    pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+        use std::io::Write as _;
+        let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+        if let Some(d) = dir {
+            std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+        }
+        let tmp = path.with_extension("json.partial");
+        let text = serde_json::to_string(self).context("serialising the identifier state")?;
+        let mut f =
+            std::fs::File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+        f.write_all(text.as_bytes())
+            .and_then(|()| f.sync_all())
+            .with_context(|| format!("writing {}", tmp.display()))?;
+        std::fs::rename(&tmp, path)
+            .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))?;
+        Ok(())
+    }
+}
+
+/// What to do with a step's phasors given the state.
+#[derive(Debug, PartialEq)]
+pub enum Admit {
+    Add,
+    /// Already added (history replayed to a restarted identifier).
+    Duplicate,
+    /// An earlier step number with a later time: a new run; start over.
+    NewRun,
+}
+
+pub fn admit(state: &IdentifierState, step: u32, t_ref: Time) -> Admit {
+    match (state.last_step, state.last_t_ref) {
+        (Some(ls), Some(lt)) => {
+            if t_ref <= lt {
+                Admit::Duplicate
+            } else if step <= ls {
+                Admit::NewRun
+            } else {
+                Admit::Add
+            }
+        }
+        _ => Admit::Add,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use forcemap_math::model::ModelOptions;
+
+    #[test]
+    fn steps_are_added_once_and_a_new_run_starts_over() {
+        let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
+        let mut s = IdentifierState::new(&model, Method::FdMulti, Weighting::Noise, "x");
+        let t = |s: i64| Time::from_nanos(s * 1_000_000_000);
+        assert_eq!(admit(&s, 0, t(10)), Admit::Add);
+        s.last_step = Some(3);
+        s.last_t_ref = Some(t(50));
+        assert_eq!(admit(&s, 2, t(40)), Admit::Duplicate);
+        assert_eq!(admit(&s, 3, t(50)), Admit::Duplicate);
+        assert_eq!(admit(&s, 4, t(60)), Admit::Add);
+        assert_eq!(admit(&s, 0, t(100)), Admit::NewRun);
+    }
+
+    #[test]
+    fn state_round_trips_through_its_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("sub/state.json");
+        let model = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
+        let mut s = IdentifierState::new(&model, Method::FdMulti, Weighting::Uniform, "rig");
+        s.last_step = Some(7);
+        s.last_t_ref = Some(Time::from_nanos(123_456_789));
+        s.save(&path).unwrap();
+        assert_eq!(IdentifierState::load(&path).unwrap(), Some(s));
+        assert!(!path.with_extension("json.partial").exists());
+        std::fs::write(&path, "{not json").unwrap();
+        let e = IdentifierState::load(&path).unwrap_err();
+        assert!(
+            format!("{e:#}").contains("not an identifier state file"),
+            "{e:#}"
+        );
+        assert_eq!(
+            IdentifierState::load(&dir.path().join("none.json")).unwrap(),
+            None
+        );
+    }
+}

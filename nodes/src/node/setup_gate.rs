@@ -1,0 +1,107 @@
+//! Phasors held until their setup is known: what the identifier and the diagnoser both do
+//! with a step whose rig mass has not arrived yet (it comes from a parameter or, later, on the
+//! rig's `parameters` topic), in one place.
+
+use forcemap_math::phasor::HarmonicAnalysis;
+use forcemap_math::recipe::{RecipeError, SetupConstants, SetupKind, SetupSpec};
+use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::msg::HarmonicPhasors;
+
+/// What reaches a node that consumes phasors.
+#[derive(Debug, Clone)]
+pub enum Input {
+    Phasors(Box<HarmonicPhasors>),
+    /// The rig's mass from its `parameters` topic.
+    RigMass(f64),
+}
+
+/// A step whose setup is known.
+#[derive(Debug, Clone)]
+pub struct Ready {
+    pub phasors: HarmonicPhasors,
+    pub analysis: HarmonicAnalysis,
+    pub setup: SetupSpec,
+}
+
+/// Holds phasors until their setup resolves.
+#[derive(Debug, Clone)]
+pub struct SetupGate {
+    /// The node's own parameters: they win over the topic.
+    given: SetupConstants,
+    /// What the rig's parameters topic said.
+    carried: SetupConstants,
+    waiting: Vec<HarmonicPhasors>,
+}
+
+impl SetupGate {
+    pub fn new(given: SetupConstants) -> SetupGate {
+        SetupGate {
+            given,
+            carried: SetupConstants::default(),
+            waiting: Vec::new(),
+        }
+    }
+
+    /// The steps that are ready after `input`, in the order they arrived, with a log line
+    /// for each thing worth saying. An error is a setup the node cannot run with (an
+    /// inconsistent substructure): no later input would fix it.
+    pub fn admit(&mut self, input: Input, log: &mut Vec<String>) -> anyhow::Result<Vec<Ready>> {
+        let batch = match input {
+            Input::RigMass(m) => {
+                if self.given.mass_kg.is_none() && self.carried.mass_kg.is_none() {
+                    log.push(format!("rig mass {m} kg (from the rig's parameters topic)"));
+                    self.carried.mass_kg = Some(m);
+                }
+                std::mem::take(&mut self.waiting)
+            }
+            Input::Phasors(ph) => {
+                let mut b = std::mem::take(&mut self.waiting);
+                b.push(*ph);
+                b
+            }
+        };
+        let constants = self.given.clone().or(self.carried.clone());
+        let mut ready = Vec::new();
+        for ph in batch {
+            let step = ph.step;
+            let analysis = match ph.to_analysis(Time::ZERO) {
+                Ok(a) => a,
+                Err(e) => {
+                    log.push(format!("step {step}: phasors refused: {e}"));
+                    continue;
+                }
+            };
+            match setup_of(&analysis, &constants)? {
+                Some(setup) => ready.push(Ready {
+                    phasors: ph,
+                    analysis,
+                    setup,
+                }),
+                None => {
+                    if self.waiting.is_empty() {
+                        log.push(format!(
+                            "step {step}: waiting for the rig's mass (parameter mass_kg or the rig's parameters topic)"
+                        ));
+                    }
+                    self.waiting.push(ph);
+                }
+            }
+        }
+        Ok(ready)
+    }
+}
+
+/// The setup of a step's phasors, from the channels they hold and the constants known;
+/// `None` while a rig's mass is unknown.
+fn setup_of(
+    analysis: &HarmonicAnalysis,
+    constants: &SetupConstants,
+) -> anyhow::Result<Option<SetupSpec>> {
+    let kind = SetupKind::of_channels(|c| analysis.channels.iter().any(|ch| ch.channel == c))
+        .map_err(|e| anyhow::anyhow!("step {}: {e}", analysis.step))?;
+    match kind.resolve(constants) {
+        Ok(s) => Ok(Some(s)),
+        Err(RecipeError::MissingMass) => Ok(None),
+        Err(e) => Err(anyhow::anyhow!("the node's parameters: {e}")),
+    }
+}

@@ -1,0 +1,178 @@
+//! The identifier's state machine without DDS: fed the phasors of the committed rig bag, it
+//! gives the theta of `forcemap identify` on the same bag, waits for the rig's mass, skips
+//! replayed steps, publishes the recipe it runs and refuses what it cannot run.
+
+use std::path::Path;
+
+use forcemap_io::params::{ParamValue, Params};
+use forcemap_io::rig_bag::{DEFAULT_RUN_START, read_rig_bag};
+use forcemap_math::identify::{FdMultiOptions, Method, Setup, Weighting};
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::phasor::{PhasorOptions, analyse_record};
+use forcemap_math::pipeline::identify_records;
+use forcemap_math::recipe::{Recipe, SetupSpec};
+use forcemap_math::record::Excitation;
+use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
+use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
+use forcemap_msgs::std_msgs::Header;
+use forcemap_nodes::node::identifier::{IdentifierCore, Input, Output, RecipeParameters};
+
+const RUN_START: Time = DEFAULT_RUN_START;
+
+fn rig_bag() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../bags/rig_40db")
+}
+
+/// The phasor messages the harmonic node publishes for the bag's sine steps.
+fn phasor_messages() -> Vec<HarmonicPhasors> {
+    let bag = read_rig_bag(&rig_bag()).unwrap();
+    bag.records
+        .iter()
+        .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
+        .map(|r| {
+            let a = analyse_record(r, &PhasorOptions::for_identification()).unwrap();
+            HarmonicPhasors::from_analysis(&a, RUN_START, Header::new(RUN_START, "rig"))
+        })
+        .collect()
+}
+
+fn params(entries: &[(&str, ParamValue)]) -> Params {
+    let mut p = Params::new();
+    for (k, v) in entries {
+        p.set(k, v.clone());
+    }
+    p
+}
+
+fn core(p: &Params) -> IdentifierCore {
+    let rp = RecipeParameters::from_params(p).unwrap();
+    IdentifierCore::new(rp, "/rig/identifier: identification", None, RUN_START)
+        .unwrap()
+        .0
+}
+
+fn thetas(outputs: &[Output]) -> Vec<&IdentifiedParameters> {
+    outputs
+        .iter()
+        .filter_map(|o| match o {
+            Output::Theta(t) => Some(t),
+            _ => None,
+        })
+        .collect()
+}
+
+fn statuses(outputs: &[Output]) -> Vec<&DiagnosticStatus> {
+    outputs
+        .iter()
+        .filter_map(|o| match o {
+            Output::Status(s) => Some(s),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn live_theta_equals_the_offline_identification() {
+    let mut c = core(&params(&[("model", ParamValue::String("coulomb".into()))]));
+    let mut out = Vec::new();
+    // No mass yet: every step waits.
+    for ph in phasor_messages() {
+        let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
+        assert!(thetas(&o).is_empty());
+        out.extend(o);
+    }
+    assert!(
+        out.iter()
+            .any(|o| matches!(o, Output::Log(l) if l.contains("waiting for the rig's mass")))
+    );
+    let o = c.handle(Input::RigMass(36.0), RUN_START).unwrap();
+    let live = thetas(&o);
+    assert_eq!(live.len(), 10, "one theta per waiting step");
+    let last = live.last().unwrap();
+
+    let bag = read_rig_bag(&rig_bag()).unwrap();
+    let model = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
+    let offline = identify_records(
+        &model,
+        &Setup::BaseExcited { mass_kg: 36.0 },
+        Method::FdMulti,
+        &bag.records,
+        &PhasorOptions::for_identification(),
+        &FdMultiOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(last.parameter_names, vec!["k", "c", "fd"]);
+    for (live, off) in last.values.iter().zip(offline.theta()) {
+        assert!(
+            ((live - off) / off).abs() < 1e-9,
+            "live {live} offline {off}"
+        );
+    }
+    // The status carries the recipe it ran.
+    let status = statuses(&o).last().copied().unwrap();
+    let recipe_json = &status
+        .values
+        .iter()
+        .find(|kv| kv.key == "recipe")
+        .unwrap()
+        .value;
+    let recipe: Option<Recipe> = serde_json::from_str(recipe_json).unwrap();
+    let recipe = recipe.unwrap();
+    assert_eq!(recipe.setup, SetupSpec::BaseExcited { mass_kg: 36.0 });
+    assert_eq!(recipe.model.name, "coulomb");
+    assert_eq!(recipe.method, Method::FdMulti);
+    assert_eq!(recipe.weighting, Weighting::Noise);
+    assert_eq!(c.recipe(), Some(&recipe));
+}
+
+#[test]
+fn replayed_steps_are_skipped_and_the_parameter_mass_wins() {
+    let mut c = core(&params(&[
+        ("model", ParamValue::String("linear".into())),
+        ("mass_kg", ParamValue::Double(36.0)),
+    ]));
+    let phs = phasor_messages();
+    let first = c
+        .handle(Input::Phasors(Box::new(phs[0].clone())), RUN_START)
+        .unwrap();
+    assert!(first.contains(&Output::Persist));
+    // The topic's mass does not override the parameter's.
+    let o = c.handle(Input::RigMass(40.0), RUN_START).unwrap();
+    assert!(o.is_empty(), "{o:?}");
+    let again = c
+        .handle(Input::Phasors(Box::new(phs[0].clone())), RUN_START)
+        .unwrap();
+    assert!(thetas(&again).is_empty());
+    assert!(again.iter().any(
+        |o| matches!(o, Output::Log(l) if l.contains("already in the accumulated equations"))
+    ));
+    assert_eq!(c.state().unwrap().accumulator.steps_added(), 1);
+    assert_eq!(
+        c.recipe().unwrap().setup,
+        SetupSpec::BaseExcited { mass_kg: 36.0 }
+    );
+}
+
+#[test]
+fn what_the_identifier_cannot_run_is_refused_with_the_reason() {
+    for (key, value, expect) in [
+        ("method", "td", "never keeps"),
+        ("method", "output-error", "never keeps"),
+        ("method", "fd-mult", "expected fd, fd-multi"),
+        ("weighting", "equal", "expected noise or uniform"),
+        ("model", "quadratic", "unknown model 'quadratic'"),
+        ("model", "coulomb-atan", "atan slope M"),
+    ] {
+        let p = params(&[(key, ParamValue::String(value.into()))]);
+        let e = RecipeParameters::from_params(&p).unwrap_err();
+        assert!(format!("{e:#}").contains(expect), "{key} = {value}: {e:#}");
+    }
+    let p = params(&[("mass_kg", ParamValue::Double(-3.0))]);
+    let e = RecipeParameters::from_params(&p).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("the rig's mass must be a positive number of kg"),
+        "{e}"
+    );
+}
