@@ -23,4 +23,5 @@ pub mod phasor;
 pub mod pipeline;
 pub mod record;
 pub mod reproduce;
+pub mod signal;
 pub mod sim;

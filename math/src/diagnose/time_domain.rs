@@ -17,6 +17,12 @@
 //!    forwards and backwards, and one sample in `decimation` is kept, the last one included
 //!    (MATLAB's `decimate`, which the script applies to every column).
 //!
+//! The filters, the differences and the decimation are those of [`crate::signal`]
+//! ([`LowPass::butterworth`](crate::signal::iir::LowPass::butterworth),
+//! [`central_difference`](crate::signal::differentiate::central_difference),
+//! [`Decimator`](crate::signal::decimate::Decimator)); the hysteresis candidate's state is
+//! [`integrate_record`](crate::signal::bouc_wen::integrate_record).
+//!
 //! Why this filter: it is the published one, and it reproduces the published figures best.
 //! The Chebyshev filter's pass band is flat up to 40 Hz and its stop band steep, so the
 //! decimated columns hold the band the model is fitted in and nothing above it. On DATA_EMPS
@@ -79,6 +85,10 @@ use super::effects::Effect;
 use super::score::penalised;
 use super::{ParameterValue, Verdict, parameter_values, verdict};
 use crate::lstsq::{self, LstsqError};
+use crate::signal::bouc_wen;
+use crate::signal::decimate::Decimator;
+use crate::signal::differentiate::central_difference;
+use crate::signal::iir::LowPass;
 
 /// A record of a force-driven axis.
 #[derive(Debug, Clone)]
@@ -137,114 +147,8 @@ impl Default for TimeDomainOptions {
 /// one-sided.
 pub const BORDER_S: f64 = 0.049;
 
-/// Order and pass-band ripple of the anti-alias filter (MATLAB `decimate`'s Chebyshev type I).
-const ANTI_ALIAS_ORDER: usize = 8;
-const ANTI_ALIAS_RIPPLE_DB: f64 = 0.05;
 /// Order of the position filter (the published script's `butter(4, ...)`).
 const POSITION_FILTER_ORDER: usize = 4;
-
-/// A low-pass filter of even order as a cascade of biquads, from an analog prototype by the
-/// bilinear transform with the cut-off pre-warped. Every section has unit gain at DC (for the
-/// Chebyshev filter that puts the ripple above 1 instead of below; a common scale of every
-/// column and the force changes no fit and no relative error).
-#[derive(Debug, Clone)]
-struct LowPass {
-    /// (b0, b1, b2, a1, a2) of each section, a0 = 1.
-    sections: Vec<[f64; 5]>,
-    /// Odd-reflection padding of [`LowPass::filtfilt`]: three periods of the cut-off.
-    pad: usize,
-}
-
-impl LowPass {
-    /// Butterworth: prototype poles on the unit circle.
-    fn butterworth(order: usize, cutoff_hz: f64, sample_rate_hz: f64) -> LowPass {
-        Self::from_prototype(order, 1.0, 1.0, cutoff_hz, sample_rate_hz)
-    }
-
-    /// Chebyshev type I with `ripple_db` in the pass band, which ends at `cutoff_hz`.
-    fn chebyshev1(order: usize, ripple_db: f64, cutoff_hz: f64, sample_rate_hz: f64) -> LowPass {
-        let eps = (10f64.powf(ripple_db / 10.0) - 1.0).sqrt();
-        let mu = (1.0 / eps).asinh() / order as f64;
-        Self::from_prototype(order, mu.sinh(), mu.cosh(), cutoff_hz, sample_rate_hz)
-    }
-
-    /// Prototype poles `-a sin(theta_k) +- j b cos(theta_k)`, theta_k = (2k - 1) pi / (2 n).
-    fn from_prototype(order: usize, a: f64, b: f64, cutoff_hz: f64, fs: f64) -> LowPass {
-        debug_assert!(order.is_multiple_of(2), "even orders only");
-        if !(cutoff_hz > 0.0 && cutoff_hz < 0.5 * fs) {
-            // Nothing to remove below the Nyquist frequency.
-            return LowPass {
-                sections: Vec::new(),
-                pad: 0,
-            };
-        }
-        let k = (std::f64::consts::PI * cutoff_hz / fs).tan();
-        let sections = (1..=order / 2)
-            .map(|m| {
-                let theta = (2 * m - 1) as f64 * std::f64::consts::PI / (2 * order) as f64;
-                let (re, im) = (-a * theta.sin(), b * theta.cos());
-                // s^2 + d s + w0^2 with s = (1 - z^-1) / (k (1 + z^-1)), multiplied by k^2.
-                let w2 = (re * re + im * im) * k * k;
-                let d = -2.0 * re * k;
-                let a0 = 1.0 + d + w2;
-                let b0 = w2 / a0;
-                [b0, 2.0 * b0, b0, 2.0 * (w2 - 1.0) / a0, (1.0 - d + w2) / a0]
-            })
-            .collect();
-        LowPass {
-            sections,
-            pad: (3.0 * fs / cutoff_hz).ceil() as usize,
-        }
-    }
-
-    /// One pass, each section started from the steady state of the first value.
-    fn apply(&self, x: &mut [f64]) {
-        for &[b0, b1, b2, a1, a2] in &self.sections {
-            let Some(&x0) = x.first() else { return };
-            let z2 = (b2 - a2) * x0;
-            let (mut z1, mut z2) = ((b1 - a1) * x0 + z2, z2);
-            for v in x.iter_mut() {
-                let input = *v;
-                let y = b0 * input + z1;
-                z1 = b1 * input - a1 * y + z2;
-                z2 = b2 * input - a2 * y;
-                *v = y;
-            }
-        }
-    }
-
-    /// Zero-phase filtering (forwards, then backwards) with odd-reflection padding.
-    fn filtfilt(&self, x: &[f64]) -> Vec<f64> {
-        let n = x.len();
-        if n < 2 || self.sections.is_empty() {
-            return x.to_vec();
-        }
-        let pad = self.pad.min(n - 1);
-        let mut v = Vec::with_capacity(n + 2 * pad);
-        v.extend((1..=pad).rev().map(|k| 2.0 * x[0] - x[k]));
-        v.extend_from_slice(x);
-        v.extend((1..=pad).map(|k| 2.0 * x[n - 1] - x[n - 1 - k]));
-        self.apply(&mut v);
-        v.reverse();
-        self.apply(&mut v);
-        v.reverse();
-        v[pad..pad + n].to_vec()
-    }
-}
-
-/// Central differences, one-sided at the ends.
-fn central_difference(x: &[f64], dt: f64) -> Vec<f64> {
-    let n = x.len();
-    if n < 2 {
-        return vec![0.0; n];
-    }
-    (0..n)
-        .map(|i| {
-            let (lo, hi) = (i.saturating_sub(1), (i + 1).min(n - 1));
-            (x[hi] - x[lo]) / ((hi - lo) as f64 * dt)
-        })
-        .collect()
-}
 
 /// A record after differentiation and the border cut, at the full rate, with what the
 /// decimation needs.
@@ -257,14 +161,13 @@ struct Motion {
     /// Index in the original record of `q[0]`.
     first_index: usize,
     q_mean: f64,
-    anti_alias: LowPass,
-    decimation: usize,
+    decimator: Decimator,
 }
 
 impl Motion {
     /// Sample rate of the decimated columns [Hz].
     fn decimated_rate_hz(&self) -> f64 {
-        self.fs / self.decimation as f64
+        self.fs / self.decimator.factor() as f64
     }
 
     fn new(
@@ -321,28 +224,18 @@ impl Motion {
             fs,
             first_index: border,
             q_mean,
-            anti_alias: LowPass::chebyshev1(
-                ANTI_ALIAS_ORDER,
-                ANTI_ALIAS_RIPPLE_DB,
-                0.8 * fs / 2.0 / o.decimation as f64,
-                fs,
-            ),
-            decimation: o.decimation,
+            decimator: Decimator::new(o.decimation, fs),
         })
     }
 
-    /// Indices kept by the decimation: every `decimation`-th, ending with the last sample
-    /// (as MATLAB's `decimate`).
-    fn kept(&self) -> impl Iterator<Item = usize> + '_ {
-        let n = self.q.len();
-        let start = n.saturating_sub(1) % self.decimation;
-        (start..n).step_by(self.decimation)
+    /// Indices kept by the decimation ([`Decimator::kept`]).
+    fn kept(&self) -> impl Iterator<Item = usize> + use<> {
+        self.decimator.kept(self.q.len())
     }
 
     /// A full-rate column, anti-alias filtered and decimated.
     fn decimate(&self, full: &[f64]) -> Vec<f64> {
-        let f = self.anti_alias.filtfilt(full);
-        self.kept().map(|i| f[i]).collect()
+        self.decimator.decimate(full)
     }
 
     /// The decimated samples' times from the start of the record [s].
@@ -447,16 +340,7 @@ impl Column {
             Column::Cubic => m.q.iter().map(|q| dq(*q).powi(3)).collect(),
             Column::SignedSquarePosition => m.q.iter().map(|q| dq(*q) * dq(*q).abs()).collect(),
             Column::SquarePosition => m.q.iter().map(|q| dq(*q).powi(2)).collect(),
-            Column::BoucWen(zy) => {
-                let dt = 1.0 / m.fs;
-                let mut z = 0.0;
-                m.qd.iter()
-                    .map(|v| {
-                        z += dt * (v - (v.abs() * z + v * z.abs()) / (2.0 * zy));
-                        z
-                    })
-                    .collect()
-            }
+            Column::BoucWen(zy) => bouc_wen::integrate_record(&m.qd, 1.0 / m.fs, *zy),
         }
     }
 }
@@ -503,7 +387,7 @@ fn check_equations(m: &Motion, record: &'static str, parameters: usize) -> Resul
         return Err(AxisError::TooShort {
             record,
             samples: m.q.len() + 2 * m.first_index,
-            decimation: m.decimation,
+            decimation: m.decimator.factor(),
             equations,
             parameters: 2 * parameters,
         });
@@ -1300,39 +1184,6 @@ fn locate(pv: &Prepared, b: &TdFit) -> AxisLocated {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::f64::consts::PI;
-
-    fn sine(f_hz: f64, fs: f64, n: usize) -> Vec<f64> {
-        (0..n)
-            .map(|i| (2.0 * PI * f_hz * i as f64 / fs).sin())
-            .collect()
-    }
-
-    fn peak(x: &[f64]) -> f64 {
-        x.iter().fold(0.0f64, |m, v| m.max(v.abs()))
-    }
-
-    #[test]
-    fn butterworth_passes_dc_and_is_minus_6_db_at_the_cutoff_forwards_and_back() {
-        let f = LowPass::butterworth(4, 25.0, 1000.0);
-        let dc = f.filtfilt(&[3.0; 500]);
-        assert!(dc.iter().all(|v| (v - 3.0).abs() < 1e-9));
-        let out = f.filtfilt(&sine(200.0, 1000.0, 2000));
-        assert!(peak(&out[500..1500]) < 1e-4);
-        let out = f.filtfilt(&sine(25.0, 1000.0, 4000));
-        assert!((peak(&out[1000..3000]) - 0.5).abs() < 0.01);
-    }
-
-    #[test]
-    fn chebyshev_is_flat_to_its_band_edge_and_steep_beyond() {
-        // The anti-alias filter of decimation by 10 at 1 kHz: pass band to 40 Hz.
-        let f = LowPass::chebyshev1(8, 0.05, 40.0, 1000.0);
-        for (f_hz, lo, hi) in [(5.0, 0.99, 1.012), (39.0, 0.99, 1.012), (50.0, 0.0, 0.05)] {
-            let out = f.filtfilt(&sine(f_hz, 1000.0, 6000));
-            let p = peak(&out[2000..4000]);
-            assert!(p > lo && p < hi, "{f_hz} Hz: gain {p}");
-        }
-    }
 
     #[test]
     fn decimation_keeps_the_last_sample() {
