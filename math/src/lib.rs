@@ -24,4 +24,5 @@ pub mod pipeline;
 pub mod recipe;
 pub mod record;
 pub mod reproduce;
+pub mod signal;
 pub mod sim;

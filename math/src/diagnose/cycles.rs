@@ -1,5 +1,6 @@
 //! One period of each settled sine step (element state and force, rebuilt from the harmonics),
-//! the channel transformations of the candidate effects, and the Bouc-Wen state over a cycle.
+//! the channel transformations of the candidate effects (the Bouc-Wen state over a cycle is
+//! [`crate::signal::bouc_wen::steady_cycle`]).
 
 use std::f64::consts::TAU;
 
@@ -152,43 +153,6 @@ pub fn step_cycle(
     })
 }
 
-/// Bouc-Wen state over one period of steady motion with velocity `v` on a uniform grid of
-/// period `period_s`: z' = v - (|v| z + v |z|) / (2 zy) (a = 1, n = 1, beta = gamma =
-/// 1 / (2 zy)), so z rises like x after a reversal and saturates at +/- zy. Three periods are
-/// integrated and the last one returned (the cycle has settled by then).
-pub fn bouc_wen_cycle(velocity_mps: &[f64], period_s: f64, yield_m: f64) -> Vec<f64> {
-    let l = velocity_mps.len();
-    let dt = period_s / l as f64;
-    let sub = 8;
-    let h = dt / sub as f64;
-    let rate = |z: f64, v: f64| v - (v.abs() * z + v * z.abs()) / (2.0 * yield_m);
-    let mut z = 0.0;
-    let mut out = vec![0.0; l];
-    for pass in 0..3 {
-        for i in 0..l {
-            if pass == 2 {
-                out[i] = z;
-            }
-            let (v0, v1) = (velocity_mps[i], velocity_mps[(i + 1) % l]);
-            for s in 0..sub {
-                let a = s as f64 / sub as f64;
-                let b = (s as f64 + 0.5) / sub as f64;
-                let c = (s as f64 + 1.0) / sub as f64;
-                let va = v0 + (v1 - v0) * a;
-                let vb = v0 + (v1 - v0) * b;
-                let vc = v0 + (v1 - v0) * c;
-                // RK4 with the velocity interpolated linearly over the grid interval.
-                let k1 = rate(z, va);
-                let k2 = rate(z + 0.5 * h * k1, vb);
-                let k3 = rate(z + 0.5 * h * k2, vb);
-                let k4 = rate(z + h * k3, vc);
-                z += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
-            }
-        }
-    }
-    out
-}
-
 /// Exciter delay estimated from the kinematic identity x_o - x = x_i on the first harmonic of
 /// each step (x_o from the mass acceleration, -A_1 / w^2): the element sees the base as
 /// X_i e^{-j w d}. Returns (delay [s], standard deviation [s]) from a weighted least-squares
@@ -237,24 +201,6 @@ pub fn estimate_exciter_delay(analyses: &[HarmonicAnalysis]) -> Option<(f64, f64
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn bouc_wen_saturates_at_the_yield_displacement() {
-        let l = 512;
-        let period = 0.5;
-        let amp = 0.01;
-        let w = TAU / period;
-        let v: Vec<f64> = (0..l)
-            .map(|i| -amp * w * (TAU * i as f64 / l as f64).sin())
-            .collect();
-        let z = bouc_wen_cycle(&v, period, 0.001);
-        let zmax = z.iter().fold(0.0f64, |m, z| m.max(z.abs()));
-        assert!((zmax - 0.001).abs() < 2e-5, "{zmax}");
-        // far from saturation (yield >> amplitude) z follows x - mean
-        let z = bouc_wen_cycle(&v, period, 10.0);
-        let x0 = z[0] - z[l / 2];
-        assert!((x0 - 2.0 * amp).abs() < 1e-4 * amp * 100.0, "{x0}");
-    }
 
     #[test]
     fn synthesis_and_harmonics_are_inverse() {

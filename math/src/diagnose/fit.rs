@@ -8,12 +8,13 @@ use nalgebra::{DMatrix, DVector};
 
 use num_complex::Complex64;
 
-use super::cycles::{StepCycle, bouc_wen_cycle, harmonics_of, synthesize};
+use super::cycles::{StepCycle, harmonics_of, synthesize};
 use super::effects::{Structure, Transform};
 use crate::basis::Term;
 use crate::element::{Element, Friction};
 use crate::lstsq::{self, LstsqError};
 use crate::model::Model;
+use crate::signal::bouc_wen;
 
 /// Grid points with |x'| below this fraction of the step's peak |x'| are left out of fits and
 /// scores, for every model alike: near a reversal a friction force is set-valued (stick) and
@@ -52,7 +53,11 @@ fn columns(
         })
         .collect();
     if let Some(zy) = hysteresis_yield_m {
-        cols.push(bouc_wen_cycle(&c.velocity_mps, 1.0 / c.frequency_hz, zy));
+        cols.push(bouc_wen::steady_cycle(
+            &c.velocity_mps,
+            1.0 / c.frequency_hz,
+            zy,
+        ));
     }
     // The measured force is rebuilt from harmonics 0..=N only; a model force is compared in
     // the same band (a jump rebuilt from N harmonics rings, and so must the prediction), and

@@ -8,7 +8,8 @@ use super::effects::Transform;
 use crate::element::Element;
 use crate::pipeline::{VALIDATION_BASE_LOWPASS_HZ, nmse_percent};
 use crate::record::{Channel, Record};
-use crate::sim::rig::zero_phase_lowpass;
+use crate::signal::differentiate::central_difference_at_rate;
+use crate::signal::lowpass::{first_order_lowpass, zero_phase_lowpass};
 use crate::sim::{ReplayOptions, RigInitial, SimError, simulate_on_sampled_base};
 
 /// The prediction of one held-out record.
@@ -43,37 +44,6 @@ pub fn delayed(x: &[f64], sample_rate_hz: f64, delay_s: f64) -> Vec<f64> {
         .collect()
 }
 
-/// Central-difference derivative.
-fn derivative(x: &[f64], sample_rate_hz: f64) -> Vec<f64> {
-    let n = x.len();
-    (0..n)
-        .map(|i| {
-            let lo = i.saturating_sub(1);
-            let hi = (i + 1).min(n - 1);
-            (x[hi] - x[lo]) * sample_rate_hz / (hi - lo).max(1) as f64
-        })
-        .collect()
-}
-
-/// First-order low-pass y' = wc (u - y), exact for input held linear between samples, starting
-/// at rest on the first sample.
-fn first_order_lowpass(u: &[f64], sample_rate_hz: f64, cutoff_hz: f64) -> Vec<f64> {
-    let a = (-TAU * cutoff_hz / sample_rate_hz).exp();
-    // Exact discretisation for a piecewise-linear input (first-order hold).
-    let wdt = TAU * cutoff_hz / sample_rate_hz;
-    let b1 = 1.0 - (1.0 - a) / wdt;
-    let b0 = (1.0 - a) / wdt - a;
-    let mut y = Vec::with_capacity(u.len());
-    let mut prev = u.first().copied().unwrap_or(0.0);
-    let mut yi = prev;
-    for &ui in u {
-        yi = a * yi + b0 * prev + b1 * ui;
-        prev = ui;
-        y.push(yi);
-    }
-    y
-}
-
 /// Simulates `element` on the record's measured base motion and compares the mass
 /// acceleration (eq. 27). The transform says what the candidate believes happened between the
 /// element and the channels: a delay of the base motion the element sees, a low-pass on every
@@ -104,7 +74,7 @@ pub fn predict_record(
     // The same zero-phase low-pass as `pipeline::validate_rig` before anything else.
     let mut input = zero_phase_lowpass(base, fs, VALIDATION_BASE_LOWPASS_HZ);
     if let Some(fc) = transform.lowpass_hz {
-        let d = derivative(&input, fs);
+        let d = central_difference_at_rate(&input, fs);
         input = input
             .iter()
             .zip(&d)
@@ -156,7 +126,7 @@ pub fn predict_record(
         measured_mps2: acc.to_vec(),
         predicted_mps2: predicted,
         relative_displacement_m: rel.to_vec(),
-        relative_velocity_mps: derivative(rel, fs),
+        relative_velocity_mps: central_difference_at_rate(rel, fs),
     })
 }
 
@@ -203,18 +173,5 @@ mod tests {
             let t = i as f64 / fs - d;
             assert!((yi - (TAU * f * t).sin()).abs() < 2e-3, "{i}");
         }
-    }
-
-    #[test]
-    fn first_order_lowpass_has_the_right_gain() {
-        let fs = 1000.0;
-        let f = 5.0;
-        let fc = 5.0;
-        let u: Vec<f64> = (0..20000)
-            .map(|i| (TAU * f * i as f64 / fs).sin())
-            .collect();
-        let y = first_order_lowpass(&u, fs, fc);
-        let amp = y[15000..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        assert!((amp - 1.0 / 2f64.sqrt()).abs() < 2e-3, "{amp}");
     }
 }

@@ -15,6 +15,8 @@ use super::hybrid::{Hybrid, Integrator, Mode, RunStats, SolverOptions, slip_forc
 use super::{SampleTrace, SimError, SimOutput, is_positive};
 use crate::element::{Element, Friction};
 use crate::record::{Channel, Record};
+pub use crate::signal::lowpass::ZeroPhaseLowpass;
+use crate::signal::lowpass::zero_phase_lowpass;
 
 /// The rig's mass [kg] (known in the paper).
 pub const PAPER_RIG_MASS_KG: f64 = 36.0;
@@ -308,17 +310,6 @@ pub(crate) fn split_records<const N: usize>(
     SimOutput { records, traces }
 }
 
-/// Optional zero-phase low-pass applied to a sampled base displacement before it is
-/// interpolated: a second-order Butterworth run forwards and backwards (4th-order magnitude,
-/// no phase shift, so no delay is added to the input), with odd reflection padding at the ends.
-/// Why: the spline's second derivative (the base acceleration that drives the model) amplifies
-/// displacement noise by w^2, so broadband sensor noise above the excitation band would
-/// otherwise dominate the predicted acceleration.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct ZeroPhaseLowpass {
-    pub cutoff_hz: f64,
-}
-
 /// Options of [`simulate_on_sampled_base`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -394,47 +385,4 @@ pub fn simulate_on_sampled_base(
         base_displacement_m: base,
         trace,
     })
-}
-
-/// Zero-phase low-pass: second-order Butterworth (bilinear, pre-warped) applied forwards and
-/// backwards, odd-reflection padding of up to 3 cutoff periods, steady-state initial
-/// conditions.
-pub fn zero_phase_lowpass(x: &[f64], sample_rate_hz: f64, cutoff_hz: f64) -> Vec<f64> {
-    let n = x.len();
-    if n < 3 || !is_positive(cutoff_hz) || cutoff_hz >= 0.5 * sample_rate_hz {
-        return x.to_vec();
-    }
-    let k = (PI * cutoff_hz / sample_rate_hz).tan();
-    let q = std::f64::consts::FRAC_1_SQRT_2;
-    let norm = 1.0 / (1.0 + k / q + k * k);
-    let b0 = k * k * norm;
-    let (b1, b2) = (2.0 * b0, b0);
-    let a1 = 2.0 * (k * k - 1.0) * norm;
-    let a2 = (1.0 - k / q + k * k) * norm;
-    let pad = ((3.0 * sample_rate_hz / cutoff_hz).ceil() as usize).min(n - 1);
-    let mut ext = Vec::with_capacity(n + 2 * pad);
-    for i in (1..=pad).rev() {
-        ext.push(2.0 * x[0] - x[i]);
-    }
-    ext.extend_from_slice(x);
-    for i in 1..=pad {
-        ext.push(2.0 * x[n - 1] - x[n - 1 - i]);
-    }
-    let filt = |v: &mut Vec<f64>| {
-        let x0 = v[0];
-        let mut z2 = (b2 - a2) * x0;
-        let mut z1 = (b1 - a1) * x0 + z2;
-        for s in v.iter_mut() {
-            let xin = *s;
-            let out = b0 * xin + z1;
-            z1 = b1 * xin - a1 * out + z2;
-            z2 = b2 * xin - a2 * out;
-            *s = out;
-        }
-    };
-    filt(&mut ext);
-    ext.reverse();
-    filt(&mut ext);
-    ext.reverse();
-    ext[pad..pad + n].to_vec()
 }

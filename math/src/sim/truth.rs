@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::element::{Element, Friction};
+pub use crate::signal::bouc_wen::BoucWen;
 
 /// Serde mirror of [`Friction`] (which lives in `element.rs` without serde derives).
 #[derive(Serialize, Deserialize)]
@@ -45,19 +46,6 @@ pub struct AsymmetricDamping {
 pub struct FreePlay {
     pub gap_m: f64,
     pub stiffness_n_per_m: f64,
-}
-
-/// Bouc-Wen hysteresis: force `alpha_n_per_m * z` with
-/// `z' = a v - beta |v| |z|^(n-1) z - gamma v |z|^n` (z in m).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct BoucWen {
-    pub alpha_n_per_m: f64,
-    pub a: f64,
-    /// [1/m^n]
-    pub beta: f64,
-    /// [1/m^n]
-    pub gamma: f64,
-    pub n: f64,
 }
 
 /// A truth element: `g = k x + c v + S x^3 + q x|x| + d v|v| + asym(v) + freeplay(x)
@@ -163,10 +151,7 @@ impl Element for TruthElement {
 
     fn internal_rates(&self, _x: f64, v: f64, z: &[f64], dz: &mut [f64]) {
         if let (Some(bw), Some(&zz), Some(d)) = (self.bouc_wen, z.first(), dz.first_mut()) {
-            let az = zz.abs();
-            let azn = az.powf(bw.n);
-            // |z|^(n-1) z = sgn(z) |z|^n.
-            *d = bw.a * v - bw.beta * v.abs() * zz.signum() * azn - bw.gamma * v * azn;
+            *d = bw.rate(zz, v);
         }
     }
 }

@@ -1,0 +1,142 @@
+//! The Bouc-Wen hysteretic state z: its rate equation and its integration over a sampled
+//! velocity.
+//!
+//! Three users: the truth simulator (`sim::truth`: the general law, z integrated as an ODE
+//! state together with the mechanics by the simulator's own RK4 and events, so it uses the rate
+//! only), the rig diagnosis (`diagnose::fit`: the one-parameter law over one period of steady
+//! motion, [`steady_cycle`]) and the time-domain diagnosis (`diagnose::time_domain`: the
+//! one-parameter law over a measured record, [`integrate_record`]).
+
+use serde::{Deserialize, Serialize};
+
+/// Bouc-Wen hysteresis: force `alpha_n_per_m * z` with
+/// `z' = a v - beta |v| |z|^(n-1) z - gamma v |z|^n` (z in m).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BoucWen {
+    pub alpha_n_per_m: f64,
+    pub a: f64,
+    /// [1/m^n]
+    pub beta: f64,
+    /// [1/m^n]
+    pub gamma: f64,
+    pub n: f64,
+}
+
+impl BoucWen {
+    /// The rate z' of the general law at state `z` and velocity `v`.
+    pub fn rate(&self, z: f64, v: f64) -> f64 {
+        let az = z.abs();
+        let azn = az.powf(self.n);
+        // |z|^(n-1) z = sgn(z) |z|^n.
+        self.a * v - self.beta * v.abs() * z.signum() * azn - self.gamma * v * azn
+    }
+}
+
+/// The rate of the one-parameter law the diagnoses fit: a = 1, n = 1,
+/// beta = gamma = 1 / (2 zy), written `z' = v - (|v| z + v |z|) / (2 zy)`, so z rises like x
+/// after a reversal and saturates at +/- zy (`yield_m`).
+///
+/// Why it exists beside [`BoucWen::rate`]: it is that law with those parameters, but rounded
+/// differently (one division by 2 zy instead of multiplications by beta and gamma); the
+/// diagnoses' results were computed with this form.
+pub fn yield_rate(z: f64, v: f64, yield_m: f64) -> f64 {
+    v - (v.abs() * z + v * z.abs()) / (2.0 * yield_m)
+}
+
+/// [`yield_rate`]'s state over one period of steady motion with velocity `velocity_mps` on a
+/// uniform grid of period `period_s`. Three periods are integrated from z = 0 and the last one
+/// returned (the cycle has settled by then): RK4 with 8 sub-steps per grid interval, the
+/// velocity interpolated linearly over the interval (wrapping around the period).
+///
+/// Why it exists beside [`integrate_record`]: a rebuilt cycle of the rig path is short (a few
+/// hundred points per period) and periodic, so it is integrated accurately and to its steady
+/// state; the time-domain path's record is long and densely sampled and is integrated once.
+pub fn steady_cycle(velocity_mps: &[f64], period_s: f64, yield_m: f64) -> Vec<f64> {
+    let l = velocity_mps.len();
+    let dt = period_s / l as f64;
+    let sub = 8;
+    let h = dt / sub as f64;
+    let rate = |z: f64, v: f64| yield_rate(z, v, yield_m);
+    let mut z = 0.0;
+    let mut out = vec![0.0; l];
+    for pass in 0..3 {
+        for i in 0..l {
+            if pass == 2 {
+                out[i] = z;
+            }
+            let (v0, v1) = (velocity_mps[i], velocity_mps[(i + 1) % l]);
+            for s in 0..sub {
+                let a = s as f64 / sub as f64;
+                let b = (s as f64 + 0.5) / sub as f64;
+                let c = (s as f64 + 1.0) / sub as f64;
+                let va = v0 + (v1 - v0) * a;
+                let vb = v0 + (v1 - v0) * b;
+                let vc = v0 + (v1 - v0) * c;
+                // RK4 with the velocity interpolated linearly over the grid interval.
+                let k1 = rate(z, va);
+                let k2 = rate(z + 0.5 * h * k1, vb);
+                let k3 = rate(z + 0.5 * h * k2, vb);
+                let k4 = rate(z + h * k3, vc);
+                z += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            }
+        }
+    }
+    out
+}
+
+/// [`yield_rate`]'s state over a sampled record of velocity `velocity_mps` at step `dt`, from
+/// z = 0: one forward-Euler step per sample, the value after the step returned for each.
+///
+/// Why it exists beside [`steady_cycle`]: the time-domain path's records are not periodic and
+/// are sampled far above their motion's bandwidth (1 kHz for EMPS), where one step per sample
+/// is accurate; its results (the hysteresis candidate on EMPS) were computed with it.
+pub fn integrate_record(velocity_mps: &[f64], dt: f64, yield_m: f64) -> Vec<f64> {
+    let mut z = 0.0;
+    velocity_mps
+        .iter()
+        .map(|&v| {
+            z += dt * yield_rate(z, v, yield_m);
+            z
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::TAU;
+
+    #[test]
+    fn bouc_wen_saturates_at_the_yield_displacement() {
+        let l = 512;
+        let period = 0.5;
+        let amp = 0.01;
+        let w = TAU / period;
+        let v: Vec<f64> = (0..l)
+            .map(|i| -amp * w * (TAU * i as f64 / l as f64).sin())
+            .collect();
+        let z = steady_cycle(&v, period, 0.001);
+        let zmax = z.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+        assert!((zmax - 0.001).abs() < 2e-5, "{zmax}");
+        // far from saturation (yield >> amplitude) z follows x - mean
+        let z = steady_cycle(&v, period, 10.0);
+        let x0 = z[0] - z[l / 2];
+        assert!((x0 - 2.0 * amp).abs() < 1e-4 * amp * 100.0, "{x0}");
+    }
+
+    #[test]
+    fn the_general_rate_with_the_yield_parameters_is_the_yield_rate() {
+        let zy = 0.002;
+        let bw = BoucWen {
+            alpha_n_per_m: 1.0,
+            a: 1.0,
+            beta: 1.0 / (2.0 * zy),
+            gamma: 1.0 / (2.0 * zy),
+            n: 1.0,
+        };
+        for (z, v) in [(0.001, 0.3), (-0.0015, 0.3), (0.0005, -1.2), (0.0, 2.0)] {
+            let (g, y) = (bw.rate(z, v), yield_rate(z, v, zy));
+            assert!((g - y).abs() <= 1e-12 * v.abs(), "{z} {v}: {g} vs {y}");
+        }
+    }
+}
