@@ -20,7 +20,7 @@ pub use error::BagError;
 pub use metadata::{BagMetadata, METADATA_VERSION, QosProfile, TopicEntry};
 pub use reader::{BagMessage, BagReader, BagSummary, Messages, TopicInfo};
 pub use recover::{RecoveryReport, recover};
-pub use writer::{BagWriter, BagWriterOptions, TopicId, TopicSpec, partial_dir};
+pub use writer::{BagSink, BagWriter, BagWriterOptions, TopicId, TopicSpec, partial_dir};
 
 /// Schema encoding of ROS 2 .msg definitions.
 pub const SCHEMA_ENCODING: &str = "ros2msg";

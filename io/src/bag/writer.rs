@@ -10,6 +10,49 @@ use mcap::records::MessageHeader;
 use super::metadata::{BagMetadata, METADATA_VERSION, TopicEntry};
 use super::{BagError, QOS_METADATA_KEY, SCHEMA_ENCODING};
 
+/// Where a recorder writes: a bag being written ([`BagWriter`]), or anything else that takes
+/// topics and CDR messages in log-time order (a test's memory, another storage).
+pub trait BagSink {
+    /// Declares a topic; messages are written against the id it returns.
+    fn add_topic(&mut self, spec: &TopicSpec) -> Result<TopicId, BagError>;
+    /// Writes one CDR message of `topic`.
+    fn write(
+        &mut self,
+        topic: TopicId,
+        log_time: u64,
+        publish_time: u64,
+        cdr: &[u8],
+    ) -> Result<(), BagError>;
+    /// Makes what was written so far durable (a bag closes its chunk).
+    fn flush_chunk(&mut self) -> Result<(), BagError>;
+    /// Completes the recording and says where it is.
+    fn finish(self: Box<Self>) -> Result<PathBuf, BagError>;
+}
+
+impl BagSink for BagWriter {
+    fn add_topic(&mut self, spec: &TopicSpec) -> Result<TopicId, BagError> {
+        BagWriter::add_topic(self, spec)
+    }
+
+    fn write(
+        &mut self,
+        topic: TopicId,
+        log_time: u64,
+        publish_time: u64,
+        cdr: &[u8],
+    ) -> Result<(), BagError> {
+        BagWriter::write(self, topic, log_time, publish_time, cdr)
+    }
+
+    fn flush_chunk(&mut self) -> Result<(), BagError> {
+        BagWriter::flush_chunk(self)
+    }
+
+    fn finish(self: Box<Self>) -> Result<PathBuf, BagError> {
+        BagWriter::finish(*self)
+    }
+}
+
 /// A topic to record: name, ROS type, its .msg definition and QoS.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TopicSpec {
@@ -59,9 +102,9 @@ impl TopicSpec {
     }
 }
 
-/// Handle of a topic added to a [`BagWriter`].
+/// Handle of a topic added to a [`BagSink`] (for a [`BagWriter`], the MCAP channel id).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct TopicId(u16);
+pub struct TopicId(pub u16);
 
 /// Writer options.
 #[derive(Debug, Clone)]
