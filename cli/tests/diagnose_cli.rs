@@ -325,3 +325,77 @@ fn emps_names_coulomb_then_finds_the_asymmetric_friction() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("exists already"));
 }
+
+/// The time-domain path is chosen by what the data are, not by the file name: the bags that
+/// `forcemap import emps` writes (AxisSample messages) and the MAT files under a name without
+/// `.mat` give the diagnosis of the MAT files. Skips where ../shared/real is absent.
+#[test]
+fn an_axis_record_is_diagnosed_in_the_time_domain_whatever_holds_it() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/real/emps");
+    if !dir.join("DATA_EMPS.mat").is_file() {
+        eprintln!("skipped: {} does not exist", dir.display());
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let (fit_mat, val_mat) = (dir.join("DATA_EMPS.mat"), dir.join("DATA_EMPS_PULSES.mat"));
+    let (fit_bag, val_bag) = (tmp.path().join("fit"), tmp.path().join("pulses"));
+    for (mat, bag) in [(&fit_mat, &fit_bag), (&val_mat, &val_bag)] {
+        let o = forcemap(&[
+            "import",
+            "emps",
+            mat.to_str().unwrap(),
+            "--out",
+            bag.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let renamed = tmp.path().join("emps_export_without_extension");
+    std::fs::copy(&fit_mat, &renamed).unwrap();
+    let run = |fit: &std::path::Path, val: &std::path::Path| {
+        json(&[
+            "diagnose",
+            fit.to_str().unwrap(),
+            "--model",
+            "emps-coulomb",
+            "--validate",
+            val.to_str().unwrap(),
+            "--json",
+        ])
+    };
+    let from_mat = run(&fit_mat, &val_mat);
+    for (what, v) in [
+        ("bags", run(&fit_bag, &val_bag)),
+        ("renamed MAT file and a bag", run(&renamed, &val_bag)),
+    ] {
+        assert_eq!(v["verdict"], from_mat["verdict"], "{what}");
+        assert_eq!(v["top_effect"], from_mat["top_effect"], "{what}");
+        for key in [
+            "gap_before_percent",
+            "fit_before_percent",
+            "gap_after_percent",
+        ] {
+            let (a, b) = (v[key].as_f64().unwrap(), from_mat[key].as_f64().unwrap());
+            // The bag's sample rate comes from nanosecond stamps, the file's from its times.
+            assert!(
+                (a - b).abs() < 1e-6 * b.abs().max(1.0),
+                "{what}: {key} {a} vs {b}"
+            );
+        }
+    }
+    // A bag with no axis topic is a rig run: the rig path names what it lacks.
+    let o = forcemap(&[
+        "diagnose",
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../bags/three_dof_case_i")
+            .to_str()
+            .unwrap(),
+        "--model",
+        "linear",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("base-excited rig channels"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}

@@ -21,6 +21,29 @@ pub struct Loaded {
     pub ignored_columns: Vec<String>,
 }
 
+/// What measured data are, which decides how they are analysed.
+#[derive(Debug, Clone)]
+pub enum Measured {
+    /// Excitation steps of a setup (a rig or drive-point run): the frequency-domain path.
+    Steps(Loaded),
+    /// A force-driven axis record (the EMPS benchmark, or a bag of `AxisSample`s): the
+    /// time-domain path.
+    Axis(forcemap_math::diagnose::time_domain::AxisRecord),
+}
+
+/// Reads `path` as whatever it holds: an axis record (a MAT file, or a bag with an axis
+/// topic), else the steps of a bag or a CSV export.
+pub fn load_measured(path: &Path) -> anyhow::Result<Measured> {
+    let axis = crate::axis::is_mat_file(path)
+        || (is_bag(path)
+            && crate::axis::axis_topic_of(&crate::bag::BagReader::open(path)?)?.is_some());
+    if axis {
+        Ok(Measured::Axis(crate::axis::read_axis(path)?))
+    } else {
+        Ok(Measured::Steps(load(path)?))
+    }
+}
+
 /// True when `path` is a bag (a directory, or a file ending in .mcap).
 pub fn is_bag(path: &Path) -> bool {
     path.is_dir() || path.extension().is_some_and(|e| e == "mcap")

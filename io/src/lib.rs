@@ -3,6 +3,7 @@
 //! the assembly of samples into step records, topic names and atomic writes. The nodes and the
 //! command build on it; it builds on `forcemap_math` and `forcemap_msgs` only.
 pub mod atomic;
+pub mod axis;
 pub mod bag;
 pub mod csv_export;
 pub mod distro;

@@ -17,6 +17,7 @@ use plotters::prelude::*;
 use crate::cli::DiagnoseArgs;
 use crate::plot::{AFTER_COLOR, BASELINE_COLOR, Line, draw_err, html_escape, lines_svg, span};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
+use forcemap_io::input::{Loaded, Measured};
 use forcemap_io::params::{Params, read_params};
 use forcemap_math::recipe::SetupKind;
 
@@ -34,9 +35,8 @@ struct Data {
     source: String,
 }
 
-fn load(args: &DiagnoseArgs, path: &Path) -> anyhow::Result<Data> {
+fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data> {
     let file = path.display().to_string();
-    let import = forcemap_io::input::load(path)?;
     if import.kind != SetupKind::BaseExcited {
         bail!(
             "{file}: the diagnosis needs the base-excited rig channels (base and relative displacement, mass acceleration); this is a {} export",
@@ -101,10 +101,13 @@ fn demo_data() -> anyhow::Result<Data> {
 }
 
 pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
-    if let Some(data) = &args.data
-        && super::diagnose_time_domain::is_emps(data)
-    {
-        return super::diagnose_time_domain::run(args, data);
+    // What the data are decides the path: a force-driven axis record goes to the time domain.
+    let measured = match &args.data {
+        Some(path) if !args.demo => Some(forcemap_io::input::load_measured(path)?),
+        _ => None,
+    };
+    if let (Some(Measured::Axis(fit)), Some(path)) = (&measured, &args.data) {
+        return super::diagnose_time_domain::run(args, path, fit);
     }
     // Refuse an existing report directory before any work.
     if let Some(dir) = &args.report
@@ -126,7 +129,10 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
             .model
             .clone()
             .expect("clap requires --model without --demo");
-        (load(args, path)?, model)
+        let Some(Measured::Steps(import)) = measured else {
+            unreachable!("an axis record returned above");
+        };
+        (load(args, path, import)?, model)
     };
     let baseline = Model::by_name(
         &model_name,

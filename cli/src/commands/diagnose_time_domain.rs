@@ -17,7 +17,7 @@ use crate::plot::{
     lines_svg, scatter_panels_svg,
 };
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
-use forcemap_io::emps::read_emps;
+use forcemap_io::axis::read_axis;
 
 /// Published relative force errors (METHOD.md section 6) [%].
 const PUBLISHED: [(&str, f64); 3] = [
@@ -26,33 +26,13 @@ const PUBLISHED: [(&str, f64); 3] = [
     ("symmetric Coulomb, pulses validation", 5.98),
 ];
 
-/// True for a MATLAB file (the EMPS benchmark).
-pub fn is_emps(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("mat"))
-}
-
-fn axis(path: &Path) -> anyhow::Result<AxisRecord> {
-    let d = read_emps(path)?;
-    let fs = d.sample_rate_hz();
-    if !(fs.is_finite() && fs > 0.0) {
-        bail!(
-            "{}: no sample rate (fewer than two samples or constant time)",
-            path.display()
-        );
-    }
-    Ok(AxisRecord {
-        sample_rate_hz: fs,
-        position_m: d.position_m,
-        force_n: d.force_n,
-    })
-}
-
-pub fn run(args: &DiagnoseArgs, data: &Path) -> anyhow::Result<()> {
+/// The time-domain diagnosis of the axis record `fit` (read from `data`), scored on the
+/// `--validate` record (a MAT file or a bag of the same kind).
+pub fn run(args: &DiagnoseArgs, data: &Path, fit: &AxisRecord) -> anyhow::Result<()> {
     let model = args.model.as_deref().unwrap_or_default();
     let Some(baseline) = AxisBaseline::from_name(model) else {
         bail!(
-            "{}: an EMPS record takes the baseline emps-viscous (M q'' + Fv q' + offset) or emps-coulomb (+ Fc sgn(q')), not '{model}'",
+            "{}: an axis record takes the baseline emps-viscous (M q'' + Fv q' + offset) or emps-coulomb (+ Fc sgn(q')), not '{model}'",
             data.display()
         );
     };
@@ -71,9 +51,8 @@ pub fn run(args: &DiagnoseArgs, data: &Path) -> anyhow::Result<()> {
             data.display()
         );
     };
-    let fit = axis(data)?;
-    let val = axis(val_path)?;
-    let d = diagnose_axis(baseline, &fit, &val, &TimeDomainOptions::default())
+    let val = read_axis(val_path)?;
+    let d = diagnose_axis(baseline, fit, &val, &TimeDomainOptions::default())
         .with_context(|| format!("{}: diagnosing baseline {model}", data.display()))?;
     if let Some(dir) = &args.report {
         write_report(dir, &d, data, val_path)
