@@ -8,6 +8,7 @@ pub mod excitation;
 mod hybrid;
 pub mod noise;
 pub mod rig;
+pub mod run;
 pub mod three_dof;
 pub mod truth;
 
@@ -19,6 +20,7 @@ pub use rig::{
     ReplayOptions, RigEffects, RigInitial, RigResponse, ZeroPhaseLowpass, simulate_on_sampled_base,
     simulate_rig,
 };
+pub use run::{RunSpec, RunSystem, ThreeDofCase};
 pub use three_dof::{ThreeDofParams, simulate_three_dof};
 pub use truth::{AsymmetricDamping, BoucWen, FreePlay, TruthElement};
 
