@@ -302,7 +302,33 @@ mod tests {
     use crate::sim::excitation::{
         PAPER_RIG_RANDOM_BANDS_HZ, PAPER_RIG_RANDOM_RMS_M, paper_rig_random_step,
     };
-    use crate::sim::{RigRun, SimSpec, ThreeDofRun};
+    use crate::sim::{RigRun, SimSpec, ThreeDofRun, simulate_rig, simulate_three_dof};
+
+    /// What `sim::simulate` did before it went through `RunSpec`.
+    fn old_simulate(spec: &SimSpec) -> Vec<Record> {
+        let (mut out, snr, seed) = match spec {
+            SimSpec::Rig(r) => (
+                simulate_rig(
+                    &r.element,
+                    r.nominal_mass_kg,
+                    &r.program(),
+                    &r.effects,
+                    r.initial,
+                    &r.solver,
+                )
+                .unwrap(),
+                r.snr_db,
+                r.seed,
+            ),
+            SimSpec::ThreeDof(r) => (
+                simulate_three_dof(&r.params, &r.element, &r.program(), &r.solver).unwrap(),
+                r.snr_db,
+                r.seed,
+            ),
+        };
+        noise::add_noise(&mut out.records, snr, excitation::derive_seed(seed, 1));
+        out.records
+    }
 
     /// Same records, bit for bit.
     fn assert_bit_identical(a: &[Record], b: &[Record]) {
@@ -354,7 +380,7 @@ mod tests {
     #[test]
     fn paper_rig_records_equal_the_old_runs() {
         for (snr, seed) in [(Some(40.0), 1), (None, 0), (Some(25.0), 7)] {
-            let old = crate::sim::simulate(&SimSpec::Rig(old_paper_rig(snr, seed))).unwrap();
+            let old = old_simulate(&SimSpec::Rig(old_paper_rig(snr, seed)));
             assert_bit_identical(&RunSpec::paper_rig(snr, seed).simulate().unwrap(), &old);
         }
     }
@@ -379,10 +405,7 @@ mod tests {
             };
             let spec = RunSpec::paper_rig_random(band, Some(30.0), 5).with_element(truth.clone());
             assert_eq!(spec, RunSpec::from(SimSpec::Rig(old.clone())));
-            assert_bit_identical(
-                &spec.simulate().unwrap(),
-                &crate::sim::simulate(&SimSpec::Rig(old)).unwrap(),
-            );
+            assert_bit_identical(&spec.simulate().unwrap(), &old_simulate(&SimSpec::Rig(old)));
         }
         for (case, old) in [
             (ThreeDofCase::I, ThreeDofRun::case_i()),
@@ -416,7 +439,7 @@ mod tests {
         assert_eq!(spec.mass_kg(), None);
         assert_bit_identical(
             &spec.simulate().unwrap(),
-            &crate::sim::simulate(&SimSpec::ThreeDof(old)).unwrap(),
+            &old_simulate(&SimSpec::ThreeDof(old)),
         );
     }
 
