@@ -12,5 +12,6 @@ pub mod input;
 pub mod params;
 pub mod rig_bag;
 pub mod rig_constants;
+pub mod rig_messages;
 pub mod steps;
 pub mod topics;

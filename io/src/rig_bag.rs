@@ -18,9 +18,9 @@ use forcemap_msgs::RosMessage;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
-use forcemap_msgs::std_msgs::Header;
 
 use crate::bag::{BagError, BagReader, BagWriter, QosProfile, TopicSpec};
+use crate::rig_messages::{RigMessage, constants_status, rig_messages};
 use crate::steps::{StepAssembler, StepError, StepPlan};
 use crate::topics::{RIG_EXCITATION, RIG_PARAMETERS, RIG_SAMPLES};
 
@@ -151,40 +151,35 @@ pub fn write_rig_bag(
     );
     spec.offered_qos_profiles = latched.to_yaml_string();
     let excitation = w.add_topic(&spec)?;
-    if !parameters.is_empty() {
+    let parameters_topic = if parameters.is_empty() {
+        None
+    } else {
         let mut spec = TopicSpec::new(
             RIG_PARAMETERS,
             DiagnosticStatus::TYPE_NAME,
             &DiagnosticStatus::schema(),
         );
         spec.offered_qos_profiles = latched.to_yaml_string();
-        let id = w.add_topic(&spec)?;
-        let mut status = DiagnosticStatus::new(
-            DiagnosticStatus::OK,
-            PARAMETERS_NAME,
-            "rig constants",
-            "rig",
-        );
-        for (k, v) in parameters {
-            status = status.with_value(*k, v);
-        }
-        w.write(id, nanos(run_start), nanos(run_start), &status.to_cdr())?;
-    }
-    for r in records {
-        let start = run_start.add_secs_f64(r.start_time_s);
-        let state = ExcitationState::from_excitation(
-            Header::new(start, "rig"),
-            r.step,
-            start,
-            &r.excitation,
-            driven,
-            r.len(),
-        );
-        w.write(excitation, nanos(start), nanos(start), &state.to_cdr())?;
-        for i in 0..r.len() {
-            let stamp = run_start.add_secs_f64(r.time_s(i));
-            let msg = RigSample::from_record(r, i, Header::new(stamp, "rig"));
-            w.write(samples, nanos(stamp), nanos(stamp), &msg.to_cdr())?;
+        Some(w.add_topic(&spec)?)
+    };
+    let status = parameters_topic.map(|_| constants_status("rig constants", "rig", parameters));
+    for m in rig_messages(records, driven, status, run_start, "rig") {
+        match m {
+            RigMessage::Parameters(status) => {
+                if let Some(id) = parameters_topic {
+                    w.write(id, nanos(run_start), nanos(run_start), &status.to_cdr())?;
+                }
+            }
+            // A bag ends where its recording ended: no IDLE (a player adds it).
+            RigMessage::Excitation(state) if state.is_idle() => {}
+            RigMessage::Excitation(state) => {
+                let t = nanos(state.start_time);
+                w.write(excitation, t, t, &state.to_cdr())?;
+            }
+            RigMessage::Sample(msg) => {
+                let t = nanos(msg.header.stamp);
+                w.write(samples, t, t, &msg.to_cdr())?;
+            }
         }
     }
     Ok(w.finish()?)

@@ -15,7 +15,7 @@ use crate::paper::{self, PaperRow};
 use crate::phasor::PhasorOptions;
 use crate::pipeline::{self, PipelineError};
 use crate::record::Record;
-use crate::sim::{self, RigRun, SimError, SimSpec, ThreeDofRun, TruthElement};
+use crate::sim::{self, RunSpec, SimError, ThreeDofCase, TruthElement};
 
 /// One row of a reproduced table.
 #[derive(Debug, Clone, Serialize)]
@@ -151,8 +151,8 @@ fn forcemap_row(
     }
 }
 
-fn simulate(spec: &SimSpec, what: &str) -> Result<Vec<Record>, ReproduceError> {
-    sim::simulate(spec).map_err(|source| ReproduceError::Sim {
+fn simulate(spec: &RunSpec, what: &str) -> Result<Vec<Record>, ReproduceError> {
+    spec.simulate().map_err(|source| ReproduceError::Sim {
         what: what.into(),
         source,
     })
@@ -193,21 +193,16 @@ pub fn table1(
     ];
     let (k, c, fd, s) = paper::TABLE1_TRUTH;
     let mut rows = Vec::new();
-    for (case, run) in [("I", ThreeDofRun::case_i()), ("II", ThreeDofRun::case_ii())] {
+    for (case, which) in [("I", ThreeDofCase::I), ("II", ThreeDofCase::Ii)] {
         progress(&format!(
             "Table 1, CASE {case}: simulating the 3-DOF example"
         ));
         let clean = simulate(
-            &SimSpec::ThreeDof(run.clone()),
+            &RunSpec::three_dof(which, None, 0),
             &format!("3-DOF CASE {case}"),
         )?;
-        let noisy_run = ThreeDofRun {
-            snr_db: Some(settings.three_dof_snr_db),
-            seed: settings.seed,
-            ..run
-        };
         let noisy = simulate(
-            &SimSpec::ThreeDof(noisy_run),
+            &RunSpec::three_dof(which, Some(settings.three_dof_snr_db), settings.seed),
             &format!("3-DOF CASE {case} with noise"),
         )?;
         rows.push(truth_row(
@@ -267,11 +262,7 @@ pub fn rig_data(
     seed: u64,
 ) -> Result<RigData, ReproduceError> {
     let sine = simulate(
-        &SimSpec::Rig(RigRun {
-            snr_db,
-            seed,
-            ..RigRun::paper_sine(truth.clone())
-        }),
+        &RunSpec::paper_rig_sine(snr_db, seed).with_element(truth.clone()),
         "rig stepped sine",
     )?;
     let mut random = [Vec::new(), Vec::new()];
@@ -279,12 +270,9 @@ pub fn rig_data(
         .iter()
         .enumerate()
     {
-        let run = RigRun {
-            snr_db,
-            seed: seed + 1 + i as u64,
-            ..RigRun::paper_random(truth.clone(), *band)
-        };
-        random[i] = simulate(&SimSpec::Rig(run), "rig band random")?;
+        let run = RunSpec::paper_rig_random(*band, snr_db, seed + 1 + i as u64)
+            .with_element(truth.clone());
+        random[i] = simulate(&run, "rig band random")?;
     }
     Ok(RigData { sine, random })
 }

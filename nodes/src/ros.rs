@@ -352,6 +352,28 @@ where
     })
 }
 
+/// Publishes reliably, retrying while the send window is full (flow control: a publisher
+/// slows down to what the subscribers acknowledge rather than losing messages). Gives up
+/// after a minute of failures.
+pub async fn publish_blocking<M: serde::Serialize + Clone>(
+    publisher: &ros2_client::Publisher<M>,
+    message: M,
+) -> anyhow::Result<()> {
+    let mut tries = 0;
+    loop {
+        match publisher.async_publish(message.clone()).await {
+            Ok(()) => return Ok(()),
+            Err(e) => {
+                tries += 1;
+                if tries > 600 {
+                    bail!("publishing failed for a minute: {e}");
+                }
+                tokio::time::sleep(Duration::from_millis(100)).await;
+            }
+        }
+    }
+}
+
 /// `pkg/msg/Type` as ros2-client wants it.
 pub fn type_name<M: forcemap_msgs::RosMessage>() -> MessageTypeName {
     let mut parts = M::TYPE_NAME.split('/');

@@ -16,17 +16,22 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
-use forcemap_math::sim::excitation::PAPER_RIG_FREQUENCIES_HZ;
+use forcemap_math::sim::RunSpec;
+use forcemap_math::sim::excitation::{
+    PAPER_RIG_FREQUENCIES_HZ, PAPER_RIG_SINE_AMPLITUDE_M, sine_steps,
+};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{ExcitationState, IdentifiedParameters, RigSample};
 use serde_json::json;
 
 use crate::cli::BenchGraphArgs;
-use forcemap_io::params::{ParamValue, Params};
+use forcemap_io::params::Params;
+use forcemap_io::rig_messages::{
+    RigMessage, SIMULATED_CONSTANTS_MESSAGE, constants_status, rig_messages,
+};
 use forcemap_io::topics;
-use forcemap_nodes::node::sensor::{Out, messages_of, publish_blocking, simulated_run};
-use forcemap_nodes::ros::{NodeSetup, RosNode, qos};
+use forcemap_nodes::ros::{NodeSetup, RosNode, publish_blocking, qos};
 
 /// CPU time (s) and resident memory (bytes) of a process, from /proc.
 fn proc_usage(pid: u32) -> Option<(f64, u64)> {
@@ -108,28 +113,39 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         bail!("--steps must be at least 1");
     }
     let domain = forcemap_nodes::ros::domain_id()?;
-    // The run: the paper's frequencies, cycled, no random records.
+    let (rate, duration) = (args.sample_rate_hz, args.step_duration_s);
+    if !(rate.is_finite() && rate > 0.0 && rate <= 1e6) {
+        bail!("--sample-rate-hz {rate}: expected a positive rate up to 1 MHz");
+    }
+    if !(duration.is_finite() && duration > 0.0) {
+        bail!("--step-duration-s {duration}: expected a positive duration");
+    }
+    // The run: the paper's rig at 40 dB, its frequencies cycled, no random records.
     let freqs: Vec<f64> = (0..args.steps)
         .map(|k| PAPER_RIG_FREQUENCIES_HZ[k % PAPER_RIG_FREQUENCIES_HZ.len()])
         .collect();
-    let mut params = Params::new();
-    params.set("system", ParamValue::String("rig".into()));
-    params.set("sample_rate_hz", ParamValue::Double(args.sample_rate_hz));
-    params.set("step_duration_s", ParamValue::Double(args.step_duration_s));
-    params.set("snr_db", ParamValue::Double(40.0));
-    params.set("include_random", ParamValue::Bool(false));
-    params.set("frequencies_hz", ParamValue::DoubleArray(freqs));
+    let spec = RunSpec {
+        sample_rate_hz: rate,
+        samples_per_record: (duration * rate).round() as usize,
+        steps: sine_steps(&freqs, PAPER_RIG_SINE_AMPLITUDE_M),
+        ..RunSpec::paper_rig_sine(Some(40.0), 1)
+    };
     let setup = NodeSetup {
         name: "bench_sensor".into(),
         namespace: "/rig".into(),
-        params,
+        params: Params::new(),
         remaps: BTreeMap::new(),
     };
     eprintln!(
         "simulating {} steps at {} Hz ...",
         args.steps, args.sample_rate_hz
     );
-    let (records, driven, constants) = simulated_run(&setup)?;
+    let records = spec.simulate().context("simulating the rig")?;
+    let constants = constants_status(
+        SIMULATED_CONSTANTS_MESSAGE,
+        &setup.fully_qualified_name(),
+        &spec.constants(),
+    );
     let samples_per_step = records.first().map_or(0, |r| r.len());
 
     let harmonic = spawn("harmonic", domain, &[])?;
@@ -168,9 +184,16 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         tokio::time::sleep(Duration::from_millis(500)).await;
 
         let run_start = Time::from_nanos(now_ns());
-        let messages = messages_of(&records, driven, constants, run_start, "rig");
+        let messages: Vec<RigMessage> = rig_messages(
+            &records,
+            spec.driven_channel(),
+            Some(constants),
+            run_start,
+            "rig",
+        )
+        .collect();
         let first_stamp = messages.iter().find_map(|m| match m {
-            Out::Sample(s) => Some(s.header.stamp),
+            RigMessage::Sample(s) => Some(s.header.stamp),
             _ => None,
         });
         let pids: Vec<(&'static str, u32)> =
@@ -200,12 +223,12 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         let bar = indicatif::ProgressBar::new(
             messages
                 .iter()
-                .filter(|m| matches!(m, Out::Sample(_)))
+                .filter(|m| matches!(m, RigMessage::Sample(_)))
                 .count() as u64,
         );
         for m in messages {
             if args.rate_factor > 0.0
-                && let (Some(t0s), Out::Sample(s)) = (first_stamp, &m)
+                && let (Some(t0s), RigMessage::Sample(s)) = (first_stamp, &m)
             {
                 let due = wall0
                     + Duration::from_secs_f64(
@@ -217,7 +240,7 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
                 }
             }
             match m {
-                Out::Sample(s) => {
+                RigMessage::Sample(s) => {
                     let step = s.step;
                     publish_blocking(&samples_pub, s).await?;
                     published += 1;
@@ -228,8 +251,8 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
                         bar.set_position(published as u64);
                     }
                 }
-                Out::Excitation(e) => publish_blocking(&excitation_pub, e).await?,
-                Out::Parameters(p) => publish_blocking(&parameters_pub, p).await?,
+                RigMessage::Excitation(e) => publish_blocking(&excitation_pub, e).await?,
+                RigMessage::Parameters(p) => publish_blocking(&parameters_pub, p).await?,
             }
         }
         let publish_s = wall0.elapsed().as_secs_f64();

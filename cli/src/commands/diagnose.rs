@@ -8,10 +8,7 @@ use forcemap_math::diagnose::{self, DiagnoseOptions, DiagnosisDetail, Located, V
 use forcemap_math::identify::Setup;
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::record::Record;
-use forcemap_math::sim::excitation::{
-    PAPER_RIG_RANDOM_BANDS_HZ, PAPER_RIG_RANDOM_RMS_M, paper_rig_random_step,
-};
-use forcemap_math::sim::{self, RigRun, SimSpec, TruthElement};
+use forcemap_math::sim::{self, RunSpec};
 use plotters::prelude::*;
 
 use crate::cli::DiagnoseArgs;
@@ -80,16 +77,7 @@ fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data
 /// The demo data: the paper's Coulomb rig (k 6380, c 184, F_d 12.3) at 40 dB with the two
 /// band-random validation records.
 fn demo_data() -> anyhow::Result<Data> {
-    let mut run = RigRun {
-        snr_db: Some(DEMO_SNR_DB),
-        seed: 1,
-        ..RigRun::paper_sine(TruthElement::rig_coulomb())
-    };
-    for band in PAPER_RIG_RANDOM_BANDS_HZ {
-        run.steps
-            .push(paper_rig_random_step(band, PAPER_RIG_RANDOM_RMS_M));
-    }
-    let records = sim::simulate(&SimSpec::Rig(run))?;
+    let records = RunSpec::paper_rig(Some(DEMO_SNR_DB), 1).simulate()?;
     Ok(Data {
         records,
         validation: Vec::new(),

@@ -2,16 +2,13 @@
 //! planted in the truth model if asked.
 
 use anyhow::bail;
-use forcemap_math::sim::excitation::PAPER_RIG_RANDOM_BANDS_HZ;
 use forcemap_math::sim::{
-    self, AsymmetricDamping, BoucWen, FreePlay, RigEffects, RigRun, SimSpec, ThreeDofRun,
-    TruthElement,
+    AsymmetricDamping, BoucWen, FreePlay, RigEffects, RunSpec, ThreeDofCase, TruthElement,
 };
 
 use crate::cli::{CaseArg, EffectArgs, SimulateArgs, SystemArg};
 use forcemap_io::csv_export::write_csv;
 use forcemap_io::rig_bag::{DEFAULT_RUN_START, write_rig_bag};
-use forcemap_math::recipe::SetupKind;
 
 /// The truth element with the planted element effects.
 fn planted_element(mut element: TruthElement, e: &EffectArgs) -> anyhow::Result<TruthElement> {
@@ -228,24 +225,16 @@ fn planted_rig_effects(e: &EffectArgs) -> anyhow::Result<RigEffects> {
 }
 
 pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
-    let (spec, profile) = match args.system {
+    let spec = match args.system {
         SystemArg::Rig => {
-            let element = planted_element(TruthElement::rig_coulomb(), &args.effects)?;
-            let mut run = RigRun {
-                snr_db: args.snr_db,
-                seed: args.seed,
-                effects: planted_rig_effects(&args.effects)?,
-                ..RigRun::paper_sine(element)
+            let spec = if args.no_random {
+                RunSpec::paper_rig_sine(args.snr_db, args.seed)
+            } else {
+                RunSpec::paper_rig(args.snr_db, args.seed)
             };
-            if !args.no_random {
-                for band in PAPER_RIG_RANDOM_BANDS_HZ {
-                    run.steps.push(sim::excitation::paper_rig_random_step(
-                        band,
-                        sim::excitation::PAPER_RIG_RANDOM_RMS_M,
-                    ));
-                }
-            }
-            (SimSpec::Rig(run), SetupKind::BaseExcited)
+            let element = planted_element(spec.element.clone(), &args.effects)?;
+            spec.with_element(element)
+                .with_effects(planted_rig_effects(&args.effects)?)
         }
         SystemArg::ThreeDof => {
             let e = &args.effects;
@@ -257,22 +246,17 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
                     "--exciter-delay-s, --sensor-lowpass-hz and --mass-factor apply to the rig (--system rig) only"
                 );
             }
-            let mut run = match args.case {
-                CaseArg::I => ThreeDofRun::case_i(),
-                CaseArg::Ii => ThreeDofRun::case_ii(),
+            let case = match args.case {
+                CaseArg::I => ThreeDofCase::I,
+                CaseArg::Ii => ThreeDofCase::Ii,
             };
-            run.element = planted_element(run.element, e)?;
-            (
-                SimSpec::ThreeDof(ThreeDofRun {
-                    snr_db: args.snr_db,
-                    seed: args.seed,
-                    ..run
-                }),
-                SetupKind::DrivePoint,
-            )
+            let spec = RunSpec::three_dof(case, args.snr_db, args.seed);
+            let element = planted_element(spec.element.clone(), e)?;
+            spec.with_element(element)
         }
     };
-    let records = sim::simulate(&spec)?;
+    let profile = spec.setup_kind();
+    let records = spec.simulate()?;
     let what = format!(
         "{} records, {} samples, {} profile",
         records.len(),
@@ -284,20 +268,18 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         eprintln!("wrote {} ({what})", csv.display());
     }
     if let Some(bag) = &args.bag {
-        let mut parameters = Vec::new();
-        if profile == SetupKind::BaseExcited {
-            parameters.push((
-                "mass_kg".to_string(),
-                forcemap_math::sim::rig::PAPER_RIG_MASS_KG,
-            ));
-        }
+        let mut parameters: Vec<(String, f64)> = spec
+            .mass_kg()
+            .map(|m| ("mass_kg".to_string(), m))
+            .into_iter()
+            .collect();
         parameters.extend(planted_parameters(&args.effects));
         let parameters: Vec<(&str, f64)> =
             parameters.iter().map(|(k, v)| (k.as_str(), *v)).collect();
         let dir = write_rig_bag(
             bag,
             &records,
-            profile.driven_channel(),
+            spec.driven_channel(),
             &parameters,
             DEFAULT_RUN_START,
         )?;

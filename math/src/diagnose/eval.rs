@@ -16,13 +16,9 @@ use crate::element::{Element, Friction};
 use crate::identify::Setup;
 use crate::model::{Model, ModelOptions};
 use crate::record::{Excitation, Record};
-use crate::sim::excitation::{
-    PAPER_RIG_RANDOM_BANDS_HZ, PAPER_RIG_RANDOM_RMS_M, paper_rig_random_step,
-};
-use crate::sim::noise::add_noise;
 use crate::sim::rig::PAPER_RIG_MASS_KG;
 use crate::sim::{
-    AsymmetricDamping, BoucWen, FreePlay, RigEffects, RigRun, SimError, TruthElement, simulate_rig,
+    AsymmetricDamping, BoucWen, FreePlay, RigEffects, RunSpec, SimError, TruthElement,
 };
 
 /// What is planted in a case.
@@ -225,29 +221,10 @@ fn truth_element(t: &Truth) -> Box<dyn Element> {
 /// Simulates a case: the paper's stepped sine and its two band-random records, with noise.
 pub fn simulate_case(case: &CaseSpec) -> Result<(Truth, Vec<Record>), SimError> {
     let truth = truth_of(&case.planted);
-    let mut run = RigRun {
-        seed: case.seed,
-        effects: truth.effects,
-        ..RigRun::paper_sine(truth.element.clone())
-    };
-    for band in PAPER_RIG_RANDOM_BANDS_HZ {
-        run.steps
-            .push(paper_rig_random_step(band, PAPER_RIG_RANDOM_RMS_M));
-    }
-    let element = truth_element(&truth);
-    let mut out = simulate_rig(
-        element.as_ref(),
-        run.nominal_mass_kg,
-        &run.program(),
-        &run.effects,
-        run.initial,
-        &run.solver,
-    )?;
-    add_noise(
-        &mut out.records,
-        Some(case.snr_db),
-        crate::sim::excitation::derive_seed(case.seed, 1),
-    );
+    let run = RunSpec::paper_rig(Some(case.snr_db), case.seed)
+        .with_element(truth.element.clone())
+        .with_effects(truth.effects);
+    let out = run.simulate_with_element(truth_element(&truth).as_ref())?;
     Ok((truth, out.records))
 }
 

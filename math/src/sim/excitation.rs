@@ -483,12 +483,25 @@ impl Program {
 
 /// Paper stepped sine of the rig: 1.6 to 3.4 Hz in 0.2 Hz steps at `amplitude_m`.
 pub fn paper_rig_sine_steps(amplitude_m: f64) -> Vec<StepSpec> {
-    PAPER_RIG_FREQUENCIES_HZ
+    sine_steps(&PAPER_RIG_FREQUENCIES_HZ, amplitude_m)
+}
+
+/// A stepped sine: one step per frequency of `frequencies_hz`, each at `amplitude`.
+pub fn sine_steps(frequencies_hz: &[f64], amplitude: f64) -> Vec<StepSpec> {
+    frequencies_hz
         .iter()
         .map(|&f| StepSpec::Sine {
             frequency_hz: f,
-            amplitude: amplitude_m,
+            amplitude,
         })
+        .collect()
+}
+
+/// The paper's two random validation records of the rig (1.5-2.5 and 2.5-3.5 Hz, 4 mm RMS).
+pub fn paper_rig_random_steps() -> Vec<StepSpec> {
+    PAPER_RIG_RANDOM_BANDS_HZ
+        .iter()
+        .map(|&band| paper_rig_random_step(band, PAPER_RIG_RANDOM_RMS_M))
         .collect()
 }
 

@@ -1,13 +1,16 @@
 //! Truth simulators: the base-excited suspension rig and the paper's 3-DOF example, with
 //! exact stick-slip (no regularisation), planted rig effects and measurement noise.
 //!
-//! Entry point: [`simulate`] on a serialisable [`SimSpec`]; every run is reproducible from
-//! its seed (multisine phases and noise come from seeded ChaCha streams).
+//! Entry point: [`RunSpec`] (one description of a run, with the paper's runs as named
+//! constructors) and [`RunSpec::simulate`]; [`SimSpec`] with [`simulate`] is the same run
+//! split by system. Every run is reproducible from its seed (multisine phases and noise come
+//! from seeded ChaCha streams).
 
 pub mod excitation;
 mod hybrid;
 pub mod noise;
 pub mod rig;
+pub mod run;
 pub mod three_dof;
 pub mod truth;
 
@@ -19,6 +22,7 @@ pub use rig::{
     ReplayOptions, RigEffects, RigInitial, RigResponse, ZeroPhaseLowpass, simulate_on_sampled_base,
     simulate_rig,
 };
+pub use run::{RunSpec, RunSystem, ThreeDofCase};
 pub use three_dof::{ThreeDofParams, simulate_three_dof};
 pub use truth::{AsymmetricDamping, BoucWen, FreePlay, TruthElement};
 
@@ -210,53 +214,13 @@ pub enum SimSpec {
     ThreeDof(ThreeDofRun),
 }
 
-/// Noise stream number derived from the run seed.
-const NOISE_STREAM: u64 = 1;
-
 /// Simulates a run and adds its measurement noise; returns the records.
 pub fn simulate(spec: &SimSpec) -> Result<Vec<Record>, SimError> {
     simulate_detailed(spec).map(|o| o.records)
 }
 
-/// [`simulate`] with per-record diagnostics (traces are noise-free).
+/// [`simulate`] with per-record diagnostics (traces are noise-free): the run as a
+/// [`RunSpec`], simulated by [`RunSpec::simulate_detailed`].
 pub fn simulate_detailed(spec: &SimSpec) -> Result<SimOutput, SimError> {
-    let (mut out, snr, seed) = match spec {
-        SimSpec::Rig(r) => {
-            if r.samples_per_record == 0 || r.steps.is_empty() {
-                return Err(SimError::InvalidSpec(
-                    "a rig run needs steps and samples".into(),
-                ));
-            }
-            (
-                simulate_rig(
-                    &r.element,
-                    r.nominal_mass_kg,
-                    &r.program(),
-                    &r.effects,
-                    r.initial,
-                    &r.solver,
-                )?,
-                r.snr_db,
-                r.seed,
-            )
-        }
-        SimSpec::ThreeDof(r) => {
-            if r.samples_per_record == 0 || r.steps.is_empty() {
-                return Err(SimError::InvalidSpec(
-                    "a 3-DOF run needs steps and samples".into(),
-                ));
-            }
-            (
-                simulate_three_dof(&r.params, &r.element, &r.program(), &r.solver)?,
-                r.snr_db,
-                r.seed,
-            )
-        }
-    };
-    noise::add_noise(
-        &mut out.records,
-        snr,
-        excitation::derive_seed(seed, NOISE_STREAM),
-    );
-    Ok(out)
+    RunSpec::from(spec.clone()).simulate_detailed()
 }

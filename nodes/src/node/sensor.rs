@@ -22,10 +22,9 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, bail};
 use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_math::sim::excitation::{
-    PAPER_RIG_RANDOM_BANDS_HZ, PAPER_RIG_RANDOM_RMS_M, PAPER_RIG_SINE_AMPLITUDE_M, StepSpec,
-    paper_rig_random_step,
+    PAPER_RIG_SINE_AMPLITUDE_M, paper_rig_random_steps, sine_steps,
 };
-use forcemap_math::sim::{self, RigRun, SimSpec, ThreeDofRun, TruthElement};
+use forcemap_math::sim::{RunSpec, RunSystem, ThreeDofCase};
 use forcemap_msgs::RosMessage;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
@@ -33,32 +32,16 @@ use forcemap_msgs::msg::{ExcitationState, RigSample};
 use forcemap_msgs::std_msgs::Header;
 
 use crate::log_line;
-use crate::ros::{NodeSetup, RosNode, qos};
+use crate::ros::{NodeSetup, RosNode, publish_blocking, qos};
 use forcemap_io::bag::BagReader;
+use forcemap_io::params::Params;
+use forcemap_io::rig_messages::{
+    RigMessage, SIMULATED_CONSTANTS_MESSAGE, constants_status, rig_messages,
+};
 use forcemap_io::topics;
 
-/// One message the sensor publishes, in time order.
-pub enum Out {
-    Excitation(ExcitationState),
-    Sample(RigSample),
-    Parameters(DiagnosticStatus),
-}
-
-impl Out {
-    fn stamp(&self) -> Option<Time> {
-        match self {
-            Out::Excitation(m) => Some(m.start_time),
-            Out::Sample(m) => Some(m.header.stamp),
-            Out::Parameters(_) => None,
-        }
-    }
-}
-
-/// The run the simulated rig plays, and its rig constants (with the truth, for summaries).
-pub fn simulated_run(
-    setup: &NodeSetup,
-) -> anyhow::Result<(Vec<Record>, Channel, DiagnosticStatus)> {
-    let p = &setup.params;
+/// The run the simulated rig plays, from the node's parameters.
+fn run_spec(p: &Params) -> anyhow::Result<RunSpec> {
     let system = p.opt_str("system")?.unwrap_or("rig").to_string();
     let snr_db = p.opt_f64("snr_db")?.unwrap_or(40.0);
     let snr_db = (snr_db.is_finite() && snr_db >= 0.0).then_some(snr_db);
@@ -67,24 +50,6 @@ pub fn simulated_run(
         bail!("seed = {seed}: must be a whole number >= 0");
     }
     let seed = seed as u64;
-    let mut constants = DiagnosticStatus::new(
-        DiagnosticStatus::OK,
-        forcemap_io::rig_bag::PARAMETERS_NAME,
-        "rig constants (simulated rig; truth.* are the simulator's true element values)",
-        setup.fully_qualified_name(),
-    );
-    let truth_keys = |s: DiagnosticStatus, e: &TruthElement| {
-        let mut s = s
-            .with_value("truth.k", e.stiffness_n_per_m)
-            .with_value("truth.c", e.damping_n_s_per_m);
-        if let Some(f) = &e.friction {
-            s = s.with_value("truth.fd", f.kinetic_n);
-        }
-        if e.cubic_stiffness_n_per_m3 != 0.0 {
-            s = s.with_value("truth.s", e.cubic_stiffness_n_per_m3);
-        }
-        s
-    };
     match system.as_str() {
         "rig" => {
             let rate = p.opt_f64("sample_rate_hz")?.unwrap_or(100.0);
@@ -95,102 +60,37 @@ pub fn simulated_run(
             if !(duration.is_finite() && duration > 0.0) {
                 bail!("step_duration_s = {duration}: expected a positive duration");
             }
-            let samples = (duration * rate).round() as usize;
-            let mut run = RigRun {
-                snr_db,
-                seed,
+            let mut spec = RunSpec {
                 sample_rate_hz: rate,
-                samples_per_record: samples,
-                ..RigRun::paper_sine(TruthElement::rig_coulomb())
+                samples_per_record: (duration * rate).round() as usize,
+                ..RunSpec::paper_rig_sine(snr_db, seed)
             };
             if let Some(f) = p.opt_f64_array("frequencies_hz")? {
                 if f.is_empty() || f.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
                     bail!("frequencies_hz: expected a non-empty list of positive frequencies");
                 }
-                run.steps = f
-                    .iter()
-                    .map(|&frequency_hz| StepSpec::Sine {
-                        frequency_hz,
-                        amplitude: PAPER_RIG_SINE_AMPLITUDE_M,
-                    })
-                    .collect();
+                spec.steps = sine_steps(&f, PAPER_RIG_SINE_AMPLITUDE_M);
             }
             if p.opt_bool("include_random")?.unwrap_or(true) {
-                for band in PAPER_RIG_RANDOM_BANDS_HZ {
-                    run.steps
-                        .push(paper_rig_random_step(band, PAPER_RIG_RANDOM_RMS_M));
-                }
+                spec.steps.extend(paper_rig_random_steps());
             }
-            constants = truth_keys(
-                constants.with_value("mass_kg", run.nominal_mass_kg),
-                &run.element,
-            );
-            let records = sim::simulate(&SimSpec::Rig(run)).context("simulating the rig")?;
-            Ok((records, Channel::BaseDisplacementM, constants))
+            Ok(spec)
         }
         "three_dof" => {
-            let run = match p.opt_str("case")?.unwrap_or("i") {
-                "i" | "I" => ThreeDofRun::case_i(),
-                "ii" | "II" => ThreeDofRun::case_ii(),
+            let case = match p.opt_str("case")?.unwrap_or("i") {
+                "i" | "I" => ThreeDofCase::I,
+                "ii" | "II" => ThreeDofCase::Ii,
                 other => bail!("case = '{other}': expected i or ii"),
             };
-            let run = ThreeDofRun {
-                snr_db,
-                seed,
-                ..run
-            };
-            constants = truth_keys(constants, &run.element);
-            let records =
-                sim::simulate(&SimSpec::ThreeDof(run)).context("simulating the 3-DOF example")?;
-            Ok((records, Channel::ForceN, constants))
+            Ok(RunSpec::three_dof(case, snr_db, seed))
         }
         other => bail!("system = '{other}': expected rig or three_dof"),
     }
 }
 
-/// The messages of a simulated run starting at `run_start`, ending with IDLE.
-pub fn messages_of(
-    records: &[Record],
-    driven: Channel,
-    constants: DiagnosticStatus,
-    run_start: Time,
-    frame: &str,
-) -> Vec<Out> {
-    let mut out = vec![Out::Parameters(constants)];
-    let mut end = run_start;
-    for r in records {
-        let start = run_start.add_secs_f64(r.start_time_s);
-        out.push(Out::Excitation(ExcitationState::from_excitation(
-            Header::new(start, frame),
-            r.step,
-            start,
-            &r.excitation,
-            driven,
-            r.len(),
-        )));
-        for i in 0..r.len() {
-            let stamp = run_start.add_secs_f64(r.time_s(i));
-            out.push(Out::Sample(RigSample::from_record(
-                r,
-                i,
-                Header::new(stamp, frame),
-            )));
-        }
-        end = run_start.add_secs_f64(r.start_time_s + r.len() as f64 / r.sample_rate_hz);
-    }
-    let last = records.last().map_or(0, |r| r.step + 1);
-    out.push(Out::Excitation(ExcitationState::idle(
-        Header::new(end, frame),
-        last,
-        end,
-        driven,
-    )));
-    out
-}
-
 /// The messages of a bag (its samples, excitation and rig-constants topics, recognised by
 /// their last name component), in log-time order, ending with IDLE if the bag has none.
-fn messages_of_bag(path: &PathBuf) -> anyhow::Result<Vec<Out>> {
+fn messages_of_bag(path: &PathBuf) -> anyhow::Result<Vec<RigMessage>> {
     let reader = BagReader::open(path)?;
     let base = |name: &str| name.rsplit('/').next().unwrap_or("").to_string();
     let mut out = Vec::new();
@@ -213,15 +113,15 @@ fn messages_of_bag(path: &PathBuf) -> anyhow::Result<Vec<Out>> {
                     }
                 }
                 last = Some((s.step, s.header.stamp, s.header.frame_id.clone()));
-                out.push(Out::Sample(s));
+                out.push(RigMessage::Sample(s));
             }
             (topics::EXCITATION, ExcitationState::TYPE_NAME) => {
                 let s = ExcitationState::from_cdr(&m.data).map_err(|e| bad(&e))?;
                 saw_idle |= s.is_idle();
-                out.push(Out::Excitation(s));
+                out.push(RigMessage::Excitation(s));
             }
             (topics::PARAMETERS, DiagnosticStatus::TYPE_NAME) => {
-                out.push(Out::Parameters(
+                out.push(RigMessage::Parameters(
                     DiagnosticStatus::from_cdr(&m.data).map_err(|e| bad(&e))?,
                 ));
             }
@@ -237,7 +137,7 @@ fn messages_of_bag(path: &PathBuf) -> anyhow::Result<Vec<Out>> {
     };
     if !saw_idle {
         let end = t.add_secs_f64(period);
-        out.push(Out::Excitation(ExcitationState::idle(
+        out.push(RigMessage::Excitation(ExcitationState::idle(
             Header::new(end, &frame),
             step as usize + 1,
             end,
@@ -264,14 +164,24 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let prepared = match source.as_str() {
         "sim" => {
             let t0 = Instant::now();
-            let (records, driven, constants) = simulated_run(&setup)?;
+            let spec = run_spec(p)?;
+            let what = match spec.system {
+                RunSystem::Rig { .. } => "simulating the rig",
+                RunSystem::ThreeDof { .. } => "simulating the 3-DOF example",
+            };
+            let records = spec.simulate().context(what)?;
+            let constants = constants_status(
+                SIMULATED_CONSTANTS_MESSAGE,
+                &setup.fully_qualified_name(),
+                &spec.constants(),
+            );
             log_line!(
                 "simulated {} steps ({} samples) in {:.2} s",
                 records.len(),
                 records.iter().map(Record::len).sum::<usize>(),
                 t0.elapsed().as_secs_f64()
             );
-            Some((records, driven, constants))
+            Some((records, spec.driven_channel(), constants))
         }
         "bag" => None,
         other => bail!("source = '{other}': expected sim or bag"),
@@ -314,13 +224,13 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let messages = match prepared {
         Some((records, driven, constants)) => {
             let run_start = crate::ros::now_time();
-            messages_of(&records, driven, constants, run_start, &frame)
+            rig_messages(&records, driven, Some(constants), run_start, &frame).collect()
         }
         None => bag_messages.unwrap_or_default(),
     };
     let total_samples = messages
         .iter()
-        .filter(|m| matches!(m, Out::Sample(_)))
+        .filter(|m| matches!(m, RigMessage::Sample(_)))
         .count();
     log_line!(
         "publishing {total_samples} samples on {} ({})",
@@ -339,7 +249,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         crate::ros::shutdown_signal().await;
         stop_w.store(true, std::sync::atomic::Ordering::SeqCst);
     });
-    let first_stamp = messages.iter().find_map(Out::stamp);
+    let first_stamp = messages.iter().find_map(RigMessage::stamp);
     let wall0 = Instant::now();
     let mut published = 0usize;
     let mut last_report = Instant::now();
@@ -358,11 +268,11 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             }
         }
         match m {
-            Out::Sample(s) => {
+            RigMessage::Sample(s) => {
                 publish_blocking(&samples_pub, s).await?;
                 published += 1;
             }
-            Out::Excitation(e) => {
+            RigMessage::Excitation(e) => {
                 if e.is_idle() {
                     log_line!(
                         "run complete: exciter idle after step {}",
@@ -373,7 +283,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                 }
                 publish_blocking(&excitation_pub, e).await?;
             }
-            Out::Parameters(s) => publish_blocking(&parameters_pub, s).await?,
+            RigMessage::Parameters(s) => publish_blocking(&parameters_pub, s).await?,
         }
         if last_report.elapsed() > Duration::from_secs(5) {
             log_line!("{published} of {total_samples} samples published");
@@ -393,27 +303,6 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Publishes reliably, retrying while the send window is full (flow control: the sensor
-/// slows down to what the subscribers acknowledge rather than losing samples).
-pub async fn publish_blocking<M: serde::Serialize + Clone>(
-    publisher: &ros2_client::Publisher<M>,
-    message: M,
-) -> anyhow::Result<()> {
-    let mut tries = 0;
-    loop {
-        match publisher.async_publish(message.clone()).await {
-            Ok(()) => return Ok(()),
-            Err(e) => {
-                tries += 1;
-                if tries > 600 {
-                    bail!("publishing failed for a minute: {e}");
-                }
-                tokio::time::sleep(Duration::from_millis(100)).await;
-            }
-        }
-    }
-}
-
 fn describe(e: &ExcitationState) -> String {
     match e.excitation() {
         Ok(Excitation::Sine {
@@ -430,5 +319,59 @@ fn describe(e: &ExcitationState) -> String {
             e.sample_count
         ),
         Err(err) => err.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use forcemap_io::params::ParamValue;
+
+    #[test]
+    fn the_default_simulated_run_is_the_paper_rig_run() {
+        let spec = run_spec(&Params::new()).unwrap();
+        assert_eq!(spec, RunSpec::paper_rig(Some(40.0), 1));
+    }
+
+    #[test]
+    fn parameters_shape_the_run() {
+        let mut p = Params::new();
+        p.set("sample_rate_hz", ParamValue::Double(200.0));
+        p.set("step_duration_s", ParamValue::Double(2.0));
+        p.set("snr_db", ParamValue::Double(f64::NAN));
+        p.set("seed", ParamValue::Integer(4));
+        p.set("include_random", ParamValue::Bool(false));
+        p.set("frequencies_hz", ParamValue::DoubleArray(vec![2.0, 3.0]));
+        let spec = run_spec(&p).unwrap();
+        assert_eq!(
+            spec,
+            RunSpec {
+                sample_rate_hz: 200.0,
+                samples_per_record: 400,
+                steps: sine_steps(&[2.0, 3.0], PAPER_RIG_SINE_AMPLITUDE_M),
+                ..RunSpec::paper_rig_sine(None, 4)
+            }
+        );
+        let mut p = Params::new();
+        p.set("system", ParamValue::String("three_dof".into()));
+        p.set("case", ParamValue::String("ii".into()));
+        let spec = run_spec(&p).unwrap();
+        assert_eq!(spec, RunSpec::three_dof(ThreeDofCase::Ii, Some(40.0), 1));
+        assert_eq!(spec.driven_channel(), Channel::ForceN);
+    }
+
+    #[test]
+    fn bad_parameters_are_refused() {
+        for (name, value) in [
+            ("system", ParamValue::String("car".into())),
+            ("seed", ParamValue::Integer(-1)),
+            ("sample_rate_hz", ParamValue::Double(0.0)),
+            ("step_duration_s", ParamValue::Double(-1.0)),
+            ("frequencies_hz", ParamValue::DoubleArray(vec![])),
+        ] {
+            let mut p = Params::new();
+            p.set(name, value);
+            assert!(run_spec(&p).is_err(), "{name}");
+        }
     }
 }
