@@ -16,7 +16,7 @@
 //! Stamps: the simulated run starts at the wall-clock time the node starts publishing; a bag is
 //! played with the stamps it holds (as `ros2 bag play` does).
 
-use std::path::PathBuf;
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
@@ -25,18 +25,15 @@ use forcemap_math::sim::excitation::{
     PAPER_RIG_SINE_AMPLITUDE_M, paper_rig_random_steps, sine_steps,
 };
 use forcemap_math::sim::{RunSpec, RunSystem, ThreeDofCase};
-use forcemap_msgs::RosMessage;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
-use forcemap_msgs::std_msgs::Header;
 
 use crate::log_line;
 use crate::ros::{NodeSetup, RosNode, publish_blocking, qos};
-use forcemap_io::bag::BagReader;
 use forcemap_io::params::Params;
 use forcemap_io::rig_messages::{
-    RigMessage, SIMULATED_CONSTANTS_MESSAGE, constants_status, rig_messages,
+    RigMessage, SIMULATED_CONSTANTS_MESSAGE, constants_status, read_rig_messages, rig_messages,
 };
 use forcemap_io::topics;
 
@@ -90,61 +87,79 @@ fn run_spec(p: &Params) -> anyhow::Result<RunSpec> {
 
 /// The messages of a bag (its samples, excitation and rig-constants topics, recognised by
 /// their last name component), in log-time order, ending with IDLE if the bag has none.
-fn messages_of_bag(path: &PathBuf) -> anyhow::Result<Vec<RigMessage>> {
-    let reader = BagReader::open(path)?;
-    let base = |name: &str| name.rsplit('/').next().unwrap_or("").to_string();
-    let mut out = Vec::new();
-    let mut last: Option<(u32, Time, String)> = None;
-    let mut saw_idle = false;
-    let mut period = 0.0f64;
-    for (i, m) in reader.messages()?.enumerate() {
-        let m = m?;
-        let topic = &m.topic.name;
-        let bad = |e: &dyn std::fmt::Display| {
-            anyhow::anyhow!("{}: {topic}, message {i}: {e}", path.display())
+/// Where the sensor's messages come from: the simulated rig or a bag (a live source of foreign
+/// topics is the next kind). A source is prepared before the node touches the network, so bad
+/// input fails fast; its messages are taken once the subscribers listen.
+pub trait SampleSource: Send {
+    /// The messages in publishing order, for a run that starts now at `run_start` (a bag keeps
+    /// the stamps it holds, as `ros2 bag play` does).
+    fn messages(self: Box<Self>, run_start: Time) -> Box<dyn Iterator<Item = RigMessage> + Send>;
+}
+
+/// The simulated run of a [`RunSpec`], stamped from the moment it is published.
+pub struct SimulatedRun {
+    records: Vec<Record>,
+    driven: Channel,
+    constants: DiagnosticStatus,
+    frame: String,
+}
+
+impl SimulatedRun {
+    /// Simulates `spec` (the whole run, before publishing: see the performance issue).
+    pub fn new(spec: &RunSpec, node_name: &str, frame: &str) -> anyhow::Result<SimulatedRun> {
+        let t0 = Instant::now();
+        let what = match spec.system {
+            RunSystem::Rig { .. } => "simulating the rig",
+            RunSystem::ThreeDof { .. } => "simulating the 3-DOF example",
         };
-        match (base(topic).as_str(), m.topic.type_name.as_str()) {
-            (topics::SAMPLES, RigSample::TYPE_NAME) => {
-                let s = RigSample::from_cdr(&m.data).map_err(|e| bad(&e))?;
-                if let Some((_, t, _)) = &last {
-                    let dt = s.header.stamp.secs_since(*t);
-                    if dt > 0.0 {
-                        period = dt;
-                    }
-                }
-                last = Some((s.step, s.header.stamp, s.header.frame_id.clone()));
-                out.push(RigMessage::Sample(s));
-            }
-            (topics::EXCITATION, ExcitationState::TYPE_NAME) => {
-                let s = ExcitationState::from_cdr(&m.data).map_err(|e| bad(&e))?;
-                saw_idle |= s.is_idle();
-                out.push(RigMessage::Excitation(s));
-            }
-            (topics::PARAMETERS, DiagnosticStatus::TYPE_NAME) => {
-                out.push(RigMessage::Parameters(
-                    DiagnosticStatus::from_cdr(&m.data).map_err(|e| bad(&e))?,
-                ));
-            }
-            _ => {}
-        }
-    }
-    let Some((step, t, frame)) = last else {
-        bail!(
-            "{}: no forcemap_msgs/msg/RigSample messages on a '.../{}' topic",
-            path.display(),
-            topics::SAMPLES
+        let records = spec.simulate().context(what)?;
+        log_line!(
+            "simulated {} steps ({} samples) in {:.2} s",
+            records.len(),
+            records.iter().map(Record::len).sum::<usize>(),
+            t0.elapsed().as_secs_f64()
         );
-    };
-    if !saw_idle {
-        let end = t.add_secs_f64(period);
-        out.push(RigMessage::Excitation(ExcitationState::idle(
-            Header::new(end, &frame),
-            step as usize + 1,
-            end,
-            Channel::BaseDisplacementM,
-        )));
+        Ok(SimulatedRun {
+            records,
+            driven: spec.driven_channel(),
+            constants: constants_status(SIMULATED_CONSTANTS_MESSAGE, node_name, &spec.constants()),
+            frame: frame.to_string(),
+        })
     }
-    Ok(out)
+}
+
+impl SampleSource for SimulatedRun {
+    fn messages(self: Box<Self>, run_start: Time) -> Box<dyn Iterator<Item = RigMessage> + Send> {
+        let this = *self;
+        let messages: Vec<RigMessage> = rig_messages(
+            &this.records,
+            this.driven,
+            Some(this.constants),
+            run_start,
+            &this.frame,
+        )
+        .collect();
+        Box::new(messages.into_iter())
+    }
+}
+
+/// The rig messages of a bag, played with their own stamps.
+pub struct BagPlayback {
+    messages: Vec<RigMessage>,
+}
+
+impl BagPlayback {
+    pub fn open(path: &Path) -> anyhow::Result<BagPlayback> {
+        Ok(BagPlayback {
+            messages: read_rig_messages(path)?,
+        })
+    }
+}
+
+impl SampleSource for BagPlayback {
+    fn messages(self: Box<Self>, _run_start: Time) -> Box<dyn Iterator<Item = RigMessage> + Send> {
+        Box::new(self.messages.into_iter())
+    }
 }
 
 pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
@@ -161,39 +176,17 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let frame = p.opt_str("frame_id")?.unwrap_or("rig").to_string();
 
     // Prepare everything before touching the network, so bad input fails fast.
-    let prepared = match source.as_str() {
-        "sim" => {
-            let t0 = Instant::now();
-            let spec = run_spec(p)?;
-            let what = match spec.system {
-                RunSystem::Rig { .. } => "simulating the rig",
-                RunSystem::ThreeDof { .. } => "simulating the 3-DOF example",
-            };
-            let records = spec.simulate().context(what)?;
-            let constants = constants_status(
-                SIMULATED_CONSTANTS_MESSAGE,
-                &setup.fully_qualified_name(),
-                &spec.constants(),
-            );
-            log_line!(
-                "simulated {} steps ({} samples) in {:.2} s",
-                records.len(),
-                records.iter().map(Record::len).sum::<usize>(),
-                t0.elapsed().as_secs_f64()
-            );
-            Some((records, spec.driven_channel(), constants))
-        }
-        "bag" => None,
-        other => bail!("source = '{other}': expected sim or bag"),
-    };
-    let bag_messages = if prepared.is_none() {
-        let path = PathBuf::from(
+    let source: Box<dyn SampleSource> = match source.as_str() {
+        "sim" => Box::new(SimulatedRun::new(
+            &run_spec(p)?,
+            &setup.fully_qualified_name(),
+            &frame,
+        )?),
+        "bag" => Box::new(BagPlayback::open(Path::new(
             p.opt_str("bag")?
                 .context("source = bag needs the parameter bag (the bag to play)")?,
-        );
-        Some(messages_of_bag(&path)?)
-    } else {
-        None
+        ))?),
+        other => bail!("source = '{other}': expected sim or bag"),
     };
 
     let mut ros = RosNode::start(setup.clone())?;
@@ -221,13 +214,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     // Discovery of the subscriber's reader completes a little after the count changes.
     tokio::time::sleep(Duration::from_millis(300)).await;
 
-    let messages = match prepared {
-        Some((records, driven, constants)) => {
-            let run_start = crate::ros::now_time();
-            rig_messages(&records, driven, Some(constants), run_start, &frame).collect()
-        }
-        None => bag_messages.unwrap_or_default(),
-    };
+    let messages: Vec<RigMessage> = source.messages(crate::ros::now_time()).collect();
     let total_samples = messages
         .iter()
         .filter(|m| matches!(m, RigMessage::Sample(_)))
