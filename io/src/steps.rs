@@ -578,4 +578,90 @@ mod tests {
         let e = a.finish().unwrap().unwrap_err();
         assert!(e.problem.contains("not contiguous"), "{e}");
     }
+
+    fn row(step: usize, t_s: f64, resolution: f64) -> StepSample {
+        StepSample {
+            t_s,
+            t_resolution_s: resolution,
+            step,
+            values: vec![(Channel::ForceN, t_s)],
+        }
+    }
+
+    #[test]
+    fn rig_samples_become_step_samples_with_their_present_channels() {
+        let s = StepSample::of_rig(&sample(3, 0, 1.5), 0.25);
+        assert_eq!(s.step, 3);
+        assert_eq!(s.t_s, 0.25);
+        assert_eq!(s.t_resolution_s, 0.0);
+        assert_eq!(
+            s.values,
+            [
+                (Channel::BaseDisplacementM, 1.5),
+                (Channel::MassAccelerationMps2, 3.0)
+            ]
+        );
+    }
+
+    #[test]
+    fn written_steps_must_be_consecutive_and_messages_only_increasing() {
+        let p = plan(0);
+        let mut written = StepAssembler::with_rules(StepRules::WRITTEN);
+        let mut messages = StepAssembler::new();
+        for k in 0..3 {
+            written.push_sample(&row(4, 0.01 * k as f64, 0.0), Some(&p));
+            messages.push_sample(&row(4, 0.01 * k as f64, 0.0), Some(&p));
+        }
+        // The step in progress may continue, the first step may be any.
+        assert_eq!(written.order_fault(4), None);
+        assert_eq!(
+            StepAssembler::with_rules(StepRules::WRITTEN).order_fault(9),
+            None
+        );
+        assert_eq!(written.order_fault(5), None);
+        assert_eq!(
+            written.order_fault(6),
+            Some(StepFault::OutOfOrder { previous: 4 })
+        );
+        assert_eq!(messages.order_fault(6), None);
+        assert_eq!(
+            messages.order_fault(3),
+            Some(StepFault::OutOfOrder { previous: 4 })
+        );
+    }
+
+    #[test]
+    fn written_times_are_checked_against_the_median_interval_within_their_rounding() {
+        let p = plan(0);
+        // Times written with 4 decimals at 300 Hz: rounded intervals of 3.3 or 3.4 ms pass.
+        let mut a = StepAssembler::with_rules(StepRules::WRITTEN);
+        for k in 0..30 {
+            let t = ((k as f64 / 300.0) * 1e4).round() / 1e4;
+            a.push_sample(&row(0, t, 1e-4), Some(&p));
+        }
+        let done = a.finish_step().unwrap().unwrap();
+        assert_eq!(done.timing.samples, 30);
+        assert_eq!(done.timing.resolution_s, 1e-4);
+        assert_eq!(done.record.channel(Channel::ForceN).unwrap().len(), 30);
+        // A dropped sample is caught at the interval after it, against the median.
+        let mut a = StepAssembler::with_rules(StepRules::WRITTEN);
+        for k in [0, 1, 2, 3, 5, 6, 7] {
+            a.push_sample(&row(1, 0.01 * k as f64, 0.0), Some(&p));
+        }
+        let e = a.finish_step().unwrap().unwrap_err();
+        match e.fault {
+            StepFault::NotUniform {
+                sample,
+                reference,
+                median,
+                ..
+            } => {
+                assert_eq!(sample, 4);
+                assert!((reference - 0.01).abs() < 1e-12);
+                assert!(median);
+            }
+            f => panic!("{f:?}"),
+        }
+        assert!(e.problem.contains("median interval"), "{e}");
+    }
 }
