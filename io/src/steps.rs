@@ -64,7 +64,7 @@ pub const WRITTEN_INTERVAL_REL_TOL: f64 = 1e-6;
 /// One sample as the assembler takes it: what a [`RigSample`] and a CSV row both become.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepSample {
-    /// Time [s] from the run start.
+    /// Time from the run start, in seconds.
     pub t_s: f64,
     /// The rounding of `t_s` where it was written as text (a CSV cell); 0 for exact stamps.
     pub t_resolution_s: f64,
@@ -178,7 +178,7 @@ impl StepPlan {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepTiming {
     pub samples: usize,
-    /// Time of the first and of the last sample [s] from the run start.
+    /// Time of the first and of the last sample from the run start, in seconds.
     pub first_s: f64,
     pub last_s: f64,
     /// The finest rounding of the step's times as written (0 for exact stamps).
@@ -202,7 +202,7 @@ impl StepTiming {
         self.resolution_s.min(0.25 * self.mean_interval_s()) + 4.0 * f64::EPSILON * t_max
     }
 
-    /// Sample rate [Hz] and its relative uncertainty from the rounding of the times.
+    /// Sample rate (Hz) and its relative uncertainty from the rounding of the times.
     pub fn rate(&self) -> (f64, f64) {
         let elapsed = self.elapsed_s();
         (

@@ -8,7 +8,7 @@ use forcemap_math::record::Channel;
 
 use super::contract::required_columns;
 
-/// Errors of [`read_csv`] and [`write_csv`]. Line numbers are 1-based lines of the CSV file,
+/// Errors of [`read_csv`](super::read_csv) and [`write_csv`](super::write_csv). Line numbers are 1-based lines of the CSV file,
 /// the header being line 1.
 #[derive(Debug, thiserror::Error)]
 pub enum CsvError {

@@ -6,21 +6,21 @@
 //!
 //! * Always required: `time_s`, `step` (record index 0, 1, 2, ...) and `frequency_hz`
 //!   (excitation frequency of a stepped-sine step; `0` or empty for random excitation).
-//! * [`SetupKind::BaseExcited`](forcemap_math::recipe::SetupKind::BaseExcited) (base-excited test rig) additionally requires
+//! * [`SetupKind::BaseExcited`] (base-excited test rig) additionally requires
 //!   `base_displacement_m`, `relative_displacement_m`, `mass_acceleration_mps2`.
-//! * [`SetupKind::DrivePoint`](forcemap_math::recipe::SetupKind::DrivePoint) (force-driven structure, the 3-DOF example) additionally
+//! * [`SetupKind::DrivePoint`] (force-driven structure, the 3-DOF example) additionally
 //!   requires `relative_displacement_m`, `drive_point_displacement_m`, `force_n`.
-//! * Any other [`Channel::name`](forcemap_math::record::Channel::name) column is optional and read when present. Every cell of a
+//! * Any other [`Channel::name`] column is optional and read when present. Every cell of a
 //!   present channel column must hold a finite number.
 //! * Columns with other names are ignored and returned in [`CsvImport::ignored_columns`].
 //!
 //! The profile is decided from the header: rig if `base_displacement_m` is present,
 //! drive-point if `force_n` and `drive_point_displacement_m` are present.
 //!
-//! Rows are grouped into records by `step`, through the step assembler of
-//! [`crate::steps`] under [`StepRules::WRITTEN`](crate::steps::StepRules::WRITTEN), the code
-//! that also turns bag and live samples into records. A step's rows start when the excitation changed,
-//! so they include the transient. Steps must be contiguous (each new step is the previous one
+//! Rows are grouped into records by `step`, through the step assembler of [`crate::steps`]
+//! under [`StepRules::WRITTEN`](crate::steps::StepRules::WRITTEN), the code that also turns
+//! bag and live samples into records. A step's rows start when the excitation changed, so
+//! they include the transient. Steps must be contiguous (each new step is the previous one
 //! plus one; the first may be any non-negative integer) and each step must have at least 3
 //! rows. Time must increase strictly over the whole file (it counts from the start of the
 //! run). The sampling must be uniform within a step, and all steps must have the same sample
@@ -38,6 +38,10 @@
 //!
 //! Files: `contract` (column names, required columns, the header's layout), `read`, `write`,
 //! `error`.
+//!
+//! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
+//! [`SetupKind::DrivePoint`]: forcemap_math::recipe::SetupKind::DrivePoint
+//! [`Channel::name`]: forcemap_math::record::Channel::name
 
 mod contract;
 mod error;
