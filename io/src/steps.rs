@@ -1,20 +1,153 @@
-//! Rig samples back into records, one per excitation step: what reading a bag and the harmonic
-//! node both do, in one place, so that a step replayed through the node graph becomes exactly
-//! the record `forcemap identify` reads from the same bag.
+//! Samples back into records, one per excitation step: what reading a bag, the harmonic node
+//! and the CSV reader all do, in one place, so that a step replayed through the node graph
+//! becomes exactly the record `forcemap identify` reads from the same bag, and a CSV row and a
+//! rig sample go through the same rules (contiguous samples per step, at least
+//! [`MIN_STEP_SAMPLES`], finite values, a consistent sample interval).
+//!
+//! Where the sources differ, [`StepRules`] says how: messages carry exact stamps and may lose
+//! steps ([`StepRules::MESSAGES`]); a written export has rounded times and no gaps between
+//! steps ([`StepRules::WRITTEN`]).
 
 use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
+
+/// The fewest samples a step's record can have.
+pub const MIN_STEP_SAMPLES: usize = 3;
+
+/// How the steps of a source follow each other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepOrder {
+    /// Each new step comes after every earlier one; steps may be missing (lost or dropped
+    /// before they reached the assembler).
+    Increasing,
+    /// Each new step is the previous one plus one (the first may be any).
+    Consecutive,
+}
+
+/// How the intervals between a step's samples are checked.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum IntervalRule {
+    /// Every interval within `rel_tol` (relative) of the step's mean interval: exact stamps.
+    Mean { rel_tol: f64 },
+    /// Every interval within `rel_tol` (relative) of the step's median interval plus the
+    /// rounding of the written times ([`StepTiming::rounding_s`]): the median points at the
+    /// odd interval (a dropped sample), not at the first interval after it skews the mean.
+    Median { rel_tol: f64 },
+}
+
+/// The rules a source's steps are assembled under.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepRules {
+    pub order: StepOrder,
+    pub interval: IntervalRule,
+}
+
+impl StepRules {
+    /// Rig samples from a bag or live: stamps exact to the nanosecond, steps may be lost.
+    pub const MESSAGES: StepRules = StepRules {
+        order: StepOrder::Increasing,
+        interval: IntervalRule::Mean { rel_tol: 1e-3 },
+    };
+    /// Rows of a written export (CSV): times rounded as written, every step present.
+    pub const WRITTEN: StepRules = StepRules {
+        order: StepOrder::Consecutive,
+        interval: IntervalRule::Median {
+            rel_tol: WRITTEN_INTERVAL_REL_TOL,
+        },
+    };
+}
+
+/// Relative tolerance on the sampling interval of written data ([`StepRules::WRITTEN`]).
+pub const WRITTEN_INTERVAL_REL_TOL: f64 = 1e-6;
+
+/// One sample as the assembler takes it: what a [`RigSample`] and a CSV row both become.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepSample {
+    /// Time from the run start, in seconds.
+    pub t_s: f64,
+    /// The rounding of `t_s` where it was written as text (a CSV cell); 0 for exact stamps.
+    pub t_resolution_s: f64,
+    pub step: usize,
+    /// The channels present and their values, in [`Channel::ALL`] order.
+    pub values: Vec<(Channel, f64)>,
+}
+
+impl StepSample {
+    /// A rig sample at `t_s` from the run start.
+    pub fn of_rig(sample: &RigSample, t_s: f64) -> StepSample {
+        StepSample {
+            t_s,
+            t_resolution_s: 0.0,
+            step: sample.step as usize,
+            values: sample
+                .present()
+                .into_iter()
+                .map(|c| (c, sample.channel(c).unwrap_or(f64::NAN)))
+                .collect(),
+        }
+    }
+}
+
+/// What is wrong with a step; its text is [`StepError::problem`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StepFault {
+    /// The step does not follow `previous` as the rules require.
+    #[error("its samples are not contiguous in time (step {previous} came before)")]
+    OutOfOrder { previous: usize },
+    #[error("no ExcitationState for this step")]
+    NoPlan,
+    /// The step's excitation state does not describe an excitation.
+    #[error("{0}")]
+    BadPlan(String),
+    #[error("sample {sample}: the set of present channels changed within the step")]
+    ChannelsChanged { sample: usize },
+    #[error("sample {sample}: channel {} is flagged present but not finite", channel.name())]
+    NonFinite { sample: usize, channel: Channel },
+    #[error(
+        "{arrived} of its {expected} samples arrived (samples were lost or the recording stopped)"
+    )]
+    Lost { arrived: usize, expected: usize },
+    #[error("{samples} samples; a step needs at least {MIN_STEP_SAMPLES}")]
+    TooFew { samples: usize },
+    /// Sample `sample` follows the previous one after `interval` where the step's reference
+    /// interval (mean or median, per [`IntervalRule`]) is `reference`.
+    #[error(
+        "samples are not uniform: sample {sample} follows the previous after {interval:.6} s where {reference:.6} s is the step's {} interval (a gap or a duplicate)",
+        if *median { "median" } else { "mean" }
+    )]
+    NotUniform {
+        sample: usize,
+        interval: f64,
+        reference: f64,
+        median: bool,
+    },
+    #[error("{why} after {samples} samples")]
+    Abandoned { why: String, samples: usize },
+}
 
 /// Why a step's samples do not make a record.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("step {step}: {problem}")]
 pub struct StepError {
     pub step: usize,
+    /// The text of `fault`.
     pub problem: String,
     /// The step only ended early (fewer samples than planned, nothing else wrong): what the
     /// last step of an interrupted recording looks like.
     pub truncated: bool,
+    pub fault: StepFault,
+}
+
+impl StepError {
+    fn new(step: usize, fault: StepFault) -> StepError {
+        StepError {
+            step,
+            problem: fault.to_string(),
+            truncated: false,
+            fault,
+        }
+    }
 }
 
 /// What the assembler knows of a step from its excitation state.
@@ -31,11 +164,9 @@ impl StepPlan {
         if state.is_idle() {
             return Ok(None);
         }
-        let excitation = state.excitation().map_err(|e| StepError {
-            step: state.step as usize,
-            problem: e.to_string(),
-            truncated: false,
-        })?;
+        let excitation = state
+            .excitation()
+            .map_err(|e| StepError::new(state.step as usize, StepFault::BadPlan(e.to_string())))?;
         Ok(Some(StepPlan {
             excitation,
             sample_count: state.sample_count as usize,
@@ -43,19 +174,67 @@ impl StepPlan {
     }
 }
 
+/// The times of a step's samples, as far as its sampling interval is concerned.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepTiming {
+    pub samples: usize,
+    /// Time of the first and of the last sample from the run start, in seconds.
+    pub first_s: f64,
+    pub last_s: f64,
+    /// The finest rounding of the step's times as written (0 for exact stamps).
+    pub resolution_s: f64,
+}
+
+impl StepTiming {
+    pub fn elapsed_s(&self) -> f64 {
+        self.last_s - self.first_s
+    }
+
+    pub fn mean_interval_s(&self) -> f64 {
+        self.elapsed_s() / (self.samples - 1) as f64
+    }
+
+    /// Rounding of the times plus f64 rounding at this magnitude. The written resolution is
+    /// capped at a quarter interval: shortest round-trip output of "nice" times (`0.001`,
+    /// `0.002`, ...) looks coarse but is exact, and a missing sample must still be caught.
+    pub fn rounding_s(&self) -> f64 {
+        let t_max = self.last_s.abs().max(self.first_s.abs());
+        self.resolution_s.min(0.25 * self.mean_interval_s()) + 4.0 * f64::EPSILON * t_max
+    }
+
+    /// Sample rate (Hz) and its relative uncertainty from the rounding of the times.
+    pub fn rate(&self) -> (f64, f64) {
+        let elapsed = self.elapsed_s();
+        (
+            (self.samples - 1) as f64 / elapsed,
+            self.rounding_s() / elapsed,
+        )
+    }
+}
+
+/// A completed step: its record and the timing its sample rate came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AssembledStep {
+    pub record: Record,
+    pub timing: StepTiming,
+}
+
 struct Building {
     record: Record,
     /// Sample times [s] from the run start.
     stamps: Vec<f64>,
+    /// The finest rounding of the times.
+    resolution: f64,
     expected: usize,
     /// The first problem met; the step is dropped when it completes.
-    problem: Option<String>,
+    problem: Option<StepFault>,
 }
 
 /// Groups samples into records. Samples of a step must be contiguous; a step completes when
 /// its planned sample count is reached, when a sample of another step arrives, or on
 /// [`StepAssembler::finish`].
 pub struct StepAssembler {
+    rules: StepRules,
     origin: Option<Time>,
     building: Option<Building>,
     /// The last completed (or dropped) step, so that a step cannot come back.
@@ -69,12 +248,22 @@ impl Default for StepAssembler {
 }
 
 impl StepAssembler {
+    /// An assembler of rig samples ([`StepRules::MESSAGES`]).
     pub fn new() -> StepAssembler {
+        StepAssembler::with_rules(StepRules::MESSAGES)
+    }
+
+    pub fn with_rules(rules: StepRules) -> StepAssembler {
         StepAssembler {
+            rules,
             origin: None,
             building: None,
             last_step: None,
         }
+    }
+
+    pub fn rules(&self) -> StepRules {
+        self.rules
     }
 
     /// Sets the time of t = 0 of the run (record start times count from it). Without it the
@@ -96,37 +285,56 @@ impl StepAssembler {
             .map(|b| (b.record.step, b.stamps.len()))
     }
 
-    /// Adds one sample. `plan` is the plan of the sample's step (`None`: no excitation state
-    /// was seen for it). Returns the steps this sample completed: the previous one when the
-    /// step changes, and this one when it reaches its planned count.
+    /// What would be wrong with a sample of `step` arriving now under the rules' step order
+    /// (`None`: nothing; the step in progress may always continue).
+    pub fn order_fault(&self, step: usize) -> Option<StepFault> {
+        let current = self.building.as_ref().map(|b| b.record.step);
+        if current == Some(step) {
+            return None;
+        }
+        let previous = self.last_step.max(current)?;
+        let follows = match self.rules.order {
+            StepOrder::Increasing => step > previous,
+            StepOrder::Consecutive => step == previous + 1,
+        };
+        (!follows).then_some(StepFault::OutOfOrder { previous })
+    }
+
+    /// Adds one rig sample. `plan` is the plan of the sample's step (`None`: no excitation
+    /// state was seen for it). Returns the steps this sample completed: the previous one when
+    /// the step changes, and this one when it reaches its planned count.
     pub fn push(
         &mut self,
         sample: &RigSample,
         plan: Option<&StepPlan>,
     ) -> Vec<Result<Record, StepError>> {
-        let mut done = Vec::new();
-        let step = sample.step as usize;
         let origin = *self.origin.get_or_insert(sample.header.stamp);
         let t = sample.header.stamp.secs_since(origin);
+        self.push_sample(&StepSample::of_rig(sample, t), plan)
+            .into_iter()
+            .map(|r| r.map(|a| a.record))
+            .collect()
+    }
+
+    /// Adds one sample of any source; as [`StepAssembler::push`], with the timing of each
+    /// completed step.
+    pub fn push_sample(
+        &mut self,
+        sample: &StepSample,
+        plan: Option<&StepPlan>,
+    ) -> Vec<Result<AssembledStep, StepError>> {
+        let mut done = Vec::new();
+        let step = sample.step;
+        let order = self.order_fault(step);
         if self
             .building
             .as_ref()
             .is_some_and(|b| b.record.step != step)
         {
-            done.extend(self.finish());
+            done.extend(self.finish_step());
         }
         if self.building.is_none() {
-            let problem = if self.last_step.is_some_and(|l| l >= step) {
-                Some(format!(
-                    "its samples are not contiguous in time (step {} came before)",
-                    self.last_step.unwrap_or(0)
-                ))
-            } else if plan.is_none() {
-                Some("no ExcitationState for this step".to_string())
-            } else {
-                None
-            };
-            let present = sample.present();
+            let problem = order.or_else(|| plan.is_none().then_some(StepFault::NoPlan));
             self.building = Some(Building {
                 record: Record {
                     step,
@@ -138,10 +346,15 @@ impl StepAssembler {
                         |p| p.excitation.clone(),
                     ),
                     sample_rate_hz: 0.0,
-                    start_time_s: t,
-                    channels: present.iter().map(|c| (*c, Vec::new())).collect(),
+                    start_time_s: sample.t_s,
+                    channels: sample
+                        .values
+                        .iter()
+                        .map(|(c, _)| (*c, Vec::new()))
+                        .collect(),
                 },
                 stamps: Vec::new(),
+                resolution: f64::INFINITY,
                 expected: plan.map_or(0, |p| p.sample_count),
                 problem,
             });
@@ -149,104 +362,133 @@ impl StepAssembler {
         let b = self.building.as_mut().expect("started above");
         let index = b.stamps.len();
         if b.problem.is_none() {
-            let present = sample.present();
-            let expected: Vec<Channel> = b.record.channels.iter().map(|(c, _)| *c).collect();
-            if expected != present {
-                b.problem = Some(format!(
-                    "sample {index}: the set of present channels changed within the step"
-                ));
-            } else if let Some(c) = present
-                .iter()
-                .find(|c| !sample.channel(**c).is_some_and(f64::is_finite))
-            {
-                b.problem = Some(format!(
-                    "sample {index}: channel {} is flagged present but not finite",
-                    c.name()
-                ));
+            let same_channels = b.record.channels.len() == sample.values.len()
+                && b.record
+                    .channels
+                    .iter()
+                    .zip(&sample.values)
+                    .all(|((a, _), (c, _))| a == c);
+            if !same_channels {
+                b.problem = Some(StepFault::ChannelsChanged { sample: index });
+            } else if let Some((c, _)) = sample.values.iter().find(|(_, v)| !v.is_finite()) {
+                b.problem = Some(StepFault::NonFinite {
+                    sample: index,
+                    channel: *c,
+                });
             }
         }
         if b.problem.is_none() {
-            for (c, v) in b.record.channels.iter_mut() {
-                v.push(sample.channel(*c).expect("checked present"));
+            for ((_, x), (_, v)) in b.record.channels.iter_mut().zip(&sample.values) {
+                x.push(*v);
             }
         }
-        b.stamps.push(t);
+        b.stamps.push(sample.t_s);
+        b.resolution = b.resolution.min(sample.t_resolution_s);
         if b.expected > 0 && b.stamps.len() >= b.expected {
-            done.extend(self.finish());
+            done.extend(self.finish_step());
         }
         done
     }
 
     /// Completes the step in progress, if any.
     pub fn finish(&mut self) -> Option<Result<Record, StepError>> {
+        self.finish_step().map(|r| r.map(|a| a.record))
+    }
+
+    /// Completes the step in progress, if any, with its timing.
+    pub fn finish_step(&mut self) -> Option<Result<AssembledStep, StepError>> {
         let b = self.building.take()?;
         let step = b.record.step;
         self.last_step = Some(self.last_step.map_or(step, |l| l.max(step)));
-        Some(complete(b))
+        Some(complete(b, self.rules.interval))
     }
 
     /// Drops the step in progress (e.g. when its excitation state says it was replaced).
     pub fn abandon(&mut self, why: &str) -> Option<StepError> {
         let b = self.building.take()?;
         self.last_step = Some(b.record.step);
-        Some(StepError {
-            step: b.record.step,
-            problem: format!("{why} after {} samples", b.stamps.len()),
-            truncated: false,
-        })
+        Some(StepError::new(
+            b.record.step,
+            StepFault::Abandoned {
+                why: why.to_string(),
+                samples: b.stamps.len(),
+            },
+        ))
     }
 }
 
-fn complete(b: Building) -> Result<Record, StepError> {
+fn complete(b: Building, interval: IntervalRule) -> Result<AssembledStep, StepError> {
     let Building {
         mut record,
         stamps,
+        resolution,
         expected,
         problem,
     } = b;
-    let err = |problem: String| StepError {
-        step: record.step,
-        problem,
-        truncated: false,
-    };
+    let err = |fault: StepFault| StepError::new(record.step, fault);
     if let Some(p) = problem {
         return Err(err(p));
     }
-    if expected > 0 && stamps.len() != expected {
+    let n = stamps.len();
+    if expected > 0 && n != expected {
         return Err(StepError {
-            truncated: stamps.len() < expected,
-            ..err(format!(
-                "{} of its {expected} samples arrived (samples were lost or the recording stopped)",
-                stamps.len()
-            ))
+            truncated: n < expected,
+            ..err(StepFault::Lost {
+                arrived: n,
+                expected,
+            })
         });
     }
-    if stamps.len() < 3 {
-        return Err(err(format!(
-            "{} samples; a step needs at least 3",
-            stamps.len()
-        )));
+    if n < MIN_STEP_SAMPLES {
+        return Err(err(StepFault::TooFew { samples: n }));
     }
-    let dt = (stamps[stamps.len() - 1] - stamps[0]) / (stamps.len() - 1) as f64;
-    if let Some(k) =
-        (1..stamps.len()).find(|&k| ((stamps[k] - stamps[k - 1]) / dt - 1.0).abs() > 1e-3)
-    {
-        return Err(err(format!(
-            "samples are not uniform: sample {k} follows the previous after {:.6} s where {:.6} s is the step's mean interval (a gap or a duplicate)",
-            stamps[k] - stamps[k - 1],
-            dt
-        )));
+    let timing = StepTiming {
+        samples: n,
+        first_s: stamps[0],
+        last_s: stamps[n - 1],
+        resolution_s: resolution,
+    };
+    if let Some(fault) = interval_fault(&stamps, &timing, interval) {
+        return Err(err(fault));
     }
     // Stamps are whole nanoseconds: snap a rate within that rounding of a whole number of Hz to
     // it, as the CSV reader does, so both forms of the same data give the same rate.
-    let rate = 1.0 / dt;
+    let rate = 1.0 / timing.mean_interval_s();
     let snapped = rate.round();
     record.sample_rate_hz = if (rate - snapped).abs() < 1e-6 * rate {
         snapped
     } else {
         rate
     };
-    Ok(record)
+    Ok(AssembledStep { record, timing })
+}
+
+/// The first interval of a step (at least 2 samples) that breaks `rule`.
+fn interval_fault(stamps: &[f64], timing: &StepTiming, rule: IntervalRule) -> Option<StepFault> {
+    let dts: Vec<f64> = stamps.windows(2).map(|w| w[1] - w[0]).collect();
+    let fault = |i: usize, reference: f64, median: bool| StepFault::NotUniform {
+        sample: i + 1,
+        interval: dts[i],
+        reference,
+        median,
+    };
+    match rule {
+        IntervalRule::Mean { rel_tol } => {
+            let dt = timing.mean_interval_s();
+            dts.iter()
+                .position(|d| (d / dt - 1.0).abs() > rel_tol)
+                .map(|i| fault(i, dt, false))
+        }
+        IntervalRule::Median { rel_tol } => {
+            let mut sorted = dts.clone();
+            sorted.sort_by(f64::total_cmp);
+            let typical = sorted[sorted.len() / 2];
+            let tol = rel_tol * typical + timing.rounding_s();
+            dts.iter()
+                .position(|d| (d - typical).abs() > tol)
+                .map(|i| fault(i, typical, true))
+        }
+    }
 }
 
 #[cfg(test)]
@@ -335,5 +577,91 @@ mod tests {
         out.extend(a.push(&sample(0, 300, 0.0), Some(&p)));
         let e = a.finish().unwrap().unwrap_err();
         assert!(e.problem.contains("not contiguous"), "{e}");
+    }
+
+    fn row(step: usize, t_s: f64, resolution: f64) -> StepSample {
+        StepSample {
+            t_s,
+            t_resolution_s: resolution,
+            step,
+            values: vec![(Channel::ForceN, t_s)],
+        }
+    }
+
+    #[test]
+    fn rig_samples_become_step_samples_with_their_present_channels() {
+        let s = StepSample::of_rig(&sample(3, 0, 1.5), 0.25);
+        assert_eq!(s.step, 3);
+        assert_eq!(s.t_s, 0.25);
+        assert_eq!(s.t_resolution_s, 0.0);
+        assert_eq!(
+            s.values,
+            [
+                (Channel::BaseDisplacementM, 1.5),
+                (Channel::MassAccelerationMps2, 3.0)
+            ]
+        );
+    }
+
+    #[test]
+    fn written_steps_must_be_consecutive_and_messages_only_increasing() {
+        let p = plan(0);
+        let mut written = StepAssembler::with_rules(StepRules::WRITTEN);
+        let mut messages = StepAssembler::new();
+        for k in 0..3 {
+            written.push_sample(&row(4, 0.01 * k as f64, 0.0), Some(&p));
+            messages.push_sample(&row(4, 0.01 * k as f64, 0.0), Some(&p));
+        }
+        // The step in progress may continue, the first step may be any.
+        assert_eq!(written.order_fault(4), None);
+        assert_eq!(
+            StepAssembler::with_rules(StepRules::WRITTEN).order_fault(9),
+            None
+        );
+        assert_eq!(written.order_fault(5), None);
+        assert_eq!(
+            written.order_fault(6),
+            Some(StepFault::OutOfOrder { previous: 4 })
+        );
+        assert_eq!(messages.order_fault(6), None);
+        assert_eq!(
+            messages.order_fault(3),
+            Some(StepFault::OutOfOrder { previous: 4 })
+        );
+    }
+
+    #[test]
+    fn written_times_are_checked_against_the_median_interval_within_their_rounding() {
+        let p = plan(0);
+        // Times written with 4 decimals at 300 Hz: rounded intervals of 3.3 or 3.4 ms pass.
+        let mut a = StepAssembler::with_rules(StepRules::WRITTEN);
+        for k in 0..30 {
+            let t = ((k as f64 / 300.0) * 1e4).round() / 1e4;
+            a.push_sample(&row(0, t, 1e-4), Some(&p));
+        }
+        let done = a.finish_step().unwrap().unwrap();
+        assert_eq!(done.timing.samples, 30);
+        assert_eq!(done.timing.resolution_s, 1e-4);
+        assert_eq!(done.record.channel(Channel::ForceN).unwrap().len(), 30);
+        // A dropped sample is caught at the interval after it, against the median.
+        let mut a = StepAssembler::with_rules(StepRules::WRITTEN);
+        for k in [0, 1, 2, 3, 5, 6, 7] {
+            a.push_sample(&row(1, 0.01 * k as f64, 0.0), Some(&p));
+        }
+        let e = a.finish_step().unwrap().unwrap_err();
+        match e.fault {
+            StepFault::NotUniform {
+                sample,
+                reference,
+                median,
+                ..
+            } => {
+                assert_eq!(sample, 4);
+                assert!((reference - 0.01).abs() < 1e-12);
+                assert!(median);
+            }
+            f => panic!("{f:?}"),
+        }
+        assert!(e.problem.contains("median interval"), "{e}");
     }
 }

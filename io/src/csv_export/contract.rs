@@ -1,0 +1,134 @@
+//! The CSV contract's columns: their names, which an export requires, and where a header puts
+//! them.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use forcemap_math::recipe::SetupKind;
+use forcemap_math::record::{Channel, Record};
+
+use super::error::CsvError;
+use crate::steps::WRITTEN_INTERVAL_REL_TOL;
+
+/// Column names of the fixed (non-channel) columns.
+pub const TIME_COLUMN: &str = "time_s";
+pub const STEP_COLUMN: &str = "step";
+pub const FREQUENCY_COLUMN: &str = "frequency_hz";
+
+/// Relative tolerance on the sampling interval (uniformity and consistency across steps): the
+/// step assembler's rule for written data.
+pub const SAMPLE_INTERVAL_REL_TOL: f64 = WRITTEN_INTERVAL_REL_TOL;
+
+/// The columns an export of `kind` requires, fixed columns first. Which kind of test an
+/// export describes (and so its driven channel) is `SetupKind`'s rule, from its channels.
+pub fn required_columns(kind: SetupKind) -> Vec<&'static str> {
+    let mut v = vec![TIME_COLUMN, STEP_COLUMN, FREQUENCY_COLUMN];
+    v.extend(kind.required_channels().iter().map(|c| c.name()));
+    v
+}
+
+/// The result of [`read_csv`](super::read_csv).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CsvImport {
+    /// One record per step, in file order. Channels are in [`Channel::ALL`] order.
+    pub records: Vec<Record>,
+    /// Header names that are not part of the contract and were ignored (header order).
+    /// The caller decides whether and how to tell the user.
+    pub ignored_columns: Vec<String>,
+    pub kind: SetupKind,
+}
+
+/// Where a header puts the contract's columns.
+pub(super) struct Layout {
+    pub profile: SetupKind,
+    pub time_col: usize,
+    pub step_col: usize,
+    pub freq_col: usize,
+    /// The channel columns present, in [`Channel::ALL`] order.
+    pub channel_cols: Vec<(Channel, usize)>,
+    pub ignored_columns: Vec<String>,
+}
+
+impl Layout {
+    /// The layout of a (non-empty) header, with the profile it describes.
+    pub fn of_header(header: &csv::StringRecord, path: &Path) -> Result<Layout, CsvError> {
+        let mut index: HashMap<&str, usize> = HashMap::new();
+        for (i, name) in header.iter().enumerate() {
+            if index.insert(name, i).is_some() {
+                return Err(CsvError::DuplicateColumn {
+                    path: path.to_path_buf(),
+                    column: name.to_string(),
+                });
+            }
+        }
+        let missing_for = |profile: SetupKind| -> Vec<String> {
+            required_columns(profile)
+                .into_iter()
+                .filter(|c| !index.contains_key(c))
+                .map(str::to_string)
+                .collect()
+        };
+        let missing_rig = missing_for(SetupKind::BaseExcited);
+        let missing_dp = missing_for(SetupKind::DrivePoint);
+        let has = |c: Channel| index.contains_key(c.name());
+        let profile = if has(Channel::BaseDisplacementM) {
+            Some(SetupKind::BaseExcited)
+        } else if has(Channel::ForceN) && has(Channel::DrivePointDisplacementM) {
+            Some(SetupKind::DrivePoint)
+        } else {
+            None
+        };
+        let missing = match profile {
+            Some(SetupKind::BaseExcited) => missing_rig.clone(),
+            Some(SetupKind::DrivePoint) => missing_dp.clone(),
+            None => {
+                let mut all = missing_rig.clone();
+                all.extend(
+                    missing_dp
+                        .iter()
+                        .filter(|c| !missing_rig.contains(c))
+                        .cloned(),
+                );
+                all
+            }
+        };
+        let profile = match profile {
+            Some(p) if missing.is_empty() => p,
+            _ => {
+                return Err(CsvError::MissingColumns {
+                    path: path.to_path_buf(),
+                    profile,
+                    missing,
+                    missing_rig,
+                    missing_drive_point: missing_dp,
+                });
+            }
+        };
+        let time_col = index[TIME_COLUMN];
+        let step_col = index[STEP_COLUMN];
+        let freq_col = index[FREQUENCY_COLUMN];
+        let channel_cols: Vec<(Channel, usize)> = Channel::ALL
+            .into_iter()
+            .filter_map(|c| index.get(c.name()).map(|&i| (c, i)))
+            .collect();
+        let known = |name: &str| {
+            name == TIME_COLUMN
+                || name == STEP_COLUMN
+                || name == FREQUENCY_COLUMN
+                || Channel::from_name(name).is_some()
+        };
+        let ignored_columns: Vec<String> = header
+            .iter()
+            .filter(|n| !known(n))
+            .map(str::to_string)
+            .collect();
+        Ok(Layout {
+            profile,
+            time_col,
+            step_col,
+            freq_col,
+            channel_cols,
+            ignored_columns,
+        })
+    }
+}

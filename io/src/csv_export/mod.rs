@@ -1,0 +1,57 @@
+//! Test-bench CSV export: the form in which rig data usually leaves a DAQ.
+//!
+//! # Contract
+//!
+//! A header row names the columns; all values are SI. Every data row is one sample.
+//!
+//! * Always required: `time_s`, `step` (record index 0, 1, 2, ...) and `frequency_hz`
+//!   (excitation frequency of a stepped-sine step; `0` or empty for random excitation).
+//! * [`SetupKind::BaseExcited`] (base-excited test rig) additionally requires
+//!   `base_displacement_m`, `relative_displacement_m`, `mass_acceleration_mps2`.
+//! * [`SetupKind::DrivePoint`] (force-driven structure, the 3-DOF example) additionally
+//!   requires `relative_displacement_m`, `drive_point_displacement_m`, `force_n`.
+//! * Any other [`Channel::name`] column is optional and read when present. Every cell of a
+//!   present channel column must hold a finite number.
+//! * Columns with other names are ignored and returned in [`CsvImport::ignored_columns`].
+//!
+//! The profile is decided from the header: rig if `base_displacement_m` is present,
+//! drive-point if `force_n` and `drive_point_displacement_m` are present.
+//!
+//! Rows are grouped into records by `step`, through the step assembler of [`crate::steps`]
+//! under [`StepRules::WRITTEN`](crate::steps::StepRules::WRITTEN), the code that also turns
+//! bag and live samples into records. A step's rows start when the excitation changed, so
+//! they include the transient. Steps must be contiguous (each new step is the previous one
+//! plus one; the first may be any non-negative integer) and each step must have at least 3
+//! rows. Time must increase strictly over the whole file (it counts from the start of the
+//! run). The sampling must be uniform within a step, and all steps must have the same sample
+//! rate; the tolerance is 1e-6 relative plus the rounding of the time column when the file
+//! writes time with a fixed number of decimals (e.g. `0.000100`).
+//!
+//! The excitation amplitude is not part of the export, so it is *estimated* on import: for a
+//! sine step, `amplitude = sqrt(2) * RMS` of the driven channel (base displacement for the rig,
+//! force for the drive-point profile) over the whole step after removing its mean; for a
+//! random record, `rms` is the RMS of the driven channel after removing its mean. Both include
+//! the transient at the start of the step, so they are estimates, not the commanded values.
+//!
+//! [`write_csv`] writes the same contract, with full f64 precision (shortest round-trip
+//! formatting), atomically (temporary file in the same directory, renamed at the end).
+//!
+//! Files: `contract` (column names, required columns, the header's layout), `read`, `write`,
+//! `error`.
+//!
+//! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
+//! [`SetupKind::DrivePoint`]: forcemap_math::recipe::SetupKind::DrivePoint
+//! [`Channel::name`]: forcemap_math::record::Channel::name
+
+mod contract;
+mod error;
+mod read;
+mod write;
+
+pub use contract::{
+    CsvImport, FREQUENCY_COLUMN, SAMPLE_INTERVAL_REL_TOL, STEP_COLUMN, TIME_COLUMN,
+    required_columns,
+};
+pub use error::CsvError;
+pub use read::{read_csv, read_csv_from};
+pub use write::write_csv;

@@ -1,0 +1,393 @@
+//! Reading the CSV contract: rows parsed here (the rules of cells, lines and columns), grouped
+//! into records by the step assembler of [`crate::steps`] (the rules a step's samples share
+//! with bag and live samples), then the rules only an export has: one sample rate for the
+//! whole file, and the excitation amplitude estimated from the data since the export carries
+//! none.
+
+use std::fs::File;
+use std::io;
+use std::path::Path;
+
+use forcemap_math::record::Excitation;
+
+use super::contract::{
+    CsvImport, FREQUENCY_COLUMN, Layout, SAMPLE_INTERVAL_REL_TOL, STEP_COLUMN, TIME_COLUMN,
+};
+use super::error::{CsvError, csv_error};
+use crate::steps::{
+    AssembledStep, StepAssembler, StepError, StepFault, StepPlan, StepRules, StepSample,
+};
+
+/// Reads a test-bench CSV export (see the module documentation for the contract).
+pub fn read_csv(path: impl AsRef<Path>) -> Result<CsvImport, CsvError> {
+    let path = path.as_ref();
+    let file = File::open(path).map_err(|source| CsvError::Io {
+        path: path.to_path_buf(),
+        action: "cannot open for reading",
+        source,
+    })?;
+    read_csv_from(io::BufReader::new(file), path)
+}
+
+/// Reads the CSV contract from any reader; `path` is used in error messages only.
+pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, CsvError> {
+    let p = || path.to_path_buf();
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .trim(csv::Trim::All)
+        .flexible(false)
+        .from_reader(reader);
+    let header = rdr.headers().map_err(|e| csv_error(path, e))?.clone();
+    if header.is_empty() || (header.len() == 1 && header[0].is_empty()) {
+        return Err(CsvError::Empty { path: p() });
+    }
+    let layout = Layout::of_header(&header, path)?;
+
+    // Rows, through the step assembler.
+    let mut assembler = StepAssembler::with_rules(StepRules::WRITTEN);
+    let mut steps: Vec<ReadStep> = Vec::new();
+    let mut current: Option<StepRows> = None;
+    let mut prev_time: Option<(f64, u64)> = None;
+    let mut row = csv::StringRecord::new();
+    loop {
+        match rdr.read_record(&mut row) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) => return Err(csv_error(path, e)),
+        }
+        let line = row.position().map_or(0, |pos| pos.line());
+        let cell = |col: usize| row.get(col).unwrap_or("");
+
+        let time_text = cell(layout.time_col);
+        let time = parse_number(path, line, TIME_COLUMN, time_text)?;
+        let step = parse_step(path, line, cell(layout.step_col))?;
+        let freq_text = cell(layout.freq_col);
+        let freq = if freq_text.is_empty() {
+            None
+        } else {
+            let f = parse_number(path, line, FREQUENCY_COLUMN, freq_text)?;
+            if f < 0.0 {
+                return Err(CsvError::InvalidValue {
+                    path: p(),
+                    line,
+                    column: FREQUENCY_COLUMN.to_string(),
+                    cell: freq_text.to_string(),
+                    reason: "a frequency must not be negative",
+                });
+            }
+            (f != 0.0).then_some(f)
+        };
+
+        if let Some((t0, l0)) = prev_time
+            && time <= t0
+        {
+            return Err(CsvError::TimeNotIncreasing {
+                path: p(),
+                prev_line: l0,
+                line,
+                prev_time: t0,
+                time,
+            });
+        }
+        prev_time = Some((time, line));
+
+        if current.as_ref().is_none_or(|cur| cur.step != step) {
+            // A new step: it must follow the previous one, which is complete (and checked)
+            // before anything of this row but its time, step and frequency is read.
+            if let Some(StepFault::OutOfOrder { previous }) = assembler.order_fault(step) {
+                return Err(CsvError::StepNotContiguous {
+                    path: p(),
+                    prev_line: current.as_ref().map_or(0, StepRows::last_line),
+                    line,
+                    prev_step: previous,
+                    step,
+                });
+            }
+            if let Some(done) = current.take() {
+                let result = assembler.finish_step();
+                steps.extend(done.completed(path, result)?);
+            }
+            current = Some(StepRows::new(step, freq));
+        }
+        let cur = current.as_mut().expect("current step exists");
+        if cur.frequency != freq {
+            return Err(CsvError::FrequencyChanged {
+                path: p(),
+                step,
+                first_line: cur.lines[0],
+                line,
+                first: cur.frequency,
+                found: freq,
+            });
+        }
+        let values = layout
+            .channel_cols
+            .iter()
+            .map(|&(c, col)| parse_number(path, line, c.name(), cell(col)).map(|v| (c, v)))
+            .collect::<Result<Vec<_>, _>>()?;
+        cur.lines.push(line);
+        let sample = StepSample {
+            t_s: time,
+            t_resolution_s: decimal_resolution(time_text),
+            step,
+            values,
+        };
+        for result in assembler.push_sample(&sample, Some(&cur.plan)) {
+            steps.extend(cur.completed(path, Some(result))?);
+        }
+    }
+    match current {
+        Some(done) => {
+            let result = assembler.finish_step();
+            steps.extend(done.completed(path, result)?);
+        }
+        None => return Err(CsvError::HeaderOnly { path: p() }),
+    }
+    if steps.is_empty() {
+        return Err(CsvError::HeaderOnly { path: p() });
+    }
+
+    let sample_rate_hz = common_sample_rate(path, &steps)?;
+    let driven = layout.profile.driven_channel();
+    let records = steps
+        .into_iter()
+        .map(|s| {
+            let mut record = s.assembled.record;
+            let level = rms_about_mean(record.channel(driven).expect("a required channel"));
+            record.excitation = estimated_excitation(s.frequency, level);
+            record.sample_rate_hz = sample_rate_hz;
+            record
+        })
+        .collect();
+    Ok(CsvImport {
+        records,
+        ignored_columns: layout.ignored_columns,
+        kind: layout.profile,
+    })
+}
+
+/// The rows of the step being read: its frequency, its lines (sample `k` of the step is on
+/// `lines[k]`) and the plan it is assembled under.
+struct StepRows {
+    step: usize,
+    /// `None` stands for random excitation (0 or empty).
+    frequency: Option<f64>,
+    lines: Vec<u64>,
+    plan: StepPlan,
+}
+
+/// A step read and assembled, with where it is in the file.
+struct ReadStep {
+    step: usize,
+    frequency: Option<f64>,
+    first_line: u64,
+    last_line: u64,
+    assembled: AssembledStep,
+}
+
+impl StepRows {
+    fn new(step: usize, frequency: Option<f64>) -> StepRows {
+        // The export carries no amplitude: it is estimated once the step is complete.
+        let excitation = match frequency {
+            Some(frequency_hz) => Excitation::Sine {
+                frequency_hz,
+                amplitude: f64::NAN,
+            },
+            None => Excitation::Random {
+                band_hz: None,
+                rms: f64::NAN,
+            },
+        };
+        StepRows {
+            step,
+            frequency,
+            lines: Vec::new(),
+            plan: StepPlan {
+                excitation,
+                sample_count: 0,
+            },
+        }
+    }
+
+    fn last_line(&self) -> u64 {
+        *self.lines.last().unwrap_or(&0)
+    }
+
+    fn line(&self, sample: usize) -> u64 {
+        self.lines.get(sample).copied().unwrap_or(0)
+    }
+
+    /// The assembler's verdict on this step, with the step's lines.
+    fn completed(
+        &self,
+        path: &Path,
+        result: Option<Result<AssembledStep, StepError>>,
+    ) -> Result<Option<ReadStep>, CsvError> {
+        match result {
+            None => Ok(None),
+            Some(Ok(assembled)) => Ok(Some(ReadStep {
+                step: self.step,
+                frequency: self.frequency,
+                first_line: self.line(0),
+                last_line: self.last_line(),
+                assembled,
+            })),
+            Some(Err(e)) => Err(self.error(path, e)),
+        }
+    }
+
+    /// A step error as the CSV error naming its lines.
+    fn error(&self, path: &Path, e: StepError) -> CsvError {
+        match e.fault {
+            StepFault::TooFew { samples } => CsvError::TooFewRows {
+                path: path.to_path_buf(),
+                step: e.step,
+                first_line: self.line(0),
+                rows: samples,
+            },
+            StepFault::NotUniform {
+                sample,
+                interval,
+                reference,
+                ..
+            } => CsvError::NonUniformSampling {
+                path: path.to_path_buf(),
+                step: e.step,
+                prev_line: self.line(sample - 1),
+                line: self.line(sample),
+                interval,
+                expected: reference,
+            },
+            // Parsing refuses what the other faults stand for (a step out of order, a
+            // non-finite value, a missing plan, a changed set of channels) before the
+            // assembler sees the row.
+            _ => CsvError::Malformed {
+                path: path.to_path_buf(),
+                line: Some(self.line(0)),
+                message: e.to_string(),
+            },
+        }
+    }
+}
+
+/// The file's one sample rate: every step's rate agrees with the first step's within the
+/// tolerance plus the rounding of the written times; the rate is the mean over all intervals,
+/// snapped to a whole number of Hz when within the uncertainty of the estimate.
+fn common_sample_rate(path: &Path, steps: &[ReadStep]) -> Result<f64, CsvError> {
+    let reference = &steps[0];
+    let (ref_rate, ref_rel_unc) = reference.assembled.timing.rate();
+    let mut intervals = 0.0;
+    let mut elapsed = 0.0;
+    let mut res_sum = 0.0;
+    for s in steps {
+        let timing = &s.assembled.timing;
+        let (rate, rel_unc) = timing.rate();
+        let tol = SAMPLE_INTERVAL_REL_TOL + rel_unc + ref_rel_unc;
+        if (rate - ref_rate).abs() > tol * ref_rate {
+            return Err(CsvError::InconsistentSampleRate {
+                path: path.to_path_buf(),
+                step: s.step,
+                first_line: s.first_line,
+                last_line: s.last_line,
+                rate_hz: rate,
+                reference_step: reference.step,
+                reference_line: reference.first_line,
+                reference_rate_hz: ref_rate,
+            });
+        }
+        intervals += (timing.samples - 1) as f64;
+        elapsed += timing.elapsed_s();
+        res_sum += timing.rounding_s();
+    }
+    let mut sample_rate_hz = intervals / elapsed;
+    // Snap to an integer rate when it is within the uncertainty of the estimate.
+    let snapped = sample_rate_hz.round();
+    let rel_unc = res_sum / elapsed + 1e-9;
+    if snapped > 0.0 && (sample_rate_hz - snapped).abs() <= rel_unc * sample_rate_hz {
+        sample_rate_hz = snapped;
+    }
+    Ok(sample_rate_hz)
+}
+
+/// The excitation of a step estimated from the RMS `level` of its driven channel: a sine of
+/// amplitude `sqrt(2) * level`, or random of RMS `level`.
+fn estimated_excitation(frequency: Option<f64>, level: f64) -> Excitation {
+    match frequency {
+        Some(frequency_hz) => Excitation::Sine {
+            frequency_hz,
+            amplitude: std::f64::consts::SQRT_2 * level,
+        },
+        None => Excitation::Random {
+            band_hz: None,
+            rms: level,
+        },
+    }
+}
+
+fn parse_number(path: &Path, line: u64, column: &str, cell: &str) -> Result<f64, CsvError> {
+    if cell.is_empty() {
+        return Err(CsvError::EmptyCell {
+            path: path.to_path_buf(),
+            line,
+            column: column.to_string(),
+        });
+    }
+    let v: f64 = cell.parse().map_err(|_| CsvError::NonNumeric {
+        path: path.to_path_buf(),
+        line,
+        column: column.to_string(),
+        cell: cell.to_string(),
+    })?;
+    if !v.is_finite() {
+        return Err(CsvError::NonFinite {
+            path: path.to_path_buf(),
+            line,
+            column: column.to_string(),
+            cell: cell.to_string(),
+        });
+    }
+    Ok(v)
+}
+
+/// A step index: a non-negative integer (an integral float such as `3.0` is accepted).
+fn parse_step(path: &Path, line: u64, cell: &str) -> Result<usize, CsvError> {
+    if let Ok(s) = cell.parse::<usize>() {
+        return Ok(s);
+    }
+    let v = parse_number(path, line, STEP_COLUMN, cell)?;
+    if v >= 0.0 && v.fract() == 0.0 && v <= u32::MAX as f64 {
+        Ok(v as usize)
+    } else {
+        Err(CsvError::InvalidValue {
+            path: path.to_path_buf(),
+            line,
+            column: STEP_COLUMN.to_string(),
+            cell: cell.to_string(),
+            reason: "a step index must be a non-negative integer",
+        })
+    }
+}
+
+/// The decimal resolution a number was written with: `0.000100` -> 1e-6, `1.5e-3` -> 1e-4.
+fn decimal_resolution(text: &str) -> f64 {
+    let (mantissa, exponent) = match text.find(['e', 'E']) {
+        Some(i) => (&text[..i], text[i + 1..].parse::<i32>().unwrap_or(0)),
+        None => (text, 0),
+    };
+    let decimals = mantissa.find('.').map_or(0, |i| {
+        mantissa[i + 1..]
+            .chars()
+            .filter(char::is_ascii_digit)
+            .count()
+    });
+    10f64.powi(exponent - decimals as i32)
+}
+
+fn rms_about_mean(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt()
+}
