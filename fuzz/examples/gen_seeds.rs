@@ -47,6 +47,7 @@ fn excitation_state() -> ExcitationState {
         amplitude: 0.002,
         band_low_hz: f64::NAN,
         band_high_hz: f64::NAN,
+        sample_count: 1300,
     }
 }
 
