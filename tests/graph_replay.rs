@@ -70,7 +70,7 @@ fn three_dof_case_i_replayed_live_gives_the_offline_theta_and_the_truth() {
     );
     assert_same_theta(&live, &offline, 1e-9);
     // Table 1 truth (k, c, F_d, S); noise-free CASE I.
-    let (k, c, fd, s) = forcemap_math::paper::TABLE1_TRUTH;
+    let (k, c, fd, s) = forcemap_eval::paper::TABLE1_TRUTH;
     for (n, v) in &live {
         let t = match n.as_str() {
             "k" => k,

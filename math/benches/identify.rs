@@ -6,8 +6,8 @@ use std::hint::black_box;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use forcemap_math::identify::{FdMultiOptions, Method, Setup, identify};
 use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::{analyse_sine_steps, identify_records};
-use forcemap_math::reproduce::phasor_options;
 use forcemap_math::sim::{RigRun, SimSpec, TruthElement, simulate};
 
 fn bench_identify(c: &mut Criterion) {
@@ -18,7 +18,12 @@ fn bench_identify(c: &mut Criterion) {
     };
     let records = simulate(&SimSpec::Rig(run)).expect("simulation runs");
     let samples: usize = records.iter().map(|r| r.len()).sum();
-    let (analyses, _) = analyse_sine_steps(&records, &phasor_options()).expect("analysis runs");
+    // As many harmonics as the sample rate allows (what `forcemap reproduce` uses).
+    let phasor_options = PhasorOptions {
+        max_harmonic: usize::MAX,
+        ..PhasorOptions::default()
+    };
+    let (analyses, _) = analyse_sine_steps(&records, &phasor_options).expect("analysis runs");
     let setup = Setup::BaseExcited { mass_kg: 36.0 };
     let model = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
     let options = FdMultiOptions::default();
@@ -58,7 +63,7 @@ fn bench_identify(c: &mut Criterion) {
                     &setup,
                     method,
                     black_box(&records),
-                    &phasor_options(),
+                    &phasor_options,
                     &options,
                 )
                 .unwrap()

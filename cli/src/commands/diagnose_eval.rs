@@ -1,7 +1,7 @@
 //! `forcemap diagnose-eval`: the gap diagnosis checked on seeded simulated cases whose planted
-//! effect it is not told (library: `forcemap_math::diagnose::eval`).
+//! effect it is not told (library: `forcemap_eval::diagnose_eval`).
 
-use forcemap_math::diagnose::eval::{self, CaseResult, EvalSummary};
+use forcemap_eval::diagnose_eval::{self as eval, CaseResult, EvalSummary};
 
 use crate::cli::DiagnoseEvalArgs;
 

@@ -1,6 +1,6 @@
 //! `forcemap reproduce`: Tables 1-4 of the paper next to forcemap's numbers.
 
-use forcemap_math::reproduce::{self, Row, Settings};
+use forcemap_eval::reproduce::{self, Row, Settings};
 use serde_json::json;
 
 use super::{fmt_opt, progress_spinner};

@@ -37,8 +37,6 @@
 
 pub mod cycles;
 pub mod effects;
-pub mod eval;
-
 pub mod fit;
 pub mod locate;
 pub mod phasor;

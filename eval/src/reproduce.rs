@@ -8,14 +8,15 @@
 
 use serde::Serialize;
 
-use crate::frf::LinearSubstructure;
-use crate::identify::{FdMultiOptions, Identification, Method, Setup};
-use crate::model::{IdentifiedModel, Model, ModelOptions};
+use forcemap_math::frf::LinearSubstructure;
+use forcemap_math::identify::{FdMultiOptions, Identification, Method, Setup};
+use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
+use forcemap_math::phasor::PhasorOptions;
+use forcemap_math::pipeline::{self, PipelineError};
+use forcemap_math::record::Record;
+use forcemap_math::sim::{self, RunSpec, SimError, ThreeDofCase, TruthElement};
+
 use crate::paper::{self, PaperRow};
-use crate::phasor::PhasorOptions;
-use crate::pipeline::{self, PipelineError};
-use crate::record::Record;
-use crate::sim::{self, RunSpec, SimError, ThreeDofCase, TruthElement};
 
 /// One row of a reproduced table.
 #[derive(Debug, Clone, Serialize)]

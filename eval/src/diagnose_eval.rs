@@ -9,15 +9,15 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use super::effects::{Effect, Transform};
-use super::score::predict_record;
-use super::{DiagnoseError, DiagnoseOptions, Verdict, diagnose};
-use crate::element::{Element, Friction};
-use crate::identify::Setup;
-use crate::model::{Model, ModelOptions};
-use crate::record::{Excitation, Record};
-use crate::sim::rig::PAPER_RIG_MASS_KG;
-use crate::sim::{
+use forcemap_math::diagnose::effects::{Effect, Transform};
+use forcemap_math::diagnose::score::predict_record;
+use forcemap_math::diagnose::{DiagnoseError, DiagnoseOptions, Verdict, diagnose};
+use forcemap_math::element::{Element, Friction};
+use forcemap_math::identify::Setup;
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::record::{Excitation, Record};
+use forcemap_math::sim::rig::PAPER_RIG_MASS_KG;
+use forcemap_math::sim::{
     AsymmetricDamping, BoucWen, FreePlay, RigEffects, RunSpec, SimError, TruthElement,
 };
 

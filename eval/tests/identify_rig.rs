@@ -1,9 +1,9 @@
 //! Identification on the simulated rig stand-in (truth: the paper's Coulomb values), checked
 //! against the truth of the simulation and against the paper's qualitative findings.
 
+use forcemap_eval::paper::RIG_TRUTH;
+use forcemap_eval::reproduce::{RigData, Row, rig_data, rig_row};
 use forcemap_math::identify::Method;
-use forcemap_math::paper::RIG_TRUTH;
-use forcemap_math::reproduce::{RigData, Row, rig_data, rig_row};
 use forcemap_math::sim::TruthElement;
 use std::sync::OnceLock;
 

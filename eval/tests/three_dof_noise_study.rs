@@ -1,5 +1,5 @@
 //! Measurements behind the choice of the 40 dB method of Table 1 (ignored; run with
-//! `cargo test -p forcemap_math --test three_dof_noise_study -- --ignored --nocapture NAME`):
+//! `cargo test -p forcemap_eval --test three_dof_noise_study -- --ignored --nocapture NAME`):
 //!
 //! - `seed_scan`: parameter errors over noise seeds 0..SEEDS (default 10), with mean, std and
 //!   worst. Environment: CASE=I|II (default II), SNR (dB, 0 = noise-free; default 40), OE=1 for
@@ -8,12 +8,12 @@
 //! - `case_ii_crb`: the Cramer-Rao bound of k, c, F_d, S from the settled samples of x, x_d
 //!   (and F) with the exact model.
 //! - `case_ii_noise_budget`: where the first-harmonic force noise comes from, per step.
+use forcemap_eval::paper::TABLE1_TRUTH;
+use forcemap_eval::reproduce::phasor_options;
 use forcemap_math::frf::LinearSubstructure;
 use forcemap_math::identify::{FdMultiOptions, Method, Setup};
 use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::paper::TABLE1_TRUTH;
 use forcemap_math::pipeline::identify_records;
-use forcemap_math::reproduce::phasor_options;
 use forcemap_math::sim::excitation::derive_seed;
 use forcemap_math::sim::noise::add_noise;
 use forcemap_math::sim::{SimSpec, ThreeDofRun, simulate};
@@ -299,7 +299,7 @@ fn case_ii_noise_budget() {
 #[ignore]
 fn table1_rows() {
     let rows =
-        forcemap_math::reproduce::table1(&forcemap_math::reproduce::Settings::default(), |_| {})
+        forcemap_eval::reproduce::table1(&forcemap_eval::reproduce::Settings::default(), |_| {})
             .unwrap();
     for r in rows {
         println!(

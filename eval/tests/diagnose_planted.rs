@@ -2,7 +2,7 @@
 //! named, no effect gives "adequate", an effect outside the library gets no confident name, and
 //! the live phasor-only diagnosis agrees on the paper's story.
 
-use forcemap_math::diagnose::eval::{CaseSpec, Planted, run_case, simulate_case};
+use forcemap_eval::diagnose_eval::{CaseSpec, Planted, run_case, simulate_case};
 use forcemap_math::diagnose::{Effect, PhasorDiagnosis, Verdict};
 use forcemap_math::identify::Setup;
 use forcemap_math::model::{Model, ModelOptions};
@@ -139,7 +139,7 @@ fn live_phasor_diagnosis_names_coulomb_friction_and_passes_the_clean_rig() {
 /// of `forcemap diagnose-eval --seed 1` (30 dB).
 #[test]
 fn stribeck_friction_is_named_despite_stuck_steps() {
-    let c = forcemap_math::diagnose::eval::generate_cases(200, 1, 30.0)[73];
+    let c = forcemap_eval::diagnose_eval::generate_cases(200, 1, 30.0)[73];
     assert!(
         matches!(
             c.planted,
@@ -165,7 +165,7 @@ fn eval_case(index: usize, effect: Effect) -> CaseSpec {
 }
 
 fn eval_case_of_seed(seed: u64, index: usize, effect: Effect) -> CaseSpec {
-    let c = forcemap_math::diagnose::eval::generate_cases(200, seed, 30.0)[index];
+    let c = forcemap_eval::diagnose_eval::generate_cases(200, seed, 30.0)[index];
     assert!(
         matches!(c.planted, Planted::One { effect: e, .. } if e == effect),
         "{c:?}"
