@@ -8,10 +8,11 @@ cd "$(dirname "$0")/.."
 # crate | depth (all: the whole tree; 1: the crate's own dependencies) | forbidden crates | why
 # The nodes' rule is on their own dependencies: ros2-client itself depends on clap.
 rules=(
-  "forcemap_math|all|tokio|ros2-client|rustdds|mcap|csv|serde_json|serde-saphyr|matfile|clap|plotters|indicatif|forcemap_msgs|forcemap_io|forcemap_nodes|forcemap_cli|the mathematics: no I/O, no async, no ROS"
-  "forcemap_msgs|all|tokio|ros2-client|rustdds|mcap|clap|plotters|forcemap_io|forcemap_nodes|forcemap_cli|messages: no ROS runtime unless its feature ros2-client is asked for"
-  "forcemap_io|all|tokio|ros2-client|rustdds|clap|plotters|indicatif|forcemap_nodes|forcemap_cli|file formats: no ROS runtime, no async, no command line"
-  "forcemap_nodes|1|clap|plotters|indicatif|forcemap_cli|the nodes: no command-line parsing, no plotting"
+  "forcemap_math|all|tokio|ros2-client|rustdds|mcap|csv|serde_json|serde-saphyr|matfile|clap|plotters|indicatif|forcemap_eval|forcemap_msgs|forcemap_io|forcemap_nodes|forcemap_cli|the mathematics: no I/O, no async, no ROS"
+  "forcemap_eval|all|tokio|ros2-client|rustdds|mcap|csv|serde_json|serde-saphyr|matfile|clap|plotters|indicatif|forcemap_msgs|forcemap_io|forcemap_nodes|forcemap_cli|the evaluation harnesses: as the mathematics (no I/O, no async, no ROS), on forcemap_math only"
+  "forcemap_msgs|all|tokio|ros2-client|rustdds|mcap|clap|plotters|forcemap_eval|forcemap_io|forcemap_nodes|forcemap_cli|messages: no ROS runtime unless its feature ros2-client is asked for"
+  "forcemap_io|all|tokio|ros2-client|rustdds|clap|plotters|indicatif|forcemap_eval|forcemap_nodes|forcemap_cli|file formats: no ROS runtime, no async, no command line"
+  "forcemap_nodes|1|clap|plotters|indicatif|forcemap_eval|forcemap_cli|the nodes: no command-line parsing, no plotting"
 )
 
 failed=0
