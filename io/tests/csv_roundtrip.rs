@@ -1,4 +1,8 @@
 //! Round trip and happy paths of the test-bench CSV export.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use std::f64::consts::PI;
 
