@@ -82,7 +82,7 @@ fn bench(c: &mut Criterion) {
         );
         group.throughput(Throughput::Elements(rec.len() as u64));
         group.bench_function(*name, |b| {
-            b.iter(|| analyse_record(black_box(rec), black_box(opts)).unwrap())
+            b.iter(|| analyse_record(black_box(rec), black_box(opts)).unwrap());
         });
     }
     group.finish();
