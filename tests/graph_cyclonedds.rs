@@ -4,6 +4,10 @@
 //!
 //! Runs when FORCEMAP_PYTHON names a Python with `cyclonedds` (.ci/run installs it); under CI
 //! without it the test fails rather than skip.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

@@ -1,6 +1,10 @@
 //! The diagnoser node live in the graph: the rig bag (a Coulomb damper) replayed against the
 //! linear "sim" names coulomb_friction, on /diagnostics and in its GapDiagnosis message (read
 //! back from a bag the recorder wrote).
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

@@ -1,6 +1,10 @@
 //! Faults in the real node graph: an identifier killed with SIGKILL in the middle of a run and
 //! restarted ends with the theta of an undisturbed run; a recorder killed with SIGKILL leaves a
 //! bag that `forcemap bag recover` restores with every message the recorder had put on disk.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

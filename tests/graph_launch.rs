@@ -1,5 +1,9 @@
 //! `forcemap launch` with the shipped launch files: the simulated rig end to end (the README's
 //! main command) and a clean stop of every node on Ctrl-C.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

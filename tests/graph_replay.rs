@@ -1,6 +1,10 @@
 //! Bag playback through the real node graph (separate processes, DDS over loopback): the theta
 //! the identifier publishes live equals `forcemap identify` on the same bag, and is close to the
 //! truth the bag was simulated from.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

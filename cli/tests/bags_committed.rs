@@ -1,5 +1,9 @@
 //! The committed sample bags in bags/: regenerating them gives identical messages, independent
 //! readers decode them, and identification on them finds the truth of their simulation.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

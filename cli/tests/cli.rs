@@ -1,5 +1,9 @@
 //! The `forcemap` command at the process boundary: outputs a user or a script relies on, and
 //! bad input giving a clear error, a non-zero exit, and nothing half-written.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

@@ -1,4 +1,8 @@
 //! `forcemap bag info|recover` at the process boundary.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

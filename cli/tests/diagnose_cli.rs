@@ -1,6 +1,10 @@
 //! `forcemap diagnose` and `forcemap diagnose-eval` at the process boundary: the demo names
 //! coulomb_friction, the JSON keys the issue lists, the report files (written atomically), and
 //! clear errors with nothing half-written.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

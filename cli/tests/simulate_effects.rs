@@ -2,6 +2,10 @@
 //! output against the truth simulator, closed forms of what `identify` must then find, the
 //! validation of the flags, and the planted values recorded on the bag's /rig/parameters.
 //! (The older effect flags are tested in tests/cli.rs.)
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

@@ -1,4 +1,9 @@
 //! Bad input gives the right error and never a panic.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
 use std::collections::BTreeMap;
 
 use forcemap_io::bag::{BagError, BagReader, BagWriter, TopicSpec, recover};

@@ -1,4 +1,9 @@
 //! Recovery of bags whose writer died: the MCAP file cut at many offsets.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
 use std::path::Path;
 
 use forcemap_io::bag::{BagReader, BagWriter, BagWriterOptions, TopicSpec, recover};

@@ -1,5 +1,9 @@
 //! Bag round trip: write messages on three topics, read them back from the bag directory and
 //! from the bare .mcap, check metadata.yaml; optionally check with independent Python readers.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 use std::path::Path;

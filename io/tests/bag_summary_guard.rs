@@ -4,6 +4,10 @@
 //! an error or a scan of the file, never a large allocation. The memory cases run in a child
 //! process under an address-space limit (`ulimit -v`), where an allocation of the declared size
 //! aborts the child.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -1,4 +1,8 @@
 //! Every reading error names the file, the line (header = line 1) and the column.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use forcemap_io::csv_export::{CsvError, read_csv};
 

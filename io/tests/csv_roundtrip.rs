@@ -1,4 +1,8 @@
 //! Round trip and happy paths of the test-bench CSV export.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use std::f64::consts::PI;
 
@@ -120,7 +124,7 @@ fn rig_round_trip_is_bit_exact() {
                 },
             ) => assert_eq!(f1.to_bits(), f2.to_bits()),
             (Excitation::Random { .. }, Excitation::Random { band_hz, .. }) => {
-                assert_eq!(*band_hz, None)
+                assert_eq!(*band_hz, None);
             }
             (x, y) => panic!("excitation kind changed: {x:?} -> {y:?}"),
         }
@@ -206,7 +210,7 @@ fn amplitude_and_rms_are_estimated_from_the_driven_channel() {
     let import = read_csv(&path).unwrap();
     match import.records[0].excitation {
         Excitation::Sine { amplitude, .. } => {
-            assert!((amplitude - 0.003).abs() < 1e-9, "{amplitude}")
+            assert!((amplitude - 0.003).abs() < 1e-9, "{amplitude}");
         }
         ref e => panic!("{e:?}"),
     }

@@ -1,4 +1,8 @@
 //! Writing refuses bad records before touching the disk and never leaves a half-written file.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use std::path::Path;
 

@@ -1,5 +1,10 @@
 //! Errors of the EMPS importer on small MAT v5 files written here (uncompressed, little
 //! endian): each names the file and the variable, and no bag is left behind.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
 use std::path::{Path, PathBuf};
 
 use forcemap_io::emps::{self, EmpsError};

@@ -1,6 +1,10 @@
 //! Imports the real EMPS benchmark files (../shared/real/emps, not in the repository) into
 //! bags, reads them back with BagReader and checks every sample. Skips with a notice where the
 //! data is absent.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 use std::path::{Path, PathBuf};

@@ -1,4 +1,8 @@
 //! ROS 2 params YAML files.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use std::path::PathBuf;
 

@@ -2,6 +2,10 @@
 //! `Throughput::Elements(record length)`, six channels each).
 //!
 //! `cargo bench -p forcemap_math --bench phasor`
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
@@ -78,7 +82,7 @@ fn bench(c: &mut Criterion) {
         );
         group.throughput(Throughput::Elements(rec.len() as u64));
         group.bench_function(*name, |b| {
-            b.iter(|| analyse_record(black_box(rec), black_box(opts)).unwrap())
+            b.iter(|| analyse_record(black_box(rec), black_box(opts)).unwrap());
         });
     }
     group.finish();

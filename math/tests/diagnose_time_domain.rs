@@ -2,6 +2,11 @@
 //! `tau = M q'' + Fv q' + Fc sgn(q') + offset (+ a planted effect) + noise`, moved along a
 //! seeded band-limited trajectory, fitted on one record and scored on another (another seed),
 //! with the EMPS parameters.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
 use std::f64::consts::PI;
 
 use forcemap_math::diagnose::time_domain::{

@@ -71,7 +71,7 @@ fn decaying_transient_is_left_out() {
     let tol = opts.settle_relative_tolerance;
     let a = analyse_record(&transient_record(amp, tau, 0.0, 0), &opts).unwrap();
     let c = periodic();
-    let scale = c[1..].iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+    let scale = c[1..].iter().map(Complex64::norm_sqr).sum::<f64>().sqrt();
     let t0 = a.first_settled_sample as f64 / FS;
     let env = |t: f64| amp * (-t / tau).exp() / scale;
     println!(

@@ -609,10 +609,7 @@ fn all_element_terms_run() {
                 }
             }
         }
-        eprintln!(
-            "all terms: {} stuck samples of {total}, {events} events",
-            stuck
-        );
+        eprintln!("all terms: {stuck} stuck samples of {total}, {events} events");
         assert!(stuck > 0 && stuck < total && events > 0);
     }
 }

@@ -1,5 +1,9 @@
 //! CDR bytes worked out by hand (XCDR1 little endian: 4-byte header 00 01 00 00, each field
 //! aligned to its size counted after the header, strings as u32 length with NUL + bytes + NUL).
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use forcemap_msgs::RosMessage;
 use forcemap_msgs::builtin_interfaces::Time;

@@ -1,6 +1,10 @@
 //! Independent reader: rosbags (Python) decodes the CDR bytes written here and compares the
 //! fields; see tests/python/check_cdr.py. Runs when FORCEMAP_PYTHON names a python with rosbags
 //! installed, otherwise says it skipped. FORCEMAP_CDR_DIR keeps the files in that directory.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 mod common;
 

@@ -1,5 +1,9 @@
 //! MCAP "ros2msg" schema text: top-level .msg text, then each dependency once after a line of
 //! 80 '=' and "MSG: pkg/Type".
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus, KeyValue};

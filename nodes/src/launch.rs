@@ -384,7 +384,7 @@ pub fn run(file: &Path, args: &[String], dry_run: bool) -> anyhow::Result<()> {
             reason = "interrupted".into();
             break;
         }
-        for (n, c, status) in children.iter_mut() {
+        for (n, c, status) in &mut children {
             if status.is_none()
                 && let Some(s) = c.try_wait()?
             {
@@ -411,14 +411,14 @@ pub fn run(file: &Path, args: &[String], dry_run: bool) -> anyhow::Result<()> {
     if !running.is_empty() {
         println!("[launch] {reason}: stopping {}", running.join(", "));
     }
-    for (_, c, s) in children.iter() {
+    for (_, c, s) in &children {
         if s.is_none() {
             signal(c, nix::sys::signal::Signal::SIGINT);
         }
     }
     let grace = Instant::now() + Duration::from_secs(10);
     let mut killed = Vec::new();
-    for (n, c, status) in children.iter_mut() {
+    for (n, c, status) in &mut children {
         while status.is_none() {
             if let Some(s) = c.try_wait()? {
                 *status = Some(s);
@@ -500,7 +500,7 @@ mod tests {
             "theta:=/ctrl/theta",
         ]
         .iter()
-        .map(|s| s.to_string())
+        .map(ToString::to_string)
         .collect();
         assert_eq!(n.args, expected);
     }

@@ -343,7 +343,7 @@ where
                 }
                 Err(e) => match on_error {
                     OnTakeError::Warn(what) => {
-                        crate::log_line!("warning: receiving {what}: {e:?}")
+                        crate::log_line!("warning: receiving {what}: {e:?}");
                     }
                     OnTakeError::Stop => break,
                 },

@@ -1,6 +1,10 @@
 //! The diagnoser's state machine without DDS: fed the phasors of the committed rig bag (a
 //! Coulomb damper), it names the friction a linear baseline misses and calls the Coulomb
 //! baseline adequate, as the graph test sees it through DDS.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use std::path::Path;
 

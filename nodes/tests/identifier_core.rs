@@ -1,6 +1,10 @@
 //! The identifier's state machine without DDS: fed the phasors of the committed rig bag, it
 //! gives the theta of `forcemap identify` on the same bag, waits for the rig's mass, skips
 //! replayed steps, publishes the recipe it runs and refuses what it cannot run.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use std::path::Path;
 

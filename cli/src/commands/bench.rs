@@ -16,6 +16,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
+use forcemap_math::record::Record;
 use forcemap_math::sim::RunSpec;
 use forcemap_math::sim::excitation::{
     PAPER_RIG_FREQUENCIES_HZ, PAPER_RIG_SINE_AMPLITUDE_M, sine_steps,
@@ -146,7 +147,7 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         &setup.fully_qualified_name(),
         &spec.constants(),
     );
-    let samples_per_step = records.first().map_or(0, |r| r.len());
+    let samples_per_step = records.first().map_or(0, Record::len);
 
     let harmonic = spawn("harmonic", domain, &[])?;
     let identifier = spawn("identifier", domain, &["model:=coulomb", "mass_kg:=36.0"])?;
@@ -286,7 +287,7 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
             nix::sys::signal::Signal::SIGINT,
         );
     }
-    for c in children.iter_mut() {
+    for c in &mut children {
         let _ = c.child.wait();
     }
     let (published, publish_s, total_s, last_sample_at, received, usage) = result?;

@@ -1,6 +1,7 @@
 //! `forcemap import csv|emps FILE --out BAG`.
 
 use forcemap_math::recipe::check_mass_kg;
+use forcemap_math::record::Record;
 
 use crate::cli::{ImportArgs, ImportCommand};
 use forcemap_io::csv_export::read_csv;
@@ -43,7 +44,7 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
                 "wrote {} ({} records, {} samples{})",
                 dir.display(),
                 csv.records.len(),
-                csv.records.iter().map(|r| r.len()).sum::<usize>(),
+                csv.records.iter().map(Record::len).sum::<usize>(),
                 if parameters.is_empty() {
                     ", no rig constants: give --mass-kg to store them"
                 } else {

@@ -2,6 +2,7 @@
 //! planted in the truth model if asked.
 
 use anyhow::bail;
+use forcemap_math::record::Record;
 use forcemap_math::sim::{
     AsymmetricDamping, BoucWen, FreePlay, RigEffects, RunSpec, ThreeDofCase, TruthElement,
 };
@@ -260,7 +261,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     let what = format!(
         "{} records, {} samples, {} profile",
         records.len(),
-        records.iter().map(|r| r.len()).sum::<usize>(),
+        records.iter().map(Record::len).sum::<usize>(),
         profile
     );
     if let Some(csv) = &args.csv {

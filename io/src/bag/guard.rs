@@ -83,7 +83,13 @@ fn check_summary_inner(
     if tail[0] != op::FOOTER || &tail[29..] != mcap::MAGIC {
         return Ok(SummaryCheck::NoSummary);
     }
-    let u64_at = |at: usize| u64::from_le_bytes(tail[at..at + 8].try_into().unwrap());
+    let u64_at = |at: usize| {
+        u64::from_le_bytes(
+            tail[at..at + 8]
+                .try_into()
+                .expect("a slice of length 8 converts to [u8; 8]"),
+        )
+    };
     let (summary_start, offsets_start) = (u64_at(9), u64_at(17));
     if summary_start == 0 {
         return Ok(SummaryCheck::NoSummary);
@@ -112,7 +118,11 @@ fn check_summary_inner(
         }
         file.read_exact(&mut head)?;
         let opcode = head[0];
-        let len = u64::from_le_bytes(head[1..].try_into().unwrap());
+        let len = u64::from_le_bytes(
+            head[1..]
+                .try_into()
+                .expect("the 9-byte header minus its opcode is 8 bytes"),
+        );
         let room = footer_at - pos - 9;
         if len > room || len > record_limit {
             return Ok(SummaryCheck::Untrusted(format!(

@@ -357,7 +357,7 @@ impl BagReader {
 
     /// The topics, in channel order.
     pub fn topics(&self) -> impl Iterator<Item = &TopicInfo> {
-        self.topics.iter().map(|t| t.as_ref())
+        self.topics.iter().map(AsRef::as_ref)
     }
 
     /// One topic by name.
@@ -365,7 +365,7 @@ impl BagReader {
         self.topics
             .iter()
             .find(|t| t.name == name)
-            .map(|t| t.as_ref())
+            .map(AsRef::as_ref)
             .ok_or_else(|| self.not_found(name))
     }
 
@@ -398,7 +398,7 @@ impl BagReader {
         for t in topics {
             self.topic(t)?;
         }
-        self.make_messages(Some(topics.iter().map(|t| t.to_string()).collect()))
+        self.make_messages(Some(topics.iter().map(ToString::to_string).collect()))
     }
 
     fn make_messages(&self, only: Option<BTreeSet<String>>) -> Result<Messages<'_>, BagError> {

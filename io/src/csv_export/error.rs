@@ -189,7 +189,7 @@ fn fmt_missing(missing: &[String]) -> String {
 
 /// 10 significant digits, for messages (the variant keeps the exact value).
 fn fmt_sig(x: f64) -> String {
-    format!("{:.9e}", x)
+    format!("{x:.9e}")
         .parse::<f64>()
         .map_or_else(|_| x.to_string(), |v| v.to_string())
 }
@@ -200,7 +200,7 @@ fn fmt_freq(f: Option<f64>) -> String {
 
 /// A `csv` crate error as a [`CsvError`] of `path`.
 pub(super) fn csv_error(path: &Path, e: csv::Error) -> CsvError {
-    let line = e.position().map(|p| p.line());
+    let line = e.position().map(csv::Position::line);
     match e.into_kind() {
         csv::ErrorKind::Io(source) => CsvError::Io {
             path: path.to_path_buf(),

@@ -55,7 +55,7 @@ pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, C
             Ok(false) => break,
             Err(e) => return Err(csv_error(path, e)),
         }
-        let line = row.position().map_or(0, |pos| pos.line());
+        let line = row.position().map_or(0, csv::Position::line);
         let cell = |col: usize| row.get(col).unwrap_or("");
 
         let time_text = cell(layout.time_col);

@@ -215,7 +215,7 @@ mod tests {
                 IdentifyWarning::FewEquations { parameters: 2, .. }
             ]
         ));
-        let texts: Vec<String> = flags.iter().map(|f| f.to_string()).collect();
+        let texts: Vec<String> = flags.iter().map(ToString::to_string).collect();
         assert_eq!(id.warnings, texts);
         assert!(texts[0].starts_with("badly conditioned"), "{}", texts[0]);
         assert_eq!(

@@ -507,7 +507,11 @@ pub fn analyse_record(
         let cp = work.phasors(p)?;
         let agrees = (0..n_ch).all(|c| {
             let mean: Vec<Complex64> = sum[c].iter().map(|s| s / a).collect();
-            let scale_ac = mean[1..].iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+            let scale_ac = mean[1..]
+                .iter()
+                .map(Complex64::norm_sqr)
+                .sum::<f64>()
+                .sqrt();
             let scale = if scale_ac > 0.0 {
                 scale_ac
             } else {

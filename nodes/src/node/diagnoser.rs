@@ -204,7 +204,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     loop {
         let input = tokio::select! {
             i = rx.recv() => match i { Some(i) => i, None => break },
-            _ = crate::ros::shutdown_signal() => break,
+            () = crate::ros::shutdown_signal() => break,
         };
         // The refits take seconds: keep the runtime's other tasks going meanwhile.
         let outputs = tokio::task::block_in_place(|| core.handle(input, now_time()))?;

@@ -275,7 +275,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     loop {
         let input = tokio::select! {
             i = rx.recv() => match i { Some(i) => i, None => break },
-            _ = crate::ros::shutdown_signal() => break,
+            () = crate::ros::shutdown_signal() => break,
         };
         for out in state.handle(input, Instant::now()) {
             match out {

@@ -59,8 +59,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     loop {
         let input = tokio::select! {
             i = rx.recv() => i,
-            _ = tokio::time::sleep(Duration::from_millis(200)) => None,
-            _ = crate::ros::shutdown_signal() => break,
+            () = tokio::time::sleep(Duration::from_millis(200)) => None,
+            () = crate::ros::shutdown_signal() => break,
         };
         match input {
             Some(Input::Theta(t, at)) => {

@@ -239,7 +239,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     );
     let wanted: Vec<String> = p
         .opt_str_array("topics")?
-        .unwrap_or_else(|| DEFAULT_TOPICS.iter().map(|s| s.to_string()).collect());
+        .unwrap_or_else(|| DEFAULT_TOPICS.iter().map(ToString::to_string).collect());
     if wanted.is_empty() {
         bail!("topics is empty: nothing to record");
     }
@@ -300,7 +300,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                     log_line!("on disk: {} messages", core.count());
                 }
             }
-            _ = crate::ros::shutdown_signal() => break,
+            () = crate::ros::shutdown_signal() => break,
         }
     }
     // Take what already arrived, then finish.

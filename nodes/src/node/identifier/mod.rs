@@ -82,7 +82,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     loop {
         let input = tokio::select! {
             i = rx.recv() => match i { Some(i) => i, None => break },
-            _ = crate::ros::shutdown_signal() => break,
+            () = crate::ros::shutdown_signal() => break,
         };
         let outputs = core.handle(input, now_time())?;
         shell.apply(&core, outputs).await?;
