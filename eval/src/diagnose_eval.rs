@@ -118,13 +118,13 @@ fn plant(truth: &mut Truth, effect: Effect, m: f64) {
             e.asymmetric_damping = Some(AsymmetricDamping {
                 rebound_n_s_per_m: m,
                 compression_n_s_per_m: -m,
-            })
+            });
         }
         Effect::FreePlay => {
             e.free_play = Some(FreePlay {
                 gap_m: FREE_PLAY_GAP_M,
                 stiffness_n_per_m: m,
-            })
+            });
         }
         Effect::Hysteresis => {
             e.bouc_wen = Some(BoucWen {
@@ -133,7 +133,7 @@ fn plant(truth: &mut Truth, effect: Effect, m: f64) {
                 beta: 0.5 / HYSTERESIS_YIELD_M,
                 gamma: 0.5 / HYSTERESIS_YIELD_M,
                 n: 1.0,
-            })
+            });
         }
         Effect::ExciterDelay => truth.effects.exciter_delay_s = m,
         Effect::SensorLowpass => truth.effects.sensor_lowpass_hz = Some(m),

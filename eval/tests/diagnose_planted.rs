@@ -1,6 +1,10 @@
 //! The gap diagnosis on simulated rigs with a planted effect it is not told: known effects get
 //! named, no effect gives "adequate", an effect outside the library gets no confident name, and
 //! the live phasor-only diagnosis agrees on the paper's story.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test and bench helpers outside #[test] fns: a panic is how they report failure"
+)]
 
 use forcemap_eval::diagnose_eval::{CaseSpec, Planted, run_case, simulate_case};
 use forcemap_math::diagnose::{Effect, PhasorDiagnosis, Verdict};

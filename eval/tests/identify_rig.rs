@@ -1,5 +1,9 @@
 //! Identification on the simulated rig stand-in (truth: the paper's Coulomb values), checked
 //! against the truth of the simulation and against the paper's qualitative findings.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test and bench helpers outside #[test] fns: a panic is how they report failure"
+)]
 
 use forcemap_eval::paper::RIG_TRUTH;
 use forcemap_eval::reproduce::{RigData, Row, rig_data, rig_row};

@@ -1,5 +1,9 @@
 //! Table 1: the 3-DOF example simulated exactly, identified through the drive-point FRF of
 //! substructure I (eq. 22).
+#![allow(
+    clippy::unwrap_used,
+    reason = "test and bench helpers outside #[test] fns: a panic is how they report failure"
+)]
 
 use forcemap_eval::paper::TABLE1_TRUTH;
 use forcemap_eval::reproduce::phasor_options;
@@ -56,8 +60,8 @@ fn paper_method_is_good_in_case_ii_and_clearly_worse_in_case_i() {
         "CASE II errors {e2:?}"
     );
     // CASE I: the element sticks for much of the cycle; first-harmonic sgn cannot describe it.
-    let worst1 = e1.iter().cloned().fold(0.0, f64::max);
-    let worst2 = e2.iter().cloned().fold(0.0, f64::max);
+    let worst1 = e1.iter().copied().fold(0.0, f64::max);
+    let worst2 = e2.iter().copied().fold(0.0, f64::max);
     assert!(
         worst1 > 0.3 && worst1 > 3.0 * worst2,
         "CASE I {e1:?} vs CASE II {e2:?}"

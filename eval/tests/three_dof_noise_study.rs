@@ -8,6 +8,10 @@
 //! - `case_ii_crb`: the Cramer-Rao bound of k, c, F_d, S from the settled samples of x, x_d
 //!   (and F) with the exact model.
 //! - `case_ii_noise_budget`: where the first-harmonic force noise comes from, per step.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test and bench helpers outside #[test] fns: a panic is how they report failure"
+)]
 use forcemap_eval::paper::TABLE1_TRUTH;
 use forcemap_eval::reproduce::phasor_options;
 use forcemap_math::frf::LinearSubstructure;

@@ -1,5 +1,9 @@
 //! Identification throughput: samples of the rig's stepped-sine run (10 steps x 1300 samples at
 //! 100 Hz) turned into theta per second, by method, from phasors and from raw records.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test and bench helpers outside #[test] fns: a panic is how they report failure"
+)]
 
 use std::hint::black_box;
 
@@ -17,7 +21,7 @@ fn bench_identify(c: &mut Criterion) {
         ..RigRun::paper_sine(TruthElement::rig_coulomb())
     };
     let records = simulate(&SimSpec::Rig(run)).expect("simulation runs");
-    let samples: usize = records.iter().map(|r| r.len()).sum();
+    let samples: usize = records.iter().map(forcemap_math::record::Record::len).sum();
     // As many harmonics as the sample rate allows (what `forcemap reproduce` uses).
     let phasor_options = PhasorOptions {
         max_harmonic: usize::MAX,
@@ -42,7 +46,7 @@ fn bench_identify(c: &mut Criterion) {
                     &options,
                 )
                 .unwrap()
-            })
+            });
         });
     }
     g.finish();
@@ -67,7 +71,7 @@ fn bench_identify(c: &mut Criterion) {
                     &options,
                 )
                 .unwrap()
-            })
+            });
         });
     }
     g.finish();

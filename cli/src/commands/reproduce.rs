@@ -72,7 +72,9 @@ fn print_tables(rows: &[Row], settings: &Settings) {
                 settings.rig_snr_db
             ),
             3 => {
-                println!("\nTable 3: suspension rig, atan friction model (same simulated stand-in)")
+                println!(
+                    "\nTable 3: suspension rig, atan friction model (same simulated stand-in)"
+                );
             }
             _ => println!(
                 "\nTable 4: suspension rig, time-domain FSM (20 points per frequency, and all points) next to FD (same simulated stand-in)"
