@@ -63,11 +63,15 @@
 //! in ~1.1-1.7 ms (~12-18 M samples/s).
 
 mod fit;
+mod types;
 
-use crate::record::{Channel, Excitation, Record};
+pub use types::{
+    ChannelPhasors, HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorError, PhasorOptions,
+};
+
+use crate::record::{Excitation, Record};
 use fit::{Factor, FactorCache, Grid, frac, phasors_of, rhs_matrix};
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
 
 /// Fewest samples per period for which a per-period fit of DC + fundamental is possible.
 pub const MIN_SAMPLES_PER_PERIOD: f64 = 3.0;
@@ -75,168 +79,6 @@ pub const MIN_SAMPLES_PER_PERIOD: f64 = 3.0;
 /// Tolerance (in samples) used when placing period boundaries on the sample grid, so that a
 /// boundary that falls on a sample up to rounding is placed on that sample.
 const BOUNDARY_TOLERANCE_SAMPLES: f64 = 1e-9;
-
-/// The highest harmonic an identification or diagnosis analyses unless told otherwise: as
-/// many as the sampling allows up to 100 (the improved method drops the harmonics that do not
-/// stand out of their noise; the diagnosis needs the even ones and DC).
-pub const IDENTIFICATION_MAX_HARMONIC: usize = 100;
-
-/// Options of [`analyse_record`].
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct PhasorOptions {
-    /// Highest harmonic `N` wanted; capped at `floor((floor(fs/f) - 1) / 2)` (see module docs).
-    /// `usize::MAX` means "as many as allowed". Default 20 (a single record's analysis);
-    /// identifications use [`PhasorOptions::for_identification`].
-    pub max_harmonic: usize,
-    /// Fewest whole periods a settled part must have (values below 2 act as 2). Default 2.
-    pub min_periods: usize,
-    /// Relative tolerance of the settling test, as a fraction of each channel's AC amplitude
-    /// (~ its fundamental). It governs noise-free records. Default 1e-4.
-    pub settle_relative_tolerance: f64,
-    /// `k`: a period agrees with the tail when its phasors are within `k` per-period noise
-    /// standard deviations of the tail mean (each harmonic and channel tested). Default 4,
-    /// so a settled white-noise record is falsely truncated with probability `~e^{-16}` per test.
-    pub settle_noise_factor: f64,
-}
-
-impl Default for PhasorOptions {
-    fn default() -> Self {
-        PhasorOptions {
-            max_harmonic: 20,
-            min_periods: 2,
-            settle_relative_tolerance: 1e-4,
-            settle_noise_factor: 4.0,
-        }
-    }
-}
-
-impl PhasorOptions {
-    /// The options of every identification and diagnosis (the command, the harmonic node, the
-    /// recipe): the defaults with up to [`IDENTIFICATION_MAX_HARMONIC`] harmonics.
-    pub fn for_identification() -> PhasorOptions {
-        PhasorOptions {
-            max_harmonic: IDENTIFICATION_MAX_HARMONIC,
-            ..PhasorOptions::default()
-        }
-    }
-}
-
-/// Phasors of one channel.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ChannelPhasors {
-    pub channel: Channel,
-    /// `C_n`, `n = 0..=N`, referenced to `t_ref_s` (unit of the channel).
-    pub phasors: Vec<Complex64>,
-    /// Standard error of `C_n` from the scatter between periods (complex magnitude; see the
-    /// module docs), `n = 0..=N`.
-    pub noise_std: Vec<f64>,
-    /// RMS of the residual of the joint fit over the used periods, per sample (unit of the
-    /// channel): everything not periodic with the excitation period, i.e. noise, transient left
-    /// in, and harmonics above `N`.
-    pub residual_rms: f64,
-}
-
-/// Result of [`analyse_record`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct HarmonicAnalysis {
-    pub step: usize,
-    pub frequency_hz: f64,
-    /// Excitation amplitude (from the record's excitation).
-    pub amplitude: f64,
-    /// Reference time of the phasors [s since the start of the run]: the start of the first
-    /// used whole period (within one sample interval before `first_settled_sample`).
-    pub t_ref_s: f64,
-    /// Whole periods in the fit.
-    pub periods_used: usize,
-    /// Whole periods in the record.
-    pub periods_available: usize,
-    /// Index of the first sample of the fit.
-    pub first_settled_sample: usize,
-    /// Samples in the fit (`periods_used` whole periods).
-    pub samples_used: usize,
-    /// False when no settled part of at least `min_periods` periods was found; the phasors
-    /// then come from the last `min_periods` periods anyway.
-    pub settled: bool,
-    /// `N`, the highest harmonic fitted.
-    pub harmonics: usize,
-    /// Highest `N` allowed at this frequency and sample rate.
-    pub harmonic_cap: usize,
-    /// One entry per record channel, in record order.
-    pub channels: Vec<ChannelPhasors>,
-}
-
-impl HarmonicAnalysis {
-    pub fn channel(&self, c: Channel) -> Option<&ChannelPhasors> {
-        self.channels.iter().find(|p| p.channel == c)
-    }
-}
-
-/// Why a record could not be analysed.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum PhasorError {
-    #[error(
-        "step {step}: not a stepped-sine record (random excitation); harmonic analysis needs a sine step"
-    )]
-    NotSine { step: usize },
-    #[error("step {step}: record has no channels")]
-    NoChannels { step: usize },
-    #[error(
-        "step {step}: channel {channel:?} has {len} samples but channel {first:?} has {expected}; all channels must have the same length"
-    )]
-    ChannelLengthMismatch {
-        step: usize,
-        channel: Channel,
-        len: usize,
-        first: Channel,
-        expected: usize,
-    },
-    #[error("step {step}: channel {channel:?} sample {sample} is not finite ({value})")]
-    NonFinite {
-        step: usize,
-        channel: Channel,
-        sample: usize,
-        value: f64,
-    },
-    #[error("step {step}: sample rate {sample_rate_hz} Hz is not a positive finite number")]
-    InvalidSampleRate { step: usize, sample_rate_hz: f64 },
-    #[error("step {step}: excitation frequency {frequency_hz} Hz is not a positive finite number")]
-    InvalidFrequency { step: usize, frequency_hz: f64 },
-    #[error(
-        "step {step}: excitation frequency {frequency_hz} Hz is at or above the Nyquist frequency {nyquist_hz} Hz"
-    )]
-    AboveNyquist {
-        step: usize,
-        frequency_hz: f64,
-        nyquist_hz: f64,
-    },
-    #[error(
-        "step {step}: only {samples_per_period:.3} samples per period at {frequency_hz} Hz (need at least 3 to fit DC and the fundamental per period)"
-    )]
-    TooFewSamplesPerPeriod {
-        step: usize,
-        frequency_hz: f64,
-        samples_per_period: f64,
-    },
-    #[error(
-        "step {step}: record of {samples} samples holds {periods:.3} periods of {frequency_hz} Hz; at least 2 whole periods ({needed} samples) are needed"
-    )]
-    TooShort {
-        step: usize,
-        samples: usize,
-        periods: f64,
-        frequency_hz: f64,
-        needed: usize,
-    },
-    #[error("invalid phasor options: {reason}")]
-    InvalidOptions { reason: String },
-    #[error("fit_harmonics: {reason}")]
-    InvalidFit { reason: String },
-    #[error(
-        "step {step}: normal matrix of the harmonic fit is not positive definite (window of {samples} samples)"
-    )]
-    IllConditioned { step: usize, samples: usize },
-}
 
 /// Largest `N` with `2N + 1 <= floor(L)` (see the module docs); `None` if below 1.
 fn harmonic_cap(samples_per_period: f64) -> usize {

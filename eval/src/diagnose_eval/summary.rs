@@ -1,0 +1,240 @@
+//! The scores over a set of cases: top-1 hit rates, false alarms, out-of-library names,
+//! predicted against true shrink, the confusable pairs and the confusion matrix.
+
+use super::*;
+
+/// A fraction with its counts.
+#[derive(Debug, Clone, Serialize)]
+pub struct Rate {
+    pub hits: usize,
+    pub of: usize,
+    pub percent: f64,
+}
+
+fn rate(hits: usize, of: usize) -> Rate {
+    Rate {
+        hits,
+        of,
+        percent: if of == 0 {
+            f64::NAN
+        } else {
+            100.0 * hits as f64 / of as f64
+        },
+    }
+}
+
+/// Held-out NMSE an effect must cause alone to count towards the top-1 target [%]: the
+/// baseline's held-out NMSE minus the true model's on the same noisy records
+/// ([`CaseResult::effect_gap_percent`]), so the noise, which no effect causes, is not counted.
+pub const QUALIFYING_GAP_PERCENT: f64 = 2.0;
+
+/// The effect pairs that look alike and must be told apart (each shows something the other
+/// cannot: see [`Effect::signature`]).
+pub const CONFUSABLE_PAIRS: [[Effect; 2]; 6] = [
+    [Effect::ExciterDelay, Effect::MassError],
+    [Effect::SensorLowpass, Effect::ExciterDelay],
+    [Effect::CoulombFriction, Effect::Hysteresis],
+    [Effect::CoulombFriction, Effect::QuadraticDamping],
+    [Effect::AsymmetricDamping, Effect::QuadraticStiffness],
+    [Effect::FreePlay, Effect::CubicStiffness],
+];
+
+/// How often one effect of a confusable pair was named as the other.
+#[derive(Debug, Clone, Serialize)]
+pub struct ConfusablePair {
+    pub effects: [Effect; 2],
+    /// Single-effect cases planting either effect.
+    pub cases: usize,
+    /// Cases planting the first, named the second.
+    pub first_named_second: usize,
+    /// Cases planting the second, named the first.
+    pub second_named_first: usize,
+}
+
+/// The scores of an evaluation.
+#[derive(Debug, Clone, Serialize)]
+pub struct EvalSummary {
+    pub cases: usize,
+    pub failed: Vec<String>,
+    /// Single effects that alone cause at least 2 % held-out NMSE at the lower SNR, named first.
+    pub top1: Rate,
+    /// The same at the lower SNR, counting the cases whose baseline gap (noise included) is at
+    /// least 2 % instead.
+    pub top1_by_baseline_gap: Rate,
+    /// The same at every SNR.
+    pub top1_all_snr: Rate,
+    /// No-effect cases given anything but "adequate".
+    pub false_alarms: Rate,
+    /// Out-of-library cases given a library name.
+    pub out_of_library_named: Rate,
+    /// Single effects with a gap below 2 %: how many were still named right, called adequate,
+    /// or given another answer (a wrong name or "unexplained").
+    pub below_threshold_named_right: Rate,
+    pub below_threshold_adequate: Rate,
+    pub below_threshold_wrong: Rate,
+    /// Two-effect cases whose top effect is one of the two.
+    pub pairs_one_named: Rate,
+    /// Mean |predicted shrink - true shrink| over explained single-effect cases [%-points],
+    /// and the mean true shrink for scale.
+    pub shrink_mean_abs_error_percent: f64,
+    pub shrink_mean_true_percent: f64,
+    /// Rows: planted; columns: named ("adequate", "unexplained" or an effect); counts.
+    pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
+    /// The pairs the issue names as confusable, over single-effect cases at every SNR.
+    pub confusable_pairs: Vec<ConfusablePair>,
+    pub lower_snr_db: f64,
+}
+
+/// Scores the results.
+pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> EvalSummary {
+    let ok: Vec<&CaseResult> = results.iter().filter_map(|r| r.as_ref().ok()).collect();
+    let failed = results
+        .iter()
+        .filter_map(|r| r.as_ref().err().cloned())
+        .collect();
+    let single = |r: &&CaseResult| matches!(r.case.planted, Planted::One { .. });
+    let qualifying: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| single(r) && r.effect_gap_percent >= QUALIFYING_GAP_PERCENT)
+        .collect();
+    let hit = |r: &&&CaseResult| r.named == r.label;
+    let by_baseline_gap: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| {
+            single(r)
+                && r.gap_before_percent >= QUALIFYING_GAP_PERCENT
+                && (r.case.snr_db - lower_snr_db).abs() < 1e-9
+        })
+        .collect();
+    let low: Vec<&&&CaseResult> = qualifying
+        .iter()
+        .filter(|r| (r.case.snr_db - lower_snr_db).abs() < 1e-9)
+        .collect();
+    let none: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| matches!(r.case.planted, Planted::None))
+        .collect();
+    let ool: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| matches!(r.case.planted, Planted::CompressibleOil { .. }))
+        .collect();
+    let below: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| single(r) && r.effect_gap_percent < QUALIFYING_GAP_PERCENT)
+        .collect();
+    let pairs: Vec<&&CaseResult> = ok
+        .iter()
+        .filter(|r| matches!(r.case.planted, Planted::Two { .. }))
+        .collect();
+    let explained: Vec<&&&CaseResult> = qualifying
+        .iter()
+        .filter(|r| r.verdict == Verdict::Explained)
+        .collect();
+    let (mut err, mut tru) = (0.0, 0.0);
+    for r in &explained {
+        let predicted = r.gap_before_percent - r.gap_after_percent;
+        let truth = r.gap_before_percent - r.truth_nmse_percent;
+        err += (predicted - truth).abs();
+        tru += truth;
+    }
+    let ne = explained.len().max(1) as f64;
+    let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
+    for r in &ok {
+        if matches!(r.case.planted, Planted::Two { .. }) {
+            continue;
+        }
+        let row = if single(r) && r.effect_gap_percent < QUALIFYING_GAP_PERCENT {
+            format!("{} (<2 %)", r.label)
+        } else {
+            r.label.clone()
+        };
+        *confusion
+            .entry(row)
+            .or_default()
+            .entry(r.named.clone())
+            .or_default() += 1;
+    }
+    EvalSummary {
+        cases: results.len(),
+        failed,
+        top1: rate(low.iter().filter(|r| hit(r)).count(), low.len()),
+        top1_by_baseline_gap: rate(
+            by_baseline_gap
+                .iter()
+                .filter(|r| r.named == r.label)
+                .count(),
+            by_baseline_gap.len(),
+        ),
+        top1_all_snr: rate(
+            qualifying.iter().filter(|r| hit(r)).count(),
+            qualifying.len(),
+        ),
+        false_alarms: rate(
+            none.iter()
+                .filter(|r| r.verdict != Verdict::Adequate)
+                .count(),
+            none.len(),
+        ),
+        out_of_library_named: rate(
+            ool.iter()
+                .filter(|r| r.verdict == Verdict::Explained)
+                .count(),
+            ool.len(),
+        ),
+        below_threshold_named_right: rate(
+            below.iter().filter(|r| r.named == r.label).count(),
+            below.len(),
+        ),
+        below_threshold_wrong: rate(
+            below
+                .iter()
+                .filter(|r| r.verdict != Verdict::Adequate && r.named != r.label)
+                .count(),
+            below.len(),
+        ),
+        below_threshold_adequate: rate(
+            below
+                .iter()
+                .filter(|r| r.verdict == Verdict::Adequate)
+                .count(),
+            below.len(),
+        ),
+        pairs_one_named: rate(
+            pairs
+                .iter()
+                .filter(|r| match r.case.planted {
+                    Planted::Two { effects } => effects.iter().any(|e| e.name() == r.named),
+                    _ => false,
+                })
+                .count(),
+            pairs.len(),
+        ),
+        shrink_mean_abs_error_percent: err / ne,
+        shrink_mean_true_percent: tru / ne,
+        confusion,
+        confusable_pairs: CONFUSABLE_PAIRS
+            .iter()
+            .map(|&[a, b]| {
+                let planted = |e: Effect| {
+                    move |r: &&&CaseResult| {
+                        matches!(r.case.planted, Planted::One { effect, .. } if effect == e)
+                    }
+                };
+                let count = |e: Effect, named: Effect| {
+                    ok.iter()
+                        .filter(planted(e))
+                        .filter(|r| r.named == named.name())
+                        .count()
+                };
+                ConfusablePair {
+                    effects: [a, b],
+                    cases: ok.iter().filter(planted(a)).count()
+                        + ok.iter().filter(planted(b)).count(),
+                    first_named_second: count(a, b),
+                    second_named_first: count(b, a),
+                }
+            })
+            .collect(),
+        lower_snr_db,
+    }
+}

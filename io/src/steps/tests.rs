@@ -1,0 +1,173 @@
+//! The assembler's rules, for messages and for written samples.
+
+use super::*;
+use forcemap_msgs::std_msgs::Header;
+
+fn sample(step: u32, t_ms: i64, x: f64) -> RigSample {
+    let stamp = Time::from_nanos(1_000_000_000 + t_ms * 1_000_000);
+    RigSample::new(Header::new(stamp, "rig"), step)
+        .with(Channel::BaseDisplacementM, x)
+        .with(Channel::MassAccelerationMps2, 2.0 * x)
+}
+
+fn plan(n: usize) -> StepPlan {
+    StepPlan {
+        excitation: Excitation::Sine {
+            frequency_hz: 2.0,
+            amplitude: 1e-3,
+        },
+        sample_count: n,
+    }
+}
+
+#[test]
+fn a_step_completes_at_its_planned_count_with_its_rate_and_values() {
+    let mut a = StepAssembler::new();
+    a.set_origin(Time::from_nanos(1_000_000_000));
+    let p = plan(5);
+    let mut out = Vec::new();
+    for k in 0..5 {
+        out.extend(a.push(&sample(0, 10 * k, k as f64), Some(&p)));
+    }
+    assert_eq!(out.len(), 1);
+    let r = out.pop().unwrap().unwrap();
+    assert_eq!(r.sample_rate_hz, 100.0);
+    assert_eq!(r.start_time_s, 0.0);
+    assert_eq!(
+        r.channel(Channel::MassAccelerationMps2).unwrap(),
+        &[0.0, 2.0, 4.0, 6.0, 8.0]
+    );
+    assert!(a.in_progress().is_none());
+}
+
+#[test]
+fn a_gap_or_a_lost_tail_drops_the_step_with_the_reason() {
+    let mut a = StepAssembler::new();
+    let p = plan(0);
+    for k in [0, 1, 2, 4, 5] {
+        assert!(a.push(&sample(0, 10 * k, 0.0), Some(&p)).is_empty());
+    }
+    let e = a.finish().unwrap().unwrap_err();
+    assert_eq!(e.step, 0);
+    assert!(e.problem.contains("not uniform"), "{e}");
+    assert!(!e.truncated, "a gap is not a truncation");
+
+    let p = plan(6);
+    let mut out = Vec::new();
+    for k in 0..4 {
+        out.extend(a.push(&sample(1, 100 + 10 * k, 0.0), Some(&p)));
+    }
+    // The next step begins: step 1 is complete with 4 of its 6 samples.
+    out.extend(a.push(&sample(2, 200, 0.0), Some(&p)));
+    let e = out.pop().unwrap().unwrap_err();
+    assert_eq!(e.step, 1);
+    assert!(e.problem.contains("4 of its 6 samples"), "{e}");
+    assert!(e.truncated, "a short step is only truncated");
+}
+
+#[test]
+fn non_finite_values_and_unknown_steps_are_refused() {
+    let mut a = StepAssembler::new();
+    let p = plan(3);
+    let mut out = a.push(&sample(0, 0, 0.0), Some(&p));
+    out.extend(a.push(&sample(0, 10, f64::NAN), Some(&p)));
+    out.extend(a.push(&sample(0, 20, 0.0), Some(&p)));
+    let e = out.pop().unwrap().unwrap_err();
+    assert!(e.problem.contains("sample 1: channel"), "{e}");
+    let mut out = Vec::new();
+    for k in 0..3 {
+        out.extend(a.push(&sample(1, 100 + 10 * k, 0.0), None));
+    }
+    let e = a.finish().unwrap().unwrap_err();
+    assert!(e.problem.contains("no ExcitationState"), "{e}");
+    // a step cannot come back after a later one
+    out.extend(a.push(&sample(0, 300, 0.0), Some(&p)));
+    let e = a.finish().unwrap().unwrap_err();
+    assert!(e.problem.contains("not contiguous"), "{e}");
+}
+
+fn row(step: usize, t_s: f64, resolution: f64) -> StepSample {
+    StepSample {
+        t_s,
+        t_resolution_s: resolution,
+        step,
+        values: vec![(Channel::ForceN, t_s)],
+    }
+}
+
+#[test]
+fn rig_samples_become_step_samples_with_their_present_channels() {
+    let s = StepSample::of_rig(&sample(3, 0, 1.5), 0.25);
+    assert_eq!(s.step, 3);
+    assert_eq!(s.t_s, 0.25);
+    assert_eq!(s.t_resolution_s, 0.0);
+    assert_eq!(
+        s.values,
+        [
+            (Channel::BaseDisplacementM, 1.5),
+            (Channel::MassAccelerationMps2, 3.0)
+        ]
+    );
+}
+
+#[test]
+fn written_steps_must_be_consecutive_and_messages_only_increasing() {
+    let p = plan(0);
+    let mut written = StepAssembler::with_rules(StepRules::WRITTEN);
+    let mut messages = StepAssembler::new();
+    for k in 0..3 {
+        written.push_sample(&row(4, 0.01 * k as f64, 0.0), Some(&p));
+        messages.push_sample(&row(4, 0.01 * k as f64, 0.0), Some(&p));
+    }
+    // The step in progress may continue, the first step may be any.
+    assert_eq!(written.order_fault(4), None);
+    assert_eq!(
+        StepAssembler::with_rules(StepRules::WRITTEN).order_fault(9),
+        None
+    );
+    assert_eq!(written.order_fault(5), None);
+    assert_eq!(
+        written.order_fault(6),
+        Some(StepFault::OutOfOrder { previous: 4 })
+    );
+    assert_eq!(messages.order_fault(6), None);
+    assert_eq!(
+        messages.order_fault(3),
+        Some(StepFault::OutOfOrder { previous: 4 })
+    );
+}
+
+#[test]
+fn written_times_are_checked_against_the_median_interval_within_their_rounding() {
+    let p = plan(0);
+    // Times written with 4 decimals at 300 Hz: rounded intervals of 3.3 or 3.4 ms pass.
+    let mut a = StepAssembler::with_rules(StepRules::WRITTEN);
+    for k in 0..30 {
+        let t = ((k as f64 / 300.0) * 1e4).round() / 1e4;
+        a.push_sample(&row(0, t, 1e-4), Some(&p));
+    }
+    let done = a.finish_step().unwrap().unwrap();
+    assert_eq!(done.timing.samples, 30);
+    assert_eq!(done.timing.resolution_s, 1e-4);
+    assert_eq!(done.record.channel(Channel::ForceN).unwrap().len(), 30);
+    // A dropped sample is caught at the interval after it, against the median.
+    let mut a = StepAssembler::with_rules(StepRules::WRITTEN);
+    for k in [0, 1, 2, 3, 5, 6, 7] {
+        a.push_sample(&row(1, 0.01 * k as f64, 0.0), Some(&p));
+    }
+    let e = a.finish_step().unwrap().unwrap_err();
+    match e.fault {
+        StepFault::NotUniform {
+            sample,
+            reference,
+            median,
+            ..
+        } => {
+            assert_eq!(sample, 4);
+            assert!((reference - 0.01).abs() < 1e-12);
+            assert!(median);
+        }
+        f => panic!("{f:?}"),
+    }
+    assert!(e.problem.contains("median interval"), "{e}");
+}
