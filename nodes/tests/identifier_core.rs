@@ -180,3 +180,37 @@ fn what_the_identifier_cannot_run_is_refused_with_the_reason() {
         "{e}"
     );
 }
+
+#[test]
+fn phasors_of_no_setup_are_refused_without_stopping_the_node() {
+    let mut c = core(&params(&[("mass_kg", ParamValue::Double(36.0))]));
+    let mut ph = phasor_messages().remove(0);
+    // Only the relative displacement: neither the rig's nor the drive point's channels.
+    let keep = ph
+        .channel_names
+        .iter()
+        .position(|n| n == "relative_displacement_m")
+        .unwrap();
+    let orders = ph.harmonic_orders.len();
+    let cells = keep * orders..(keep + 1) * orders;
+    ph.channel_names = vec![ph.channel_names[keep].clone()];
+    ph.phasor_real = ph.phasor_real[cells.clone()].to_vec();
+    ph.phasor_imag = ph.phasor_imag[cells.clone()].to_vec();
+    ph.noise_std = ph.noise_std[cells].to_vec();
+    ph.residual_rms = vec![ph.residual_rms[keep]];
+    let out = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
+    assert!(thetas(&out).is_empty());
+    assert!(
+        out.iter().any(|o| matches!(o, Output::Log(l) if l.contains("phasors refused") && l.contains("relative_displacement_m"))),
+        "{out:?}"
+    );
+    // The next good step is identified as usual.
+    let out = c
+        .handle(
+            Input::Phasors(Box::new(phasor_messages().remove(1))),
+            RUN_START,
+        )
+        .unwrap();
+    assert_eq!(thetas(&out).len(), 1, "the next step gives theta");
+    assert_eq!(c.state().unwrap().accumulator.steps_added(), 1);
+}

@@ -71,7 +71,18 @@ impl SetupGate {
                     continue;
                 }
             };
-            match setup_of(&analysis, &constants)? {
+            // Phasors that are no setup's (a foreign publisher's, a bad recording) are refused
+            // like undecodable ones: what arrives on a topic must not stop the node.
+            let kind = match SetupKind::of_channels(|c| {
+                analysis.channels.iter().any(|ch| ch.channel == c)
+            }) {
+                Ok(k) => k,
+                Err(e) => {
+                    log.push(format!("step {step}: phasors refused: {e}"));
+                    continue;
+                }
+            };
+            match setup_of(kind, &constants)? {
                 Some(setup) => ready.push(Ready {
                     phasors: ph,
                     analysis,
@@ -91,14 +102,9 @@ impl SetupGate {
     }
 }
 
-/// The setup of a step's phasors, from the channels they hold and the constants known;
-/// `None` while a rig's mass is unknown.
-fn setup_of(
-    analysis: &HarmonicAnalysis,
-    constants: &SetupConstants,
-) -> anyhow::Result<Option<SetupSpec>> {
-    let kind = SetupKind::of_channels(|c| analysis.channels.iter().any(|ch| ch.channel == c))
-        .map_err(|e| anyhow::anyhow!("step {}: {e}", analysis.step))?;
+/// The setup of `kind` with the constants known; `None` while a rig's mass is unknown. An
+/// error is a constant the node was given wrong (no later message fixes it).
+fn setup_of(kind: SetupKind, constants: &SetupConstants) -> anyhow::Result<Option<SetupSpec>> {
     match kind.resolve(constants) {
         Ok(s) => Ok(Some(s)),
         Err(RecipeError::MissingMass) => Ok(None),
