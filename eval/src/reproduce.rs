@@ -9,10 +9,11 @@
 use serde::Serialize;
 
 use forcemap_math::frf::LinearSubstructure;
-use forcemap_math::identify::{FdMultiOptions, Identification, Method, Setup};
+use forcemap_math::identify::{FdMultiOptions, Identification, Method};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::{self, PipelineError};
+use forcemap_math::recipe::Setup;
 use forcemap_math::record::Record;
 use forcemap_math::sim::{self, RunSpec, SimError, ThreeDofCase, TruthElement};
 

@@ -8,10 +8,10 @@
 
 use forcemap_eval::diagnose_eval::{CaseSpec, Planted, run_case, simulate_case};
 use forcemap_math::diagnose::{Effect, PhasorDiagnosis, Verdict};
-use forcemap_math::identify::Setup;
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::phasor::analyse_record;
+use forcemap_math::recipe::Setup;
 use forcemap_math::record::Excitation;
 
 fn case(planted: Planted, seed: u64) -> CaseSpec {

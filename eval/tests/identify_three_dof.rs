@@ -8,9 +8,10 @@
 use forcemap_eval::paper::TABLE1_TRUTH;
 use forcemap_eval::reproduce::phasor_options;
 use forcemap_math::frf::LinearSubstructure;
-use forcemap_math::identify::{FdMultiOptions, Identification, Method, Setup};
+use forcemap_math::identify::{FdMultiOptions, Identification, Method};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::pipeline::identify_records;
+use forcemap_math::recipe::Setup;
 use forcemap_math::record::Record;
 use forcemap_math::sim::excitation::derive_seed;
 use forcemap_math::sim::noise::add_noise;

@@ -15,9 +15,10 @@
 use forcemap_eval::paper::TABLE1_TRUTH;
 use forcemap_eval::reproduce::phasor_options;
 use forcemap_math::frf::LinearSubstructure;
-use forcemap_math::identify::{FdMultiOptions, Method, Setup};
+use forcemap_math::identify::{FdMultiOptions, Method};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::pipeline::identify_records;
+use forcemap_math::recipe::Setup;
 use forcemap_math::sim::excitation::derive_seed;
 use forcemap_math::sim::noise::add_noise;
 use forcemap_math::sim::{SimSpec, ThreeDofRun, simulate};

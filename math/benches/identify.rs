@@ -8,10 +8,11 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use forcemap_math::identify::{FdMultiOptions, Method, Setup, identify};
+use forcemap_math::identify::{FdMultiOptions, Method, identify};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::{analyse_sine_steps, identify_records};
+use forcemap_math::recipe::Setup;
 use forcemap_math::sim::{RigRun, SimSpec, TruthElement, simulate};
 
 fn bench_identify(c: &mut Criterion) {

@@ -4,9 +4,10 @@
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::identify::{self, FdMultiOptions, Identification, IdentifyError, Method, Setup};
+use crate::identify::{self, FdMultiOptions, Identification, IdentifyError, Method};
 use crate::model::{IdentifiedModel, Model};
 use crate::phasor::{HarmonicAnalysis, PhasorError, PhasorOptions, analyse_record};
+use crate::recipe::Setup;
 use crate::record::{Channel, Excitation, Record};
 use crate::sim::{ReplayOptions, RigInitial, SimError, ZeroPhaseLowpass, simulate_on_sampled_base};
 

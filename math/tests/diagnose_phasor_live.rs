@@ -3,9 +3,9 @@
 //! model is adequate, the linear one is explained by Coulomb friction.
 
 use forcemap_math::diagnose::{Effect, PhasorDiagnosis, Verdict};
-use forcemap_math::identify::Setup;
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
+use forcemap_math::recipe::Setup;
 use forcemap_math::record::Excitation;
 use forcemap_math::sim::{RigRun, SimSpec, TruthElement, simulate};
 

@@ -10,10 +10,11 @@ use std::path::Path;
 
 use forcemap_io::params::{ParamValue, Params};
 use forcemap_io::rig_bag::{DEFAULT_RUN_START, read_rig_bag};
-use forcemap_math::identify::{FdMultiOptions, Method, Setup, Weighting};
+use forcemap_math::identify::{FdMultiOptions, Method, Weighting};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
 use forcemap_math::pipeline::identify_records;
+use forcemap_math::recipe::Setup;
 use forcemap_math::recipe::{Recipe, SetupSpec};
 use forcemap_math::record::Excitation;
 use forcemap_msgs::builtin_interfaces::Time;

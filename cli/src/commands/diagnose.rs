@@ -5,8 +5,8 @@ use std::path::Path;
 
 use anyhow::{Context, bail};
 use forcemap_math::diagnose::{self, DiagnoseOptions, DiagnosisDetail, Located, Verdict};
-use forcemap_math::identify::Setup;
 use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::recipe::Setup;
 use forcemap_math::record::Record;
 use forcemap_math::sim::{self, RunSpec};
 use plotters::prelude::*;

@@ -3,10 +3,11 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Context, anyhow};
-use forcemap_math::identify::{Identification, Method, Setup, rebuilt_cycle};
+use forcemap_math::identify::{Identification, Method, rebuilt_cycle};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::{IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
+use forcemap_math::recipe::Setup;
 use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind};
 use forcemap_math::record::Excitation;
 use serde_json::json;

@@ -19,8 +19,8 @@ use forcemap_math::diagnose::effects::{Effect, Transform};
 use forcemap_math::diagnose::score::predict_record;
 use forcemap_math::diagnose::{DiagnoseError, DiagnoseOptions, Verdict, diagnose};
 use forcemap_math::element::{Element, Friction};
-use forcemap_math::identify::Setup;
 use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::recipe::Setup;
 use forcemap_math::record::{Excitation, Record};
 use forcemap_math::sim::rig::PAPER_RIG_MASS_KG;
 use forcemap_math::sim::{

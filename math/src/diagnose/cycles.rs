@@ -6,8 +6,9 @@ use std::f64::consts::TAU;
 
 use num_complex::Complex64;
 
-use crate::identify::{IdentifyError, Setup, element_harmonics};
+use crate::identify::{IdentifyError, element_harmonics};
 use crate::phasor::HarmonicAnalysis;
+use crate::recipe::Setup;
 use crate::record::Channel;
 
 /// One period of a settled sine step on a uniform grid.

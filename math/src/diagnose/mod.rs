@@ -51,10 +51,11 @@ pub use effects::Effect;
 pub use locate::Located;
 pub use phasor::{PhasorDiagnosis, PhasorFindings};
 
-use crate::identify::{IdentifyError, Setup};
+use crate::identify::IdentifyError;
 use crate::lstsq::LstsqError;
 use crate::model::Model;
 use crate::phasor::{HarmonicAnalysis, PhasorError, PhasorOptions, analyse_record};
+use crate::recipe::Setup;
 use crate::record::{Channel, Excitation, Record};
 use crate::sim::SimError;
 use fit::Fitted;
@@ -294,12 +295,9 @@ fn step_tie_break(
 }
 
 fn mass_of(setup: &Setup) -> Result<f64, DiagnoseError> {
-    match setup {
-        Setup::BaseExcited { mass_kg } => Ok(*mass_kg),
-        Setup::DrivePoint { .. } => Err(DiagnoseError::NotRig(
-            "a drive-point (force-driven) structure".into(),
-        )),
-    }
+    setup
+        .rig_mass_kg()
+        .ok_or_else(|| DiagnoseError::NotRig(format!("a {} setup", setup.kind())))
 }
 
 fn heldout_all(

@@ -9,9 +9,9 @@ use super::locate::{Located, locate};
 use super::score::penalised;
 use super::search::search;
 use super::{DiagnoseError, ParameterValue, Verdict, parameter_values, verdict};
-use crate::identify::Setup;
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
+use crate::recipe::Setup;
 
 /// Fewest steps before [`PhasorDiagnosis::findings`] can cross-validate.
 pub const MIN_STEPS: usize = 3;
@@ -53,7 +53,7 @@ pub struct PhasorFindings {
 ///
 /// ```
 /// use forcemap_math::diagnose::PhasorDiagnosis;
-/// use forcemap_math::identify::Setup;
+/// use forcemap_math::recipe::Setup;
 /// use forcemap_math::model::{Model, ModelOptions};
 ///
 /// let baseline = Model::by_name("linear", &ModelOptions::default()).unwrap();

@@ -6,9 +6,9 @@ use super::DiagnoseError;
 use super::cycles::{STUCK_FRACTION, StepCycle, estimate_exciter_delay, step_cycle};
 use super::effects::{Effect, Scales, Structure, Transform, baseline_has, structures};
 use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit};
-use crate::identify::Setup;
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
+use crate::recipe::Setup;
 
 /// One effect's best structure on the step cycles.
 #[derive(Debug, Clone)]

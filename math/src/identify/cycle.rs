@@ -4,8 +4,9 @@
 use num_complex::Complex64;
 
 use super::fd::synthesize_grid;
-use super::{IdentifyError, Setup, element_harmonics};
+use super::{IdentifyError, element_harmonics};
 use crate::phasor::HarmonicAnalysis;
+use crate::recipe::Setup;
 
 /// Samples over one period of a settled step.
 #[derive(Debug, Clone)]

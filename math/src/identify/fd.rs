@@ -6,9 +6,10 @@ use std::f64::consts::TAU;
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
-use super::{FdMultiOptions, IdentifyError, Method, Setup, StepEquations, Weighting};
+use super::{FdMultiOptions, IdentifyError, Method, StepEquations, Weighting};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
+use crate::recipe::Setup;
 use crate::record::Channel;
 
 /// Harmonics n = 0..N of the element's state and force over one period of a settled step.

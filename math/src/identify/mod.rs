@@ -32,35 +32,11 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::frf::LinearSubstructure;
 use crate::lstsq::LstsqError;
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
-use crate::record::{Channel, Record};
-
-/// How the element force is known from the measurements.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Setup {
-    /// Base-excited rig (eq. 23): m x_o'' = -g(x, x'), x = x_o - x_i.
-    BaseExcited { mass_kg: f64 },
-    /// Force-driven structure with the element at the drive point of a known linear
-    /// substructure (eqs. 21-22): X_d = alpha_dd (F - G).
-    DrivePoint { substructure: LinearSubstructure },
-}
-
-impl Setup {
-    /// Channels a step must hold for this setup (beyond the relative displacement).
-    pub fn required_channels(&self) -> &'static [Channel] {
-        match self {
-            Setup::BaseExcited { .. } => &[Channel::RelativeDisplacementM],
-            Setup::DrivePoint { .. } => &[
-                Channel::RelativeDisplacementM,
-                Channel::DrivePointDisplacementM,
-                Channel::ForceN,
-            ],
-        }
-    }
-}
+use crate::recipe::Setup;
+use crate::record::Record;
 
 /// Identification method. Its name ([`Method::name`], parsed back by `FromStr`) is its
 /// serialised form: `fd`, `fd-multi`, `output-error`, `td-N`, `td-all`.

@@ -20,10 +20,11 @@
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
-use super::{Identification, IdentifyError, Parameter, Setup, element_harmonics};
+use super::{Identification, IdentifyError, Parameter, element_harmonics};
 use crate::element::Friction;
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
+use crate::recipe::Setup;
 use crate::record::{Channel, Excitation, Record};
 use crate::sim::excitation::three_dof_steps;
 use crate::sim::{SimSpec, ThreeDofParams, ThreeDofRun, TruthElement, simulate};

@@ -3,9 +3,10 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::{IdentifyError, Setup, StepEquations};
+use super::{IdentifyError, StepEquations};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
+use crate::recipe::Setup;
 use crate::record::{Channel, Record};
 
 /// Relative velocity over `range` of the record: the integral of the relative acceleration with
