@@ -4,7 +4,10 @@ use std::sync::Arc;
 
 use thiserror::Error;
 
-use crate::basis::{AtanVelocity, Cubic, Displacement, Polynomial, SignVelocity, Term, Velocity};
+use crate::basis::{
+    AbsVelocity, AtanVelocity, Constant, Cubic, Displacement, Polynomial, SignVelocity, Term,
+    Velocity,
+};
 use crate::element::{Element, Friction};
 
 /// The names `Model::by_name` understands, with what they hold.
@@ -21,6 +24,10 @@ pub const MODEL_NAMES: &[(&str, &str)] = &[
         "k x + c x' + fd (2/pi) atan(M x') + s x^3  (eq. 19)",
     ),
     ("cubic", "k x + c x' + s x^3"),
+    (
+        "damper",
+        "offset + k x + c x' + ca |x'| + fd sgn(x')  (gas preload, gas spring, rebound/compression damping c +/- ca, friction)",
+    ),
     (
         "polynomial",
         "sum of x^i x'^j for i <= P, j <= Q, i + j >= 1  (eq. 2; P, Q from --poly-order)",
@@ -105,6 +112,13 @@ impl Model {
                 ]
             }
             "cubic" => vec![Arc::new(Displacement), Arc::new(Velocity), Arc::new(Cubic)],
+            "damper" => vec![
+                Arc::new(Constant),
+                Arc::new(Displacement),
+                Arc::new(Velocity),
+                Arc::new(AbsVelocity),
+                Arc::new(SignVelocity),
+            ],
             "polynomial" => {
                 let (p, q) = options.polynomial_order.unwrap_or((3, 1));
                 let mut terms: Vec<Arc<dyn Term>> = Vec::new();

@@ -81,6 +81,7 @@ impl Layout {
         let missing = match profile {
             Some(SetupKind::BaseExcited) => missing_rig.clone(),
             Some(SetupKind::DrivePoint) => missing_dp.clone(),
+            Some(kind) => missing_for(kind),
             None => {
                 let mut all = missing_rig.clone();
                 all.extend(

@@ -89,7 +89,7 @@ fn validate_for_write(
         .into_iter()
         .filter(|&c| first.channel(c).is_some())
         .collect();
-    for c in profile.required_channels() {
+    for &c in profile.required_channels() {
         if !channels.contains(&c) {
             return Err(bad(format!(
                 "the {profile} profile requires channel '{}', which record 0 (step {}) lacks",

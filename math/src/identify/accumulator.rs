@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use super::{Identification, IdentifyError, IdentifyWarning, Method, Parameter, StepEquations};
 use crate::lstsq::{QrAccumulator, WARN_CONDITION_NUMBER};
 use crate::model::Model;
+use crate::recipe::Setup;
 
 /// At most this many step notes are kept (the rest are counted), so that memory stays flat.
 const MAX_NOTES: usize = 64;
@@ -31,12 +32,16 @@ pub struct EquationAccumulator {
 }
 
 impl EquationAccumulator {
-    pub fn new(model: &Model, method: Method) -> EquationAccumulator {
-        let p = model.terms.len();
+    /// The accumulator of `model`'s equations by `method`, with the parameters `setup` adds
+    /// (an element test's unknown moving mass) after the model's.
+    pub fn new(model: &Model, setup: &Setup, method: Method) -> EquationAccumulator {
+        let mut parameter_names = model.symbols();
+        parameter_names.extend(setup.extra_parameters().iter().map(|s| s.to_string()));
+        let p = parameter_names.len();
         EquationAccumulator {
             model: model.name.clone(),
             method: method.name(),
-            parameter_names: model.symbols(),
+            parameter_names,
             qr: QrAccumulator::new(p),
             term_ms_sum: vec![0.0; p],
             blocks: 0,
@@ -47,11 +52,12 @@ impl EquationAccumulator {
         }
     }
 
-    /// Whether this state holds equations of `model` by `method`.
+    /// Whether this state holds equations of `model` by `method` (the model's parameters
+    /// first, then any its setup added).
     pub fn is_for(&self, model: &Model, method: Method) -> bool {
         self.model == model.name
             && self.method == method.name()
-            && self.parameter_names == model.symbols()
+            && self.parameter_names.starts_with(&model.symbols())
     }
 
     /// Steps added so far (with or without equations).
@@ -193,7 +199,11 @@ mod tests {
     fn warning_flags_match_the_warning_texts() {
         let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
         assert_eq!(model.terms.len(), 2);
-        let mut acc = EquationAccumulator::new(&model, Method::FdMulti);
+        let mut acc = EquationAccumulator::new(
+            &model,
+            &Setup::BaseExcited { mass_kg: 1.0 },
+            Method::FdMulti,
+        );
         // Well conditioned and plenty of equations: no flags.
         let a = DMatrix::from_row_slice(4, 2, &[1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, -1.0]);
         let b = DVector::from_column_slice(&[1.0, 2.0, 3.1, -0.9]);
@@ -203,7 +213,11 @@ mod tests {
         assert!(id.warnings.is_empty(), "{:?}", id.warnings);
 
         // Two nearly parallel columns and only three equations: both flags.
-        let mut acc = EquationAccumulator::new(&model, Method::FdMulti);
+        let mut acc = EquationAccumulator::new(
+            &model,
+            &Setup::BaseExcited { mass_kg: 1.0 },
+            Method::FdMulti,
+        );
         let a = DMatrix::from_row_slice(3, 2, &[1.0, 1.0, 2.0, 2.0 + 1e-8, 3.0, 3.0]);
         let b = DVector::from_column_slice(&[1.0, 2.0, 3.0]);
         acc.add(&block(0, a, b, 3.0)).unwrap();

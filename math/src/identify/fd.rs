@@ -23,6 +23,9 @@ pub struct ElementHarmonics {
     /// Element force, G_n [N], from the measurements and the known linear part.
     pub force: Vec<Complex64>,
     pub force_noise: Vec<f64>,
+    /// The equation column of a parameter the setup adds (an element test's unknown moving
+    /// mass: the acceleration harmonics A_n, so that G_n = F_n - m A_n = Y_n theta).
+    pub extra_column: Option<Vec<Complex64>>,
 }
 
 impl ElementHarmonics {
@@ -56,6 +59,7 @@ pub fn element_harmonics(
         )
     })?;
     let nh = rel.phasors.len();
+    let mut extra_column = None;
     let (force, force_noise) = match setup {
         Setup::BaseExcited { mass_kg } => {
             let m = *mass_kg;
@@ -125,6 +129,25 @@ pub fn element_harmonics(
                 }
             }
         }
+        Setup::Element { moving_mass_kg } => {
+            let f = an.channel(Channel::ForceN).ok_or_else(|| {
+                missing(step, Channel::ForceN, "the element test measures its force")
+            })?;
+            let (acc, acc_noise) = moving_acceleration(an, &rel.phasors, &rel.noise_std, omega);
+            match moving_mass_kg {
+                Some(m) => {
+                    let g = (0..nh).map(|n| f.phasors[n] - acc[n] * *m).collect();
+                    let s = (0..nh)
+                        .map(|n| f.noise_std[n].hypot(acc_noise[n] * *m))
+                        .collect();
+                    (g, s)
+                }
+                None => {
+                    extra_column = Some(acc);
+                    (f.phasors.clone(), f.noise_std.clone())
+                }
+            }
+        }
         Setup::DrivePoint { substructure } => {
             let xd = an
                 .channel(Channel::DrivePointDisplacementM)
@@ -155,7 +178,50 @@ pub fn element_harmonics(
         displacement_noise: rel.noise_std.clone(),
         force,
         force_noise,
+        extra_column,
     })
+}
+
+/// Harmonics of the moving mass's acceleration in an element test, with their noise: the
+/// measured fixture acceleration (`mass_acceleration_mps2`) where there is one, else the
+/// displacement's harmonics times -(n w)^2.
+fn moving_acceleration(
+    an: &HarmonicAnalysis,
+    displacement: &[Complex64],
+    displacement_noise: &[f64],
+    omega: f64,
+) -> (Vec<Complex64>, Vec<f64>) {
+    if let Some(a) = an.channel(Channel::MassAccelerationMps2) {
+        return (a.phasors.clone(), a.noise_std.clone());
+    }
+    let w2 = |n: usize| (n as f64 * omega).powi(2);
+    (
+        displacement
+            .iter()
+            .enumerate()
+            .map(|(n, x)| -x * w2(n))
+            .collect(),
+        displacement_noise
+            .iter()
+            .enumerate()
+            .map(|(n, s)| s * w2(n))
+            .collect(),
+    )
+}
+
+/// RMS over the cycle of the signal with one-sided harmonics `c`.
+fn harmonic_rms(c: &[Complex64]) -> f64 {
+    c.iter()
+        .enumerate()
+        .map(|(n, v)| {
+            if n == 0 {
+                v.norm_sqr()
+            } else {
+                v.norm_sqr() / 2.0
+            }
+        })
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// Values over one period on `l` grid points of the signal with one-sided phasors `c` at
@@ -278,7 +344,7 @@ fn fd_multi_equations(
     term_rms: Vec<f64>,
     mut notes: Vec<String>,
 ) -> Result<StepEquations, IdentifyError> {
-    let p = model.terms.len();
+    let p = model.terms.len() + usize::from(eh.extra_column.is_some());
     let empty = |notes: Vec<String>, term_rms: Vec<f64>| StepEquations {
         step,
         a: DMatrix::zeros(0, p),
@@ -328,7 +394,7 @@ fn fd_multi_equations(
     }
     let fft = rustfft::FftPlanner::new().plan_fft_forward(l);
     // Harmonics of the basis functions over the slip samples.
-    let hh: Vec<Vec<Complex64>> = model
+    let mut hh: Vec<Vec<Complex64>> = model
         .terms
         .iter()
         .map(|t| {
@@ -341,6 +407,8 @@ fn fd_multi_equations(
             grid_harmonics(&hi, nh, fft.as_ref())
         })
         .collect();
+    // The inertia of an unknown moving mass acts over the whole cycle, stuck or slipping.
+    hh.extend(eh.extra_column.iter().cloned());
     // Harmonics of the stick-force polynomials.
     let mut qq: Vec<Vec<Complex64>> = Vec::new();
     for (start, len) in circular_runs(&keep) {
@@ -465,18 +533,20 @@ pub fn step_equations(
     let w = eh.omega_rad_s;
     let x = synthesize_grid(&eh.displacement, l, |_| Complex64::new(1.0, 0.0));
     let v = synthesize_grid(&eh.displacement, l, |n| Complex64::new(0.0, n as f64 * w));
-    let p = model.terms.len();
+    let p = model.terms.len() + usize::from(eh.extra_column.is_some());
     let h: Vec<Vec<f64>> = model
         .terms
         .iter()
         .map(|t| x.iter().zip(&v).map(|(x, v)| t.eval(*x, *v)).collect())
         .collect();
-    let term_rms: Vec<f64> = h.iter().map(|hi| rms(hi)).collect();
+    let mut term_rms: Vec<f64> = h.iter().map(|hi| rms(hi)).collect();
+    term_rms.extend(eh.extra_column.iter().map(|c| harmonic_rms(c)));
     let notes = Vec::new();
     match method {
         Method::Fd => {
             // a = Y_1, b = G_1 (eqs. 13, 22, 23), split into real and imaginary parts.
-            let y1: Vec<Complex64> = h.iter().map(|hi| first_harmonic(hi)).collect();
+            let mut y1: Vec<Complex64> = h.iter().map(|hi| first_harmonic(hi)).collect();
+            y1.extend(eh.extra_column.iter().map(|c| c[1]));
             let a = DMatrix::from_fn(2, p, |r, i| if r == 0 { y1[i].re } else { y1[i].im });
             let b = DVector::from_vec(vec![eh.force[1].re, eh.force[1].im]);
             Ok(StepEquations {

@@ -296,10 +296,11 @@ impl Identification {
 /// both agree exactly). Blocks may be weighted already.
 pub fn solve_blocks(
     model: &Model,
+    setup: &Setup,
     method: Method,
     blocks: &[StepEquations],
 ) -> Result<Identification, IdentifyError> {
-    let mut acc = EquationAccumulator::new(model, method);
+    let mut acc = EquationAccumulator::new(model, setup, method);
     for blk in blocks {
         acc.add(blk)?;
     }
@@ -338,5 +339,5 @@ pub fn identify(
         };
         blocks.push(blk);
     }
-    solve_blocks(model, method, &blocks)
+    solve_blocks(model, setup, method, &blocks)
 }

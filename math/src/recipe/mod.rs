@@ -28,6 +28,8 @@ use crate::phasor::PhasorOptions;
 pub enum RecipeError {
     #[error("mass_kg = {0}: the rig's mass must be a positive number of kg")]
     BadMass(f64),
+    #[error("mass_kg = {0}: an element test's moving mass must be zero or a positive number of kg")]
+    BadMovingMass(f64),
     #[error("the rig's mass is needed (mass_kg)")]
     MissingMass,
     #[error(
@@ -175,12 +177,12 @@ mod tests {
     fn kinds_come_from_the_channels_present() {
         let rig = SetupKind::BaseExcited.required_channels();
         assert_eq!(
-            SetupKind::of_channels(present(&rig)),
+            SetupKind::of_channels(present(rig)),
             Ok(SetupKind::BaseExcited)
         );
         let dp = SetupKind::DrivePoint.required_channels();
         assert_eq!(
-            SetupKind::of_channels(present(&dp)),
+            SetupKind::of_channels(present(dp)),
             Ok(SetupKind::DrivePoint)
         );
         let e = SetupKind::of_channels(present(&[Channel::RelativeDisplacementM])).unwrap_err();

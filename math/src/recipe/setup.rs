@@ -23,33 +23,46 @@ pub enum SetupKind {
     /// Force-driven structure with the element at the drive point of a known linear
     /// substructure (eqs. 21-22, the 3-DOF example): driven by the force.
     DrivePoint,
+    /// The element tested alone (damper dyno, mount or bushing tester, spring tester): the
+    /// displacement across it and the force through it are measured, with a moving mass
+    /// between load cell and element that is known or identified. Also a force-driven
+    /// single-DOF system (mass, spring, damper, nonlinear terms) with its mass identified.
+    Element,
 }
 
 impl SetupKind {
     /// Every kind, in the order [`SetupKind::of_channels`] tries them.
-    pub const ALL: [SetupKind; 2] = [SetupKind::BaseExcited, SetupKind::DrivePoint];
+    /// The drive point comes before the element: its channels include the element's.
+    pub const ALL: [SetupKind; 3] = [
+        SetupKind::BaseExcited,
+        SetupKind::DrivePoint,
+        SetupKind::Element,
+    ];
 
-    /// The kind's name in exports and messages (`rig`, `drive-point`).
+    /// The kind's name in exports and messages (`rig`, `drive-point`, `element`).
     pub fn name(self) -> &'static str {
         match self {
             SetupKind::BaseExcited => "rig",
             SetupKind::DrivePoint => "drive-point",
+            SetupKind::Element => "element",
         }
     }
 
-    /// The channels a record of this kind must hold.
-    pub fn required_channels(self) -> [Channel; 3] {
+    /// The channels a record of this kind must hold. (An element test may also hold the
+    /// moving fixture's acceleration, `mass_acceleration_mps2`, used for the inertia force.)
+    pub fn required_channels(self) -> &'static [Channel] {
         match self {
-            SetupKind::BaseExcited => [
+            SetupKind::BaseExcited => &[
                 Channel::BaseDisplacementM,
                 Channel::RelativeDisplacementM,
                 Channel::MassAccelerationMps2,
             ],
-            SetupKind::DrivePoint => [
+            SetupKind::DrivePoint => &[
                 Channel::RelativeDisplacementM,
                 Channel::DrivePointDisplacementM,
                 Channel::ForceN,
             ],
+            SetupKind::Element => &[Channel::RelativeDisplacementM, Channel::ForceN],
         }
     }
 
@@ -58,6 +71,9 @@ impl SetupKind {
         match self {
             SetupKind::BaseExcited => Channel::BaseDisplacementM,
             SetupKind::DrivePoint => Channel::ForceN,
+            // Element benches are displacement-controlled (a force-driven single-DOF system's
+            // steps are found from its displacement just as well).
+            SetupKind::Element => Channel::RelativeDisplacementM,
         }
     }
 
@@ -100,6 +116,10 @@ impl SetupKind {
                 s.build()?;
                 Ok(SetupSpec::DrivePoint { substructure: s })
             }
+            // No mass given: the moving mass is identified with the element.
+            SetupKind::Element => Ok(SetupSpec::Element {
+                moving_mass_kg: constants.mass_kg.map(check_moving_mass_kg).transpose()?,
+            }),
         }
     }
 }
@@ -116,6 +136,16 @@ pub fn check_mass_kg(mass_kg: f64) -> Result<f64, RecipeError> {
         Ok(mass_kg)
     } else {
         Err(RecipeError::BadMass(mass_kg))
+    }
+}
+
+/// The check of an element test's moving mass (between load cell and element): zero is a load
+/// cell at the fixed end.
+pub fn check_moving_mass_kg(mass_kg: f64) -> Result<f64, RecipeError> {
+    if mass_kg >= 0.0 && mass_kg.is_finite() {
+        Ok(mass_kg)
+    } else {
+        Err(RecipeError::BadMovingMass(mass_kg))
     }
 }
 
@@ -200,6 +230,10 @@ pub enum SetupSpec {
     DrivePoint {
         substructure: SubstructureSpec,
     },
+    /// `moving_mass_kg` None: identified (parameter `m`).
+    Element {
+        moving_mass_kg: Option<f64>,
+    },
 }
 
 impl SetupSpec {
@@ -207,6 +241,7 @@ impl SetupSpec {
         match self {
             SetupSpec::BaseExcited { .. } => SetupKind::BaseExcited,
             SetupSpec::DrivePoint { .. } => SetupKind::DrivePoint,
+            SetupSpec::Element { .. } => SetupKind::Element,
         }
     }
 
@@ -219,6 +254,9 @@ impl SetupSpec {
             SetupSpec::DrivePoint { substructure } => Setup::DrivePoint {
                 substructure: substructure.build()?,
             },
+            SetupSpec::Element { moving_mass_kg } => Setup::Element {
+                moving_mass_kg: moving_mass_kg.map(check_moving_mass_kg).transpose()?,
+            },
         })
     }
 }
@@ -228,6 +266,12 @@ impl fmt::Display for SetupSpec {
         match self {
             SetupSpec::BaseExcited { mass_kg } => write!(f, "base-excited rig, mass {mass_kg} kg"),
             SetupSpec::DrivePoint { .. } => f.write_str("drive point of a linear substructure"),
+            SetupSpec::Element {
+                moving_mass_kg: Some(m),
+            } => write!(f, "element test, moving mass {m} kg"),
+            SetupSpec::Element {
+                moving_mass_kg: None,
+            } => f.write_str("element test, moving mass identified"),
         }
     }
 }
@@ -240,6 +284,8 @@ pub enum Setup {
     /// Force-driven structure with the element at the drive point of a known linear
     /// substructure (eqs. 21-22): X_d = alpha_dd (F - G).
     DrivePoint { substructure: LinearSubstructure },
+    /// Element test: F = m a + g(x, x'), with the moving mass known or (None) identified.
+    Element { moving_mass_kg: Option<f64> },
 }
 
 impl Setup {
@@ -247,6 +293,18 @@ impl Setup {
         match self {
             Setup::BaseExcited { .. } => SetupKind::BaseExcited,
             Setup::DrivePoint { .. } => SetupKind::DrivePoint,
+            Setup::Element { .. } => SetupKind::Element,
+        }
+    }
+
+    /// Parameters the setup adds to the model's: an element test's moving mass `m` when it
+    /// is not known. Their equation columns follow the model's.
+    pub fn extra_parameters(&self) -> &'static [&'static str] {
+        match self {
+            Setup::Element {
+                moving_mass_kg: None,
+            } => &["m"],
+            _ => &[],
         }
     }
 
@@ -254,7 +312,7 @@ impl Setup {
     pub fn rig_mass_kg(&self) -> Option<f64> {
         match self {
             Setup::BaseExcited { mass_kg } => Some(*mass_kg),
-            Setup::DrivePoint { .. } => None,
+            Setup::DrivePoint { .. } | Setup::Element { .. } => None,
         }
     }
 }

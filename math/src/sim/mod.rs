@@ -6,6 +6,7 @@
 //! split by system. Every run is reproducible from its seed (multisine phases and noise come
 //! from seeded ChaCha streams).
 
+pub mod element;
 pub mod excitation;
 mod hybrid;
 pub mod noise;
@@ -16,6 +17,7 @@ pub mod truth;
 
 use serde::{Deserialize, Serialize};
 
+pub use element::{ELEMENT_CHANNELS, ElementDrive, simulate_element};
 pub use excitation::{Derivs, Multisine, Program, StepSpec};
 pub use hybrid::SolverOptions;
 pub use rig::{

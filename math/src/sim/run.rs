@@ -13,8 +13,8 @@ use serde::{Deserialize, Serialize};
 
 use super::excitation::{self, StepSpec};
 use super::{
-    Program, RigEffects, RigInitial, SimError, SimOutput, SolverOptions, ThreeDofParams,
-    TruthElement, noise, rig, simulate_rig, simulate_three_dof,
+    ElementDrive, Program, RigEffects, RigInitial, SimError, SimOutput, SolverOptions,
+    ThreeDofParams, TruthElement, noise, rig, simulate_element, simulate_rig, simulate_three_dof,
 };
 use crate::element::Element;
 use crate::recipe::SetupKind;
@@ -61,6 +61,12 @@ pub enum RunSystem {
     ThreeDof {
         #[serde(default)]
         params: ThreeDofParams,
+    },
+    /// An element test: the steps are displacements (m) or forces (N) as `drive` says, with
+    /// a moving mass between load cell and element.
+    Element {
+        drive: ElementDrive,
+        moving_mass_kg: f64,
     },
 }
 
@@ -155,6 +161,31 @@ impl RunSpec {
         }
     }
 
+    /// An element test of `element` behind a moving mass of `moving_mass_kg`, driven by
+    /// `steps` (displacements or forces, as `drive` says), noise-free, seed 0.
+    pub fn element_test(
+        drive: ElementDrive,
+        moving_mass_kg: f64,
+        element: TruthElement,
+        steps: Vec<StepSpec>,
+        sample_rate_hz: f64,
+        samples_per_record: usize,
+    ) -> RunSpec {
+        RunSpec {
+            system: RunSystem::Element {
+                drive,
+                moving_mass_kg,
+            },
+            element,
+            steps,
+            sample_rate_hz,
+            samples_per_record,
+            snr_db: None,
+            seed: 0,
+            solver: SolverOptions::default(),
+        }
+    }
+
     /// The same run with `element` as the truth.
     pub fn with_element(self, element: TruthElement) -> RunSpec {
         RunSpec { element, ..self }
@@ -175,6 +206,7 @@ impl RunSpec {
         match self.system {
             RunSystem::Rig { .. } => SetupKind::BaseExcited,
             RunSystem::ThreeDof { .. } => SetupKind::DrivePoint,
+            RunSystem::Element { .. } => SetupKind::Element,
         }
     }
 
@@ -183,12 +215,14 @@ impl RunSpec {
         self.setup_kind().driven_channel()
     }
 
-    /// The mass the analysis of a rig run knows [kg] (None for the 3-DOF example).
+    /// The mass the analysis knows [kg]: the rig's, an element test's moving mass (None
+    /// for the 3-DOF example).
     pub fn mass_kg(&self) -> Option<f64> {
         match self.system {
             RunSystem::Rig {
                 nominal_mass_kg, ..
             } => Some(nominal_mass_kg),
+            RunSystem::Element { moving_mass_kg, .. } => Some(moving_mass_kg),
             RunSystem::ThreeDof { .. } => None,
         }
     }
@@ -239,6 +273,7 @@ impl RunSpec {
         let what = match self.system {
             RunSystem::Rig { .. } => "a rig run",
             RunSystem::ThreeDof { .. } => "a 3-DOF run",
+            RunSystem::Element { .. } => "an element test",
         };
         if self.samples_per_record == 0 || self.steps.is_empty() {
             return Err(SimError::InvalidSpec(format!(
@@ -261,6 +296,16 @@ impl RunSpec {
             RunSystem::ThreeDof { params } => {
                 simulate_three_dof(params, element, &self.program(), &self.solver)?
             }
+            RunSystem::Element {
+                drive,
+                moving_mass_kg,
+            } => simulate_element(
+                element,
+                *moving_mass_kg,
+                *drive,
+                &self.program(),
+                &self.solver,
+            )?,
         };
         noise::add_noise(
             &mut out.records,

@@ -48,7 +48,7 @@ pub struct FreePlay {
     pub stiffness_n_per_m: f64,
 }
 
-/// A truth element: `g = k x + c v + S x^3 + q x|x| + d v|v| + asym(v) + freeplay(x)
+/// A truth element: `g = f0 + k x + c v + S x^3 + q x|x| + d v|v| + asym(v) + freeplay(x)
 /// + alpha z + friction`, each term optional (zero or `None` switches it off).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -66,6 +66,8 @@ pub struct TruthElement {
     pub asymmetric_damping: Option<AsymmetricDamping>,
     pub free_play: Option<FreePlay>,
     pub bouc_wen: Option<BoucWen>,
+    /// A state-independent force [N]: a damper's gas-spring preload.
+    pub preload_n: f64,
 }
 
 impl Default for TruthElement {
@@ -80,6 +82,7 @@ impl Default for TruthElement {
             asymmetric_damping: None,
             free_play: None,
             bouc_wen: None,
+            preload_n: 0.0,
         }
     }
 }
@@ -115,7 +118,8 @@ impl TruthElement {
 
 impl Element for TruthElement {
     fn smooth_force(&self, x: f64, v: f64, z: &[f64]) -> f64 {
-        let mut f = self.stiffness_n_per_m * x
+        let mut f = self.preload_n
+            + self.stiffness_n_per_m * x
             + self.damping_n_s_per_m * v
             + self.cubic_stiffness_n_per_m3 * x * x * x
             + self.quadratic_stiffness_n_per_m2 * x * x.abs()

@@ -212,9 +212,18 @@ impl IdentifierCore {
             self.parameters.method,
             self.parameters.weighting,
         );
-        let st = self
-            .state
-            .get_or_insert_with(|| IdentifierState::new(model, method, weighting, &setup_text));
+        let st = self.state.get_or_insert_with(|| {
+            IdentifierState::new(model, method, weighting, &step_setup, &setup_text)
+        });
+        if st.setup != setup_text {
+            // E.g. an element test's moving mass arrived after its first steps: the equations
+            // have other unknowns now.
+            out.push(Output::Log(format!(
+                "step {step}: the setup is now {setup_text} (was {}): starting the equations afresh",
+                st.setup
+            )));
+            *st = IdentifierState::new(model, method, weighting, &step_setup, &setup_text);
+        }
         match admit(st, step, ph.t_ref) {
             Admit::Duplicate => {
                 out.push(Output::Log(format!(
@@ -226,7 +235,7 @@ impl IdentifierCore {
                 out.push(Output::Log(format!(
                     "step {step} again, later in time: a new run; starting the equations afresh"
                 )));
-                *st = IdentifierState::new(model, method, weighting, &setup_text);
+                *st = IdentifierState::new(model, method, weighting, &step_setup, &setup_text);
             }
             Admit::Add => {}
         }

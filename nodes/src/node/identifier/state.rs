@@ -5,6 +5,7 @@ use std::path::Path;
 use anyhow::{Context as _, bail};
 use forcemap_math::identify::{EquationAccumulator, Method, Weighting};
 use forcemap_math::model::Model;
+use forcemap_math::recipe::Setup;
 use forcemap_msgs::builtin_interfaces::Time;
 use serde::{Deserialize, Serialize};
 
@@ -25,12 +26,19 @@ pub struct IdentifierState {
 const STATE_VERSION: u32 = 1;
 
 impl IdentifierState {
-    pub fn new(model: &Model, method: Method, weighting: Weighting, setup: &str) -> Self {
+    /// A fresh state for `model` by `method` on `setup` (described as `setup_text`).
+    pub fn new(
+        model: &Model,
+        method: Method,
+        weighting: Weighting,
+        setup: &Setup,
+        setup_text: &str,
+    ) -> Self {
         IdentifierState {
             version: STATE_VERSION,
             weighting,
-            setup: setup.to_string(),
-            accumulator: EquationAccumulator::new(model, method),
+            setup: setup_text.to_string(),
+            accumulator: EquationAccumulator::new(model, setup, method),
             last_step: None,
             last_t_ref: None,
         }
@@ -106,10 +114,12 @@ mod tests {
     use super::*;
     use forcemap_math::model::ModelOptions;
 
+    const RIG: Setup = Setup::BaseExcited { mass_kg: 36.0 };
+
     #[test]
     fn steps_are_added_once_and_a_new_run_starts_over() {
         let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
-        let mut s = IdentifierState::new(&model, Method::FdMulti, Weighting::Noise, "x");
+        let mut s = IdentifierState::new(&model, Method::FdMulti, Weighting::Noise, &RIG, "x");
         let t = |s: i64| Time::from_nanos(s * 1_000_000_000);
         assert_eq!(admit(&s, 0, t(10)), Admit::Add);
         s.last_step = Some(3);
@@ -125,7 +135,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("sub/state.json");
         let model = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
-        let mut s = IdentifierState::new(&model, Method::FdMulti, Weighting::Uniform, "rig");
+        let mut s = IdentifierState::new(&model, Method::FdMulti, Weighting::Uniform, &RIG, "rig");
         s.last_step = Some(7);
         s.last_t_ref = Some(Time::from_nanos(123_456_789));
         s.save(&path).unwrap();
