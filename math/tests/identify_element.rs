@@ -112,7 +112,10 @@ fn assert_within(found: &[(String, f64, f64)], truth: &[(&str, f64)], rel: f64) 
     for ((name, value, std), (tn, tv)) in found.iter().zip(truth) {
         assert_eq!(name, tn);
         let err = (value - tv) / tv;
-        eprintln!("{name} = {value:.6} ± {std:.3e} (truth {tv}, {:+.4} %)", 100.0 * err);
+        eprintln!(
+            "{name} = {value:.6} ± {std:.3e} (truth {tv}, {:+.4} %)",
+            100.0 * err
+        );
         assert!(
             err.abs() < rel,
             "{name} = {value} ± {std} against {tv}: {:+.4} %",

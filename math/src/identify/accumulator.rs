@@ -36,7 +36,7 @@ impl EquationAccumulator {
     /// (an element test's unknown moving mass) after the model's.
     pub fn new(model: &Model, setup: &Setup, method: Method) -> EquationAccumulator {
         let mut parameter_names = model.symbols();
-        parameter_names.extend(setup.extra_parameters().iter().map(|s| s.to_string()));
+        parameter_names.extend(setup.extra_parameters().iter().map(ToString::to_string));
         let p = parameter_names.len();
         EquationAccumulator {
             model: model.name.clone(),

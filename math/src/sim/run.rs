@@ -70,6 +70,17 @@ pub enum RunSystem {
     },
 }
 
+impl RunSystem {
+    /// What the system is, for messages ("the rig", ...).
+    pub fn description(&self) -> &'static str {
+        match self {
+            RunSystem::Rig { .. } => "the rig",
+            RunSystem::ThreeDof { .. } => "the 3-DOF example",
+            RunSystem::Element { .. } => "an element test",
+        }
+    }
+}
+
 /// Everything a simulated run is. Simulating the same spec gives the same records, bit for
 /// bit (multisine phases and noise come from seeded streams).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -270,11 +281,7 @@ impl RunSpec {
     /// [`RunSpec::simulate_detailed`] with another truth `element` in place of `self.element`
     /// (one that is no [`TruthElement`], e.g. with internal states of its own).
     pub fn simulate_with_element(&self, element: &dyn Element) -> Result<SimOutput, SimError> {
-        let what = match self.system {
-            RunSystem::Rig { .. } => "a rig run",
-            RunSystem::ThreeDof { .. } => "a 3-DOF run",
-            RunSystem::Element { .. } => "an element test",
-        };
+        let what = self.system.description();
         if self.samples_per_record == 0 || self.steps.is_empty() {
             return Err(SimError::InvalidSpec(format!(
                 "{what} needs steps and samples"

@@ -24,7 +24,7 @@ use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_math::sim::excitation::{
     PAPER_RIG_SINE_AMPLITUDE_M, paper_rig_random_steps, sine_steps,
 };
-use forcemap_math::sim::{RunSpec, RunSystem, ThreeDofCase};
+use forcemap_math::sim::{RunSpec, ThreeDofCase};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
@@ -108,11 +108,9 @@ impl SimulatedRun {
     /// Simulates `spec` (the whole run, before publishing: see the performance issue).
     pub fn new(spec: &RunSpec, node_name: &str, frame: &str) -> anyhow::Result<SimulatedRun> {
         let t0 = Instant::now();
-        let what = match spec.system {
-            RunSystem::Rig { .. } => "simulating the rig",
-            RunSystem::ThreeDof { .. } => "simulating the 3-DOF example",
-        };
-        let records = spec.simulate().context(what)?;
+        let records = spec
+            .simulate()
+            .with_context(|| format!("simulating {}", spec.system.description()))?;
         log_line!(
             "simulated {} steps ({} samples) in {:.2} s",
             records.len(),
