@@ -191,13 +191,17 @@ fn expected_endpoints() -> Vec<(&'static str, BTreeSet<(String, String)>)> {
     ]
 }
 
-/// The six nodes of the main job, idle: the sensor waits for more subscribers than there are.
+/// The six nodes of the main job, idle: the sensor (playing the rig bag) waits for more
+/// subscribers than there are. Returns once each has logged that its endpoints are up.
 fn start_nodes(d: u16, out: &Path) -> Vec<NodeProcess> {
-    vec![
+    let bag = repo().join("bags/rig_40db");
+    let nodes = vec![
         NodeProcess::start(
             "sensor",
             d,
             &[
+                "source:=bag".into(),
+                format!("bag:={}", bag.display()),
                 "min_subscribers:=99".into(),
                 "startup_timeout_s:=600.0".into(),
             ],
@@ -218,7 +222,20 @@ fn start_nodes(d: u16, out: &Path) -> Vec<NodeProcess> {
                 out.join("summary.json").display()
             )],
         ),
-    ]
+    ];
+    // The line each node logs after creating its subscriptions and publishers.
+    let ready = [
+        "waiting for 99 subscriber(s)",
+        "waiting for samples",
+        "identifying model",
+        "diagnosing the gap",
+        "recording",
+        "watching",
+    ];
+    for (node, line) in nodes.iter().zip(ready) {
+        node.wait_for(line, Duration::from_secs(60));
+    }
+    nodes
 }
 
 #[test]
@@ -242,8 +259,8 @@ fn fast_dds_started_before_or_after_the_nodes_discovers_every_endpoint() {
         let before = Observer::start(&exe, d);
         let nodes = start_nodes(d, dir.path());
         let after = Observer::start(&exe, d);
-        // Discovery is done once the observer started after the nodes sees them all; then the
-        // one started before has had as long as it needs (its announcements came first).
+        // Wait until both observers see every endpoint, or 20 s: an endpoint Fast DDS missed
+        // is not reported later, so the bound only ends a failing run.
         let t0 = Instant::now();
         let views = loop {
             let views = [before.endpoints(), after.endpoints()];

@@ -211,6 +211,11 @@ pub(crate) enum NormalDiscoveryPermission {
 pub(crate) struct Discovery {
   poll: Poll,
   domain_participant: DomainParticipantWeak,
+  // forcemap patch: our SPDP data as announced when discovery started, sent
+  // again at once to each newly discovered participant. Kept so that this
+  // announcement does not need the DomainParticipant's lock (an application
+  // thread creating endpoints may hold it while waiting for the event loop).
+  first_spdp_data: Option<SpdpDiscoveredParticipantData>,
   discovery_db: Arc<RwLock<DiscoveryDB>>,
 
   // Discovery started sender confirms to application thread that we are running
@@ -657,6 +662,7 @@ impl Discovery {
     Ok(Self {
       poll,
       domain_participant,
+      first_spdp_data: None,
       discovery_db,
       discovery_started_sender,
       discovery_updated_sender,
@@ -712,7 +718,7 @@ impl Discovery {
     // reports those endpoints even after they are repaired. Announcing first
     // puts our SPDP ahead of any SEDP on the wire.
     if let Some(dp) = self.domain_participant.clone().upgrade() {
-      self.spdp_publish(&dp);
+      self.first_spdp_data = Some(self.spdp_publish(&dp));
     }
 
     // Send out info about user (=non-built-in) Writers and Readers that we have.
@@ -1074,8 +1080,14 @@ impl Discovery {
     // by unicast), before its built-in readers are matched and our SEDP data
     // and heartbeats start going to it (see discovery_event_loop).
     if was_new && guid_prefix != self.domain_participant.guid().prefix {
-      if let Some(dp) = self.domain_participant.clone().upgrade() {
-        self.spdp_publish(&dp);
+      if let Some(data) = self.first_spdp_data.clone() {
+        self
+          .dcps_participant
+          .writer
+          .write(data, None)
+          .unwrap_or_else(|e| {
+            error!("Discovery: Publishing to DCPS participant topic failed: {e:?}");
+          });
       }
     }
 
@@ -1464,7 +1476,8 @@ impl Discovery {
     }
   }
 
-  fn spdp_publish(&self, local_dp: &DomainParticipant) {
+  // forcemap patch: returns the data it published.
+  fn spdp_publish(&self, local_dp: &DomainParticipant) -> SpdpDiscoveredParticipantData {
     // setting 5 times the duration so lease doesn't break if update fails once or
     // twice
     let data = SpdpDiscoveredParticipantData::from_local_participant(
@@ -1481,10 +1494,11 @@ impl Discovery {
     self
       .dcps_participant
       .writer
-      .write(data, None)
+      .write(data.clone(), None)
       .unwrap_or_else(|e| {
         error!("Discovery: Publishing to DCPS participant topic failed: {e:?}");
       });
+    data
   }
 
   pub fn publish_participant_message(&mut self) {
