@@ -194,6 +194,10 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         ros.publisher::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
 
     // Wait for the subscribers that must not miss a sample (the harmonic node, a recorder).
+    log_line!(
+        "waiting for {min_subscribers} subscriber(s) on {}",
+        setup.absolute_topic(topics::SAMPLES)
+    );
     let deadline = Instant::now() + Duration::from_secs_f64(startup_timeout);
     loop {
         let n = samples_pub.get_subscription_count(&ros.node);
