@@ -215,3 +215,99 @@ fn phasors_of_no_setup_are_refused_without_stopping_the_node() {
     assert_eq!(thetas(&out).len(), 1, "the next step gives theta");
     assert_eq!(c.state().unwrap().accumulator.steps_added(), 1);
 }
+
+/// The phasor messages of a simulated damper on a dyno (the element setup).
+fn damper_phasor_messages() -> (Vec<forcemap_math::record::Record>, Vec<HarmonicPhasors>) {
+    use forcemap_math::element::Friction;
+    use forcemap_math::sim::{AsymmetricDamping, ElementDrive, RunSpec, StepSpec, TruthElement};
+    let element = TruthElement {
+        preload_n: 150.0,
+        friction: Some(Friction::coulomb(40.0)),
+        asymmetric_damping: Some(AsymmetricDamping {
+            rebound_n_s_per_m: 2500.0,
+            compression_n_s_per_m: 1000.0,
+        }),
+        ..TruthElement::linear(2000.0, 0.0)
+    };
+    let steps = [1.0, 2.0, 4.0, 8.0]
+        .iter()
+        .flat_map(|&f| {
+            [0.005, 0.02].map(|a| StepSpec::Sine {
+                frequency_hz: f,
+                amplitude: a,
+            })
+        })
+        .collect();
+    let run = RunSpec {
+        snr_db: Some(40.0),
+        seed: 3,
+        ..RunSpec::element_test(
+            ElementDrive::Displacement,
+            0.8,
+            element,
+            steps,
+            1000.0,
+            4000,
+        )
+    };
+    let records = run.simulate().unwrap();
+    let messages = records
+        .iter()
+        .map(|r| {
+            let a = analyse_record(r, &PhasorOptions::for_identification()).unwrap();
+            HarmonicPhasors::from_analysis(&a, RUN_START, Header::new(RUN_START, "dyno"))
+        })
+        .collect();
+    (records, messages)
+}
+
+/// An element test live: with its moving mass given, and with it identified (no mass given:
+/// no wait, the mass is a parameter `m` after the model's), theta equals the offline one.
+#[test]
+fn an_element_test_is_identified_live_as_offline() {
+    let (records, messages) = damper_phasor_messages();
+    let model = Model::by_name("damper", &ModelOptions::default()).unwrap();
+    for (mass, names) in [
+        (Some(0.8), vec!["offset", "k", "c", "ca", "fd"]),
+        (None, vec!["offset", "k", "c", "ca", "fd", "m"]),
+    ] {
+        let mut entries = vec![("model", ParamValue::String("damper".into()))];
+        if let Some(m) = mass {
+            entries.push(("mass_kg", ParamValue::Double(m)));
+        }
+        let mut c = core(&params(&entries));
+        let mut last = None;
+        for ph in &messages {
+            let o = c
+                .handle(Input::Phasors(Box::new(ph.clone())), RUN_START)
+                .unwrap();
+            last = thetas(&o).last().map(|t| (*t).clone()).or(last);
+        }
+        let last = last.unwrap();
+        assert_eq!(last.parameter_names, names);
+        let offline = identify_records(
+            &model,
+            &Setup::Element {
+                moving_mass_kg: mass,
+            },
+            Method::FdMulti,
+            &records,
+            &PhasorOptions::for_identification(),
+            &FdMultiOptions::default(),
+        )
+        .unwrap();
+        for (live, off) in last.values.iter().zip(offline.theta()) {
+            assert!(
+                ((live - off) / off).abs() < 1e-9,
+                "mass {mass:?}: live {live} offline {off}"
+            );
+        }
+        let recipe = c.recipe().unwrap();
+        assert_eq!(
+            recipe.setup,
+            SetupSpec::Element {
+                moving_mass_kg: mass
+            }
+        );
+    }
+}

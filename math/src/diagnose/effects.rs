@@ -200,6 +200,28 @@ pub const LOWPASS_CUTOFF_MULTIPLES: [f64; 9] = [0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6
 /// Mass factors searched.
 pub const MASS_FACTORS: [f64; 6] = [0.8, 0.9, 0.95, 1.05, 1.1, 1.25];
 
+/// The values a candidate's nonlinear parameter is searched over, relative to the data's
+/// [`Scales`]. The rig path searches [`SearchGrid::RIG`]; the time-domain path of a force-driven
+/// axis has its own (its yield is relative to the position range, not an amplitude).
+#[derive(Debug, Clone, Copy)]
+pub struct SearchGrid {
+    pub stribeck_velocity_fractions: &'static [f64],
+    pub hysteresis_yield_fractions: &'static [f64],
+    pub free_play_gap_fractions: &'static [f64],
+    pub lowpass_cutoff_multiples: &'static [f64],
+    pub mass_factors: &'static [f64],
+}
+
+impl SearchGrid {
+    pub const RIG: SearchGrid = SearchGrid {
+        stribeck_velocity_fractions: &STRIBECK_VELOCITY_FRACTIONS,
+        hysteresis_yield_fractions: &HYSTERESIS_YIELD_FRACTIONS,
+        free_play_gap_fractions: &FREE_PLAY_GAP_FRACTIONS,
+        lowpass_cutoff_multiples: &LOWPASS_CUTOFF_MULTIPLES,
+        mass_factors: &MASS_FACTORS,
+    };
+}
+
 /// The scales the searches are relative to.
 #[derive(Debug, Clone, Copy)]
 pub struct Scales {
@@ -233,14 +255,26 @@ pub fn baseline_has(baseline: &Model, effect: Effect) -> bool {
     }
 }
 
-/// The structures to try for `effect` (one per value of its searched parameter). Exciter delay
-/// has a closed-form estimate instead (see `cycles::estimate_exciter_delay`), so it is built by
-/// the caller.
+/// The structures to try for `effect` (one per value of its searched parameter) on the rig's
+/// grid. Exciter delay has a closed-form estimate instead (see
+/// `cycles::estimate_exciter_delay`), so it is built by the caller.
 pub fn structures(baseline: &Model, effect: Effect, scales: &Scales) -> Vec<Structure> {
+    structures_on(baseline, effect, scales, &SearchGrid::RIG)
+}
+
+/// [`structures`] searched over `grid`: the one place each effect's added terms are built, for
+/// the rig's phasors and for time-domain records alike.
+pub fn structures_on(
+    baseline: &Model,
+    effect: Effect,
+    scales: &Scales,
+    grid: &SearchGrid,
+) -> Vec<Structure> {
     let has_friction = baseline.has_friction();
     match effect {
         Effect::CoulombFriction => vec![one(effect, vec![Arc::new(SignVelocity)])],
-        Effect::StribeckFriction => STRIBECK_VELOCITY_FRACTIONS
+        Effect::StribeckFriction => grid
+            .stribeck_velocity_fractions
             .iter()
             .map(|f| {
                 let vs = f * scales.max_velocity_mps;
@@ -265,7 +299,8 @@ pub fn structures(baseline: &Model, effect: Effect, scales: &Scales) -> Vec<Stru
             ],
         )],
         Effect::AsymmetricDamping => vec![one(effect, vec![Arc::new(AbsVelocity)])],
-        Effect::FreePlay => FREE_PLAY_GAP_FRACTIONS
+        Effect::FreePlay => grid
+            .free_play_gap_fractions
             .iter()
             .map(|f| {
                 let gap = f * scales.max_displacement_m;
@@ -275,7 +310,8 @@ pub fn structures(baseline: &Model, effect: Effect, scales: &Scales) -> Vec<Stru
                 s
             })
             .collect(),
-        Effect::Hysteresis => HYSTERESIS_YIELD_FRACTIONS
+        Effect::Hysteresis => grid
+            .hysteresis_yield_fractions
             .iter()
             .map(|f| {
                 let zy = f * scales.max_displacement_m;
@@ -288,7 +324,8 @@ pub fn structures(baseline: &Model, effect: Effect, scales: &Scales) -> Vec<Stru
                 }
             })
             .collect(),
-        Effect::SensorLowpass => LOWPASS_CUTOFF_MULTIPLES
+        Effect::SensorLowpass => grid
+            .lowpass_cutoff_multiples
             .iter()
             .map(|m| {
                 let fc = m * scales.max_frequency_hz;
@@ -304,7 +341,8 @@ pub fn structures(baseline: &Model, effect: Effect, scales: &Scales) -> Vec<Stru
                 }
             })
             .collect(),
-        Effect::MassError => MASS_FACTORS
+        Effect::MassError => grid
+            .mass_factors
             .iter()
             .map(|f| Structure {
                 effects: vec![effect],

@@ -5,7 +5,7 @@ use serde::Serialize;
 
 use super::model::{AxisBaseline, Column};
 use crate::diagnose::ParameterValue;
-use crate::diagnose::effects::Effect;
+use crate::diagnose::effects::{Effect, Scales, SearchGrid, baseline_has, structures_on};
 
 /// One candidate of the time-domain path.
 #[derive(Debug, Clone, Serialize)]
@@ -63,52 +63,67 @@ pub fn shrink_t_statistic(measured: &[f64], before: &[f64], after: &[f64], block
     mean / (var / n).sqrt()
 }
 
-/// Searched grids, relative to the peak speed and the position range.
-const STRIBECK_FRACTIONS: [f64; 5] = [0.01, 0.02, 0.05, 0.1, 0.2];
-const YIELD_FRACTIONS: [f64; 5] = [0.001, 0.003, 0.01, 0.03, 0.1];
+/// The axis path's search grid: Stribeck velocities relative to the peak speed, yield
+/// displacements relative to the position range (the rig's grid is relative to amplitudes).
+pub(super) const AXIS_GRID: SearchGrid = SearchGrid {
+    stribeck_velocity_fractions: &[0.01, 0.02, 0.05, 0.1, 0.2],
+    hysteresis_yield_fractions: &[0.001, 0.003, 0.01, 0.03, 0.1],
+    ..SearchGrid::RIG
+};
 
-/// The candidates not in `baseline`, each with its searched variants (added columns).
+/// The effects a force-driven axis is diagnosed for, in the order they are tried: the
+/// element effects of the library (the rig-level ones, exciter delay, sensor low-pass and mass
+/// error, have no meaning on an axis without a base; free play needs reversals of the load,
+/// which a positioning axis does not see).
+const AXIS_EFFECTS: [Effect; 7] = [
+    Effect::CoulombFriction,
+    Effect::StribeckFriction,
+    Effect::QuadraticDamping,
+    Effect::AsymmetricDamping,
+    Effect::CubicStiffness,
+    Effect::QuadraticStiffness,
+    Effect::Hysteresis,
+];
+
+/// One searched variant of a candidate: its added columns and its searched parameter.
+pub(super) struct Variant {
+    pub(super) columns: Vec<Column>,
+    pub(super) searched: Option<(String, f64)>,
+    pub(super) extra_parameters: usize,
+}
+
+/// The candidates not in `baseline`, each with its searched variants, built by the effect
+/// library (`effects::structures_on`) on the axis's grid.
 pub(super) fn candidates(
     baseline: AxisBaseline,
     vmax: f64,
     range: f64,
-) -> Vec<(Effect, Vec<Vec<Column>>)> {
-    let viscous = baseline == AxisBaseline::EmpsViscous;
-    let mut list: Vec<(Effect, Vec<Vec<Column>>)> = Vec::new();
-    if viscous {
-        list.push((Effect::CoulombFriction, vec![vec![Column::Sign]]));
-    }
-    list.push((
-        Effect::StribeckFriction,
-        STRIBECK_FRACTIONS
-            .iter()
-            .map(|f| {
-                let mut c = vec![Column::Stribeck(f * vmax)];
-                if viscous {
-                    c.insert(0, Column::Sign);
-                }
-                c
-            })
-            .collect(),
-    ));
-    list.push((
-        Effect::QuadraticDamping,
-        vec![vec![Column::SignedSquareVelocity]],
-    ));
-    list.push((Effect::AsymmetricDamping, vec![vec![Column::AbsVelocity]]));
-    list.push((Effect::CubicStiffness, vec![vec![Column::Cubic]]));
-    list.push((
-        Effect::QuadraticStiffness,
-        vec![vec![Column::SignedSquarePosition, Column::SquarePosition]],
-    ));
-    list.push((
-        Effect::Hysteresis,
-        YIELD_FRACTIONS
-            .iter()
-            .map(|f| vec![Column::BoucWen(f * range)])
-            .collect(),
-    ));
-    list
+) -> Vec<(Effect, Vec<Variant>)> {
+    let model = baseline.model();
+    let scales = Scales {
+        max_displacement_m: range,
+        max_velocity_mps: vmax,
+        max_frequency_hz: f64::NAN,
+    };
+    AXIS_EFFECTS
+        .into_iter()
+        .filter(|e| !baseline_has(&model, *e))
+        .map(|effect| {
+            let variants = structures_on(&model, effect, &scales, &AXIS_GRID)
+                .into_iter()
+                .map(|s| {
+                    let mut columns: Vec<Column> = s.terms.into_iter().map(Column::Term).collect();
+                    columns.extend(s.hysteresis_yield_m.map(Column::BoucWen));
+                    Variant {
+                        columns,
+                        searched: s.searched.into_iter().next(),
+                        extra_parameters: s.extra_parameters,
+                    }
+                })
+                .collect();
+            (effect, variants)
+        })
+        .collect()
 }
 
 /// Whether a candidate's shrink is beyond chance on the axis: its penalised score beats the

@@ -96,9 +96,9 @@ pub use results::{AxisDiagnosis, AxisFloor, AxisLocated, AxisTraces};
 use super::score::penalised;
 use super::{Verdict, parameter_values, verdict};
 use crate::lstsq::LstsqError;
-use candidates::candidates;
+use candidates::{Variant, candidates};
 use floor::{FlexibleLaws, best_flexible_law};
-use model::{Column, TdFit, fit_and_score};
+use model::{TdFit, fit_and_score};
 use preprocess::{Prepared, check_equations};
 use results::locate;
 
@@ -166,10 +166,10 @@ pub fn diagnose_axis(
     let mut tried: Vec<Tried> = Vec::new();
     let block = (SHRINK_BLOCK_S * pv.motion.decimated_rate_hz()).round() as usize;
     for (effect, variants) in candidates(baseline, vmax, range) {
-        let mut best: Option<(TdFit, Vec<Column>)> = None;
-        for extra in variants {
+        let mut best: Option<(TdFit, Variant)> = None;
+        for variant in variants {
             let mut cols = base.clone();
-            cols.extend(extra.iter().cloned());
+            cols.extend(variant.columns.iter().cloned());
             // A variant whose columns the record cannot tell apart is not a candidate.
             let Ok(f) = fit_and_score(effect.name(), &pf, &pv, &cols) else {
                 continue;
@@ -186,16 +186,11 @@ pub fn diagnose_axis(
                 .as_ref()
                 .is_none_or(|(bf, _)| f.fit_percent < bf.fit_percent)
             {
-                best = Some((f, extra));
+                best = Some((f, variant));
             }
         }
-        let Some((f, extra)) = best else { continue };
-        let searched = match extra.last() {
-            Some(Column::Stribeck(vs)) => Some(("stribeck_velocity_mps", *vs)),
-            Some(Column::BoucWen(zy)) => Some(("yield_m", *zy)),
-            _ => None,
-        };
-        let extra_parameters = extra.len() + usize::from(searched.is_some());
+        let Some((f, variant)) = best else { continue };
+        let extra_parameters = variant.extra_parameters;
         let mut added: Vec<(String, f64, f64)> = f
             .names
             .iter()
@@ -204,8 +199,8 @@ pub fn diagnose_axis(
             .skip(base.len())
             .map(|((n, v), s)| (n.clone(), *v, *s))
             .collect();
-        if let Some((n, v)) = searched {
-            added.push((n.into(), v, f64::NAN));
+        if let Some((n, v)) = variant.searched {
+            added.push((n, v, f64::NAN));
         }
         tried.push(Tried {
             ranked: AxisRankedEffect {

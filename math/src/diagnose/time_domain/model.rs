@@ -1,11 +1,15 @@
 //! The baselines and the candidates' regressors evaluated on a prepared record, and their
 //! least-squares fits on the decimated equations.
 
+use std::sync::Arc;
+
 use serde::Serialize;
 
 use super::AxisError;
 use super::preprocess::{AxisRecord, Motion, Prepared, TimeDomainOptions, check_equations};
+use crate::basis::{Constant, SignVelocity, Term, Velocity};
 use crate::lstsq;
+use crate::model::Model;
 use crate::signal::bouc_wen;
 
 /// The baselines of the time-domain path.
@@ -32,71 +36,61 @@ impl AxisBaseline {
             AxisBaseline::EmpsCoulomb => "emps-coulomb",
         }
     }
-    pub(super) fn columns(self) -> Vec<Column> {
-        match self {
-            AxisBaseline::EmpsViscous => {
-                vec![Column::Acceleration, Column::Velocity, Column::Offset]
-            }
+    /// The baseline's force law as a model of the effect library (its inertia column M q''
+    /// aside), for what the candidates ask of it (`effects::baseline_has`).
+    pub(super) fn model(self) -> Model {
+        let terms: Vec<Arc<dyn Term>> = match self {
+            AxisBaseline::EmpsViscous => vec![Arc::new(Velocity), Arc::new(Constant)],
             AxisBaseline::EmpsCoulomb => vec![
-                Column::Acceleration,
-                Column::Velocity,
-                Column::Sign,
-                Column::Offset,
+                Arc::new(Velocity),
+                Arc::new(SignVelocity),
+                Arc::new(Constant),
             ],
-        }
+        };
+        Model::new(self.name(), terms)
+    }
+
+    /// The baseline's columns: the inertia, then its force law's terms.
+    pub(super) fn columns(self) -> Vec<Column> {
+        let mut cols = vec![Column::Acceleration];
+        cols.extend(self.model().terms.into_iter().map(Column::Term));
+        cols
     }
 }
-/// A named regressor evaluated on the motion.
+
+/// A named regressor evaluated on the motion: the inertia, a term of the effect library
+/// (`basis`, evaluated at q - mean(q) and q'), or the Bouc-Wen state of a yield displacement.
 #[derive(Debug, Clone)]
 pub(super) enum Column {
     Acceleration,
-    Velocity,
-    Offset,
-    Sign,
-    Stribeck(f64),
-    SignedSquareVelocity,
-    AbsVelocity,
-    Cubic,
-    SignedSquarePosition,
-    SquarePosition,
+    Term(Arc<dyn Term>),
     BoucWen(f64),
 }
 
 impl Column {
+    /// The symbol in EMPS's published names where the axis has one (M, Fv, Fc), else the
+    /// library's.
     pub(super) fn symbol(&self) -> String {
         match self {
             Column::Acceleration => "m".into(),
-            Column::Velocity => "fv".into(),
-            Column::Offset => "offset".into(),
-            Column::Sign => "fc".into(),
-            Column::Stribeck(_) => "fs".into(),
-            Column::SignedSquareVelocity => "c2".into(),
-            Column::AbsVelocity => "ca".into(),
-            Column::Cubic => "s".into(),
-            Column::SignedSquarePosition => "k2".into(),
-            Column::SquarePosition => "k2a".into(),
+            Column::Term(t) => match t.symbol().as_str() {
+                "c" => "fv".into(),
+                "fd" => "fc".into(),
+                other => other.into(),
+            },
             Column::BoucWen(_) => "alpha".into(),
         }
     }
 
     pub(super) fn full(&self, m: &Motion) -> Vec<f64> {
-        let sgn = |v: f64| if v == 0.0 { 0.0 } else { v.signum() };
-        let dq = |q: f64| q - m.q_mean;
         match self {
             Column::Acceleration => m.qdd.clone(),
-            Column::Velocity => m.qd.clone(),
-            Column::Offset => vec![1.0; m.q.len()],
-            Column::Sign => m.qd.iter().map(|v| sgn(*v)).collect(),
-            Column::Stribeck(vs) => {
-                m.qd.iter()
-                    .map(|v| sgn(*v) * (-(v / vs).powi(2)).exp())
+            Column::Term(t) => {
+                m.q.iter()
+                    .zip(&m.qd)
+                    .map(|(q, v)| t.eval(q - m.q_mean, *v))
                     .collect()
             }
-            Column::SignedSquareVelocity => m.qd.iter().map(|v| v * v.abs()).collect(),
-            Column::AbsVelocity => m.qd.iter().map(|v| v.abs()).collect(),
-            Column::Cubic => m.q.iter().map(|q| dq(*q).powi(3)).collect(),
-            Column::SignedSquarePosition => m.q.iter().map(|q| dq(*q) * dq(*q).abs()).collect(),
-            Column::SquarePosition => m.q.iter().map(|q| dq(*q).powi(2)).collect(),
             Column::BoucWen(zy) => bouc_wen::integrate_record(&m.qd, 1.0 / m.fs, *zy),
         }
     }

@@ -59,7 +59,9 @@ impl RecipeParameters {
         }
         let weighting: Weighting = p.opt_str("weighting")?.unwrap_or("noise").parse()?;
         let constants = rig_constants::from_params(p)?;
-        if let Some(m) = constants.mass_kg {
+        // Refused at once where no setup takes it; zero is an element test's load cell at the
+        // fixed end (a rig refuses it when its first step resolves the setup).
+        if let Some(m) = constants.mass_kg.filter(|m| *m != 0.0) {
             check_mass_kg(m)?;
         }
         Ok(RecipeParameters {
