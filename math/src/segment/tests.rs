@@ -248,3 +248,68 @@ fn roundest_values() {
     assert_eq!(decimals(12.99), 2);
     assert_eq!(roundest([1.25, 1.3, 1.333]), Some(1.3));
 }
+
+/// The figures of docs/method.md (44 s in a debug build):
+/// `cargo test -p forcemap_math --lib segment::tests::exactness_over_seeds -- --ignored --nocapture`.
+/// Boundaries found at the labelled sample in at least 95 % of the changes, every frequency
+/// snapped to the programmed one, every estimate within 4 of its standard deviations.
+#[test]
+#[ignore = "a measurement over 60 simulated runs (44 s); prints its figures"]
+fn exactness_over_seeds() {
+    use crate::sim::ThreeDofCase;
+    type Make = Box<dyn Fn(u64) -> RunSpec>;
+    let cases: [(&str, Make, u64); 4] = [
+        (
+            "rig, 30 dB",
+            Box::new(|s| RunSpec::paper_rig_sine(Some(30.0), s)),
+            20,
+        ),
+        (
+            "rig, 40 dB",
+            Box::new(|s| RunSpec::paper_rig_sine(Some(40.0), s)),
+            20,
+        ),
+        (
+            "3-DOF CASE I, 30 dB",
+            Box::new(|s| RunSpec::three_dof(ThreeDofCase::I, Some(30.0), s)),
+            10,
+        ),
+        (
+            "3-DOF CASE II, 30 dB",
+            Box::new(|s| RunSpec::three_dof(ThreeDofCase::Ii, Some(30.0), s)),
+            10,
+        ),
+    ];
+    for (name, make, seeds) in cases {
+        let (mut changes, mut exact_b, mut steps, mut exact_f) = (0, 0, 0, 0);
+        let (mut max_rel, mut max_z, mut runs_exact) = (0.0_f64, 0.0_f64, 0);
+        for seed in 0..seeds {
+            let (seg, starts, records) = detect(&make(seed));
+            assert_eq!(seg.steps.len(), records.len(), "{name}, seed {seed}");
+            let mut all = true;
+            for ((s, &t), r) in seg.steps.iter().zip(&starts).zip(&records) {
+                if t > 0 {
+                    changes += 1;
+                    exact_b += usize::from(s.start == t);
+                    all &= s.start == t;
+                }
+                let (f_true, _) = truth(r);
+                let (f, est, std, _) = sine(s);
+                steps += 1;
+                exact_f += usize::from(f == f_true);
+                all &= f == f_true;
+                max_rel = max_rel.max((est - f_true).abs() / f_true);
+                max_z = max_z.max((est - f_true).abs() / std);
+            }
+            runs_exact += usize::from(all);
+        }
+        eprintln!(
+            "{name}: boundaries exact {exact_b}/{changes}, frequencies exact {exact_f}/{steps}, \
+             runs exact in every step {runs_exact}/{seeds}, largest relative error of the \
+             estimate {max_rel:.2e}, largest error / sd {max_z:.2}"
+        );
+        assert!(exact_b * 100 >= 95 * changes, "{name}");
+        assert_eq!(exact_f, steps, "{name}");
+        assert!(max_z < 4.0, "{name}");
+    }
+}
