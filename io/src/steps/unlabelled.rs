@@ -9,6 +9,8 @@ use forcemap_math::segment::{
     DetectedKind, DetectedStep, SegmentError, SegmentOptions, Segmentation, detect_steps,
 };
 
+use super::MIN_STEP_SAMPLES;
+
 /// A step's record and its excitation frequency (`None`: not a sine).
 pub type StepWithFrequency = (Record, Option<f64>);
 
@@ -35,7 +37,8 @@ pub enum UnlabelledError {
 
 /// Cuts `run` (one record holding a whole unlabelled run) into one record per step its
 /// `driven` channel shows; `times_s[i]` is the time of sample `i` as the source wrote it
-/// (each record starts at the time of its first sample). Steps at rest are left out; the
+/// (each record starts at the time of its first sample). Steps at rest, and pieces shorter
+/// than a step can be, are left out; the
 /// records are numbered from `run.step`. Fails when no sine step is found.
 pub fn split_run(
     run: &Record,
@@ -58,7 +61,9 @@ pub fn split_run(
     let out = seg
         .steps
         .iter()
-        .filter(|s| !matches!(s.kind, DetectedKind::Rest { .. }))
+        .filter(|s| {
+            !matches!(s.kind, DetectedKind::Rest { .. }) && s.end - s.start >= MIN_STEP_SAMPLES
+        })
         .enumerate()
         .map(|(k, s)| {
             let record = Record {

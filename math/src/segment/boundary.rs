@@ -12,6 +12,8 @@ const FIT_ITERATIONS: usize = 50;
 /// A model is fitted on at most this many windows of its run next to the boundary (the
 /// sine is extrapolated over the stretch between runs only; nearby samples fit it best).
 const MODEL_WINDOWS: usize = 4;
+/// The frequency snaps only when its tolerance is below this fraction of it.
+const SNAP_MAX_REL: f64 = 1e-3;
 /// Floor of a model's noise variance, relative to the series' largest magnitude squared:
 /// noise-free data still have a finite likelihood.
 const VARIANCE_FLOOR_REL: f64 = 1e-28;
@@ -183,8 +185,10 @@ impl Ctx<'_> {
                         settled_start = self.settled(&fit, start, end);
                         let f = fit.frequency_hz(self.fs);
                         let std = fit.omega_std * self.fs / (2.0 * PI);
-                        let frequency_hz = if self.options.snap {
-                            let tol = self.options.snap_sigmas * std + 1e-12 * f;
+                        let tol = self.options.snap_sigmas * std + 1e-12 * f;
+                        // Snapping needs an estimate worth the name (not one from a handful
+                        // of samples or a singular fit).
+                        let frequency_hz = if self.options.snap && tol < SNAP_MAX_REL * f {
                             roundest_in(f - tol, f + tol, f)
                         } else {
                             f

@@ -201,6 +201,11 @@ pub(crate) fn fit_from(
             break;
         }
     }
+    if omega < 0.0 {
+        // The same sine with a positive frequency.
+        omega = -omega;
+        b = -b;
+    }
     let dof = n.saturating_sub(4).max(1) as f64;
     let residual_var = cost / dof;
     let omega_var = normal
