@@ -74,6 +74,9 @@ pub fn load(path: &Path) -> anyhow::Result<Loaded> {
         })
     } else {
         let csv = read_csv(path)?;
+        for w in &csv.warnings {
+            eprintln!("warning: {}: {w}", path.display());
+        }
         Ok(Loaded {
             records: csv.records,
             kind: csv.kind,

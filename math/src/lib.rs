@@ -22,5 +22,6 @@ pub mod phasor;
 pub mod pipeline;
 pub mod recipe;
 pub mod record;
+pub mod segment;
 pub mod signal;
 pub mod sim;

@@ -17,6 +17,9 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
             params,
         } => {
             let csv = read_csv(file)?;
+            for w in &csv.warnings {
+                eprintln!("warning: {}: {w}", file.display());
+            }
             if !csv.ignored_columns.is_empty() {
                 eprintln!(
                     "notice: {}: ignored columns not in the contract: {}",

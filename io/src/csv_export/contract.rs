@@ -19,10 +19,14 @@ pub const FREQUENCY_COLUMN: &str = "frequency_hz";
 /// step assembler's rule for written data.
 pub const SAMPLE_INTERVAL_REL_TOL: f64 = WRITTEN_INTERVAL_REL_TOL;
 
-/// The columns an export of `kind` requires, fixed columns first. Which kind of test an
-/// export describes (and so its driven channel) is `SetupKind`'s rule, from its channels.
+/// The label columns: optional, but both or neither (without them the steps are found in the
+/// driven channel, see [`crate::steps::unlabelled`]).
+pub const LABEL_COLUMNS: [&str; 2] = [STEP_COLUMN, FREQUENCY_COLUMN];
+
+/// The columns an export of `kind` requires, time first. Which kind of test an export
+/// describes (and so its driven channel) is `SetupKind`'s rule, from its channels.
 pub fn required_columns(kind: SetupKind) -> Vec<&'static str> {
-    let mut v = vec![TIME_COLUMN, STEP_COLUMN, FREQUENCY_COLUMN];
+    let mut v = vec![TIME_COLUMN];
     v.extend(kind.required_channels().iter().map(|c| c.name()));
     v
 }
@@ -36,14 +40,18 @@ pub struct CsvImport {
     /// The caller decides whether and how to tell the user.
     pub ignored_columns: Vec<String>,
     pub kind: SetupKind,
+    /// Where the labels (`step`, `frequency_hz`) disagree with what the driven channel shows,
+    /// one line each; empty for agreeing labels and for unlabelled exports.
+    pub warnings: Vec<String>,
 }
 
 /// Where a header puts the contract's columns.
 pub(super) struct Layout {
     pub profile: SetupKind,
     pub time_col: usize,
-    pub step_col: usize,
-    pub freq_col: usize,
+    /// The label columns, both present or both absent.
+    pub step_col: Option<usize>,
+    pub freq_col: Option<usize>,
     /// The channel columns present, in [`Channel::ALL`] order.
     pub channel_cols: Vec<(Channel, usize)>,
     pub ignored_columns: Vec<String>,
@@ -61,8 +69,14 @@ impl Layout {
                 });
             }
         }
+        // One label column without the other is missing the other.
+        let labels_present = LABEL_COLUMNS.iter().any(|c| index.contains_key(c));
         let missing_for = |profile: SetupKind| -> Vec<String> {
-            required_columns(profile)
+            let mut required = required_columns(profile);
+            if labels_present {
+                required.splice(1..1, LABEL_COLUMNS);
+            }
+            required
                 .into_iter()
                 .filter(|c| !index.contains_key(c))
                 .map(str::to_string)
@@ -106,8 +120,8 @@ impl Layout {
             }
         };
         let time_col = index[TIME_COLUMN];
-        let step_col = index[STEP_COLUMN];
-        let freq_col = index[FREQUENCY_COLUMN];
+        let step_col = index.get(STEP_COLUMN).copied();
+        let freq_col = index.get(FREQUENCY_COLUMN).copied();
         let channel_cols: Vec<(Channel, usize)> = Channel::ALL
             .into_iter()
             .filter_map(|c| index.get(c.name()).map(|&i| (c, i)))

@@ -51,6 +51,16 @@ pub enum CsvError {
         missing_rig: Vec<String>,
         missing_drive_point: Vec<String>,
     },
+    #[error(
+        "{}: rows {first_s:.3}-{last_s:.3} s (the whole file, no step or frequency_hz column): {message}",
+        path.display()
+    )]
+    Unlabelled {
+        path: PathBuf,
+        first_s: f64,
+        last_s: f64,
+        message: String,
+    },
     #[error("{}: line {line}, column '{column}': cell '{cell}' is not a number", path.display())]
     NonNumeric {
         path: PathBuf,

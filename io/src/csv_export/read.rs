@@ -14,9 +14,11 @@ use super::contract::{
     CsvImport, FREQUENCY_COLUMN, Layout, SAMPLE_INTERVAL_REL_TOL, STEP_COLUMN, TIME_COLUMN,
 };
 use super::error::{CsvError, csv_error};
+use crate::steps::unlabelled::{StepWithFrequency, check_labels, split_run};
 use crate::steps::{
     AssembledStep, StepAssembler, StepError, StepFault, StepPlan, StepRules, StepSample,
 };
+use forcemap_math::segment::SegmentOptions;
 
 /// Reads a test-bench CSV export (see the module documentation for the contract).
 pub fn read_csv(path: impl AsRef<Path>) -> Result<CsvImport, CsvError> {
@@ -49,6 +51,10 @@ pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, C
     let mut current: Option<StepRows> = None;
     let mut prev_time: Option<(f64, u64)> = None;
     let mut row = csv::StringRecord::new();
+    // Without labels every row is of one step 0, cut into steps once read (the rows' times
+    // kept for the records' start times).
+    let labelled = layout.step_col.is_some();
+    let mut unlabelled_times: Vec<f64> = Vec::new();
     loop {
         match rdr.read_record(&mut row) {
             Ok(true) => {}
@@ -60,8 +66,14 @@ pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, C
 
         let time_text = cell(layout.time_col);
         let time = parse_number(path, line, TIME_COLUMN, time_text)?;
-        let step = parse_step(path, line, cell(layout.step_col))?;
-        let freq_text = cell(layout.freq_col);
+        let step = match layout.step_col {
+            Some(col) => parse_step(path, line, cell(col))?,
+            None => 0,
+        };
+        let freq_text = layout.freq_col.map_or("", cell);
+        if !labelled {
+            unlabelled_times.push(time);
+        }
         let freq = if freq_text.is_empty() {
             None
         } else {
@@ -149,13 +161,33 @@ pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, C
 
     let sample_rate_hz = common_sample_rate(path, &steps)?;
     let driven = layout.profile.driven_channel();
-    let records = steps
+    let mut found: Vec<StepWithFrequency> = steps
         .into_iter()
-        .map(|s| {
-            let mut record = s.assembled.record;
+        .map(|s| (s.assembled.record, s.frequency))
+        .collect();
+    for (record, _) in &mut found {
+        record.sample_rate_hz = sample_rate_hz;
+    }
+    let options = SegmentOptions::default();
+    let warnings = if labelled {
+        check_labels(&found, driven, &options)
+    } else {
+        let (run, _) = &found[0];
+        found = split_run(run, driven, &unlabelled_times, &options).map_err(|e| {
+            CsvError::Unlabelled {
+                path: p(),
+                first_s: unlabelled_times.first().copied().unwrap_or(0.0),
+                last_s: unlabelled_times.last().copied().unwrap_or(0.0),
+                message: e.to_string(),
+            }
+        })?;
+        Vec::new()
+    };
+    let records = found
+        .into_iter()
+        .map(|(mut record, frequency)| {
             let level = rms_about_mean(record.channel(driven).expect("a required channel"));
-            record.excitation = estimated_excitation(s.frequency, level);
-            record.sample_rate_hz = sample_rate_hz;
+            record.excitation = estimated_excitation(frequency, level);
             record
         })
         .collect();
@@ -163,6 +195,7 @@ pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, C
         records,
         ignored_columns: layout.ignored_columns,
         kind: layout.profile,
+        warnings,
     })
 }
 

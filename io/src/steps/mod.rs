@@ -8,6 +8,8 @@
 //! steps ([`StepRules::MESSAGES`]); a written export has rounded times and no gaps between
 //! steps ([`StepRules::WRITTEN`]).
 
+pub mod unlabelled;
+
 use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::{ExcitationState, RigSample};

@@ -1,0 +1,219 @@
+//! Step 1 and 2 of the segmentation: overlapping windows, each fitted with one sine and
+//! classed, then grouped into runs of agreeing windows (see the module docs of `segment`).
+
+use num_complex::Complex64;
+use rustfft::FftPlanner;
+
+use super::SegmentOptions;
+use super::sine_fit::{SineFit, SineFitter};
+
+/// Gauss-Newton iterations of a window's fit: from the interpolated DFT peak, enough for
+/// the features to be exact to rounding.
+const WINDOW_ITERATIONS: usize = 6;
+/// Fewest windows a run needs to be a step (a window entirely inside a step, with a
+/// neighbour on each side to show it is not a transition).
+pub(super) const MIN_RUN_WINDOWS: usize = 3;
+/// A strong line of the whole series' spectrum has at least this fraction of the peak power.
+const STRONG_LINE_FRACTION: f64 = 0.1;
+/// Rounding floor of the agreement and cleanness tests (relative): noise-free data.
+const ROUNDING_REL: f64 = 1e-9;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Class {
+    Rest,
+    Broadband,
+    Sine,
+    /// A sine window that leaves more than noise: it straddles a change.
+    Transition,
+}
+
+#[derive(Debug, Clone)]
+pub(super) struct Window {
+    pub start: usize,
+    pub class: Class,
+    pub fit: Option<SineFit>,
+}
+
+pub(super) struct Analysis {
+    pub window: usize,
+    pub windows: Vec<Window>,
+    pub noise_rms: f64,
+}
+
+/// Windows `first..=last` (indices into `Analysis::windows`) of one class that agree.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Run {
+    pub class: Class,
+    pub first: usize,
+    pub last: usize,
+}
+
+/// Window length: `window_periods` periods of the lowest strong line of the spectrum of the
+/// whole series (clamped to 16 samples .. a third of the series).
+fn window_length(x: &[f64], periods: f64) -> usize {
+    let n = x.len();
+    let upper = (n / 3).max(16);
+    let m = n.next_power_of_two();
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let mut buf: Vec<Complex64> = x
+        .iter()
+        .map(|v| Complex64::new(v - mean, 0.0))
+        .chain(std::iter::repeat(Complex64::new(0.0, 0.0)))
+        .take(m)
+        .collect();
+    FftPlanner::new().plan_fft_forward(m).process(&mut buf);
+    let power: Vec<f64> = buf[..=m / 2].iter().map(Complex64::norm_sqr).collect();
+    // Bins below 2 hold what is left of a trend, not a line.
+    let first = 2.min(m / 2);
+    let peak = power[first..].iter().copied().fold(0.0, f64::max);
+    let lowest = (first..power.len()).find(|&k| {
+        let p = power[k];
+        p >= STRONG_LINE_FRACTION * peak
+            && p >= power[k - 1]
+            && power.get(k + 1).is_none_or(|&q| p >= q)
+    });
+    match lowest {
+        Some(k) if peak > 0.0 => {
+            let samples_per_period = m as f64 / k as f64;
+            ((periods * samples_per_period).round() as usize).clamp(16, upper)
+        }
+        _ => (n / 8).clamp(16, upper),
+    }
+}
+
+/// Cuts `x` into windows (hop a quarter window, the last one ending at the end) and classes
+/// each.
+pub(super) fn analyse(x: &[f64], options: &SegmentOptions, fitter: &mut SineFitter) -> Analysis {
+    let n = x.len();
+    let window = window_length(x, options.window_periods);
+    let hop = (window / 4).max(1);
+    let mut starts: Vec<usize> = (0..=n - window).step_by(hop).collect();
+    if starts.last().is_some_and(|&s| s + window < n) {
+        starts.push(n - window);
+    }
+    let fits: Vec<(usize, Option<SineFit>)> = starts
+        .iter()
+        .map(|&s| (s, fitter.fit(&x[s..s + window], s, WINDOW_ITERATIONS)))
+        .collect();
+    let largest = fits
+        .iter()
+        .filter_map(|(_, f)| f.map(|f| f.total_rms))
+        .fold(0.0, f64::max);
+    let is_rest = |f: &Option<SineFit>| {
+        f.is_none_or(|f| f.total_rms <= options.rest_fraction * largest || largest == 0.0)
+    };
+    let is_sine = |f: &SineFit| f.unexplained() < options.sine_max_unexplained;
+    let mut residuals: Vec<f64> = fits
+        .iter()
+        .filter(|(_, f)| !is_rest(f))
+        .filter_map(|(_, f)| f.filter(is_sine).map(|f| f.residual_rms))
+        .collect();
+    residuals.sort_by(f64::total_cmp);
+    let noise_rms = residuals.get(residuals.len() / 2).copied().unwrap_or(0.0);
+    let windows = fits
+        .into_iter()
+        .map(|(start, fit)| {
+            let class = match fit {
+                _ if is_rest(&fit) => Class::Rest,
+                Some(f) if is_sine(&f) => {
+                    let limit =
+                        (options.clean_residual_factor * noise_rms).max(ROUNDING_REL * f.total_rms);
+                    if f.residual_rms <= limit {
+                        Class::Sine
+                    } else {
+                        Class::Transition
+                    }
+                }
+                _ => Class::Broadband,
+            };
+            Window { start, class, fit }
+        })
+        .collect();
+    Analysis {
+        window,
+        windows,
+        noise_rms,
+    }
+}
+
+/// Two sine fits agree: frequency and amplitude within `sigmas` standard deviations (plus a
+/// rounding floor).
+pub(super) fn agree(a: &SineFit, b: &SineFit, sigmas: f64) -> bool {
+    let w_tol = sigmas * a.omega_std.hypot(b.omega_std) + ROUNDING_REL * a.omega.abs();
+    let (aa, ab) = (a.amplitude(), b.amplitude());
+    let a_tol = sigmas * a.amplitude_std().hypot(b.amplitude_std()) + ROUNDING_REL * aa;
+    (a.omega - b.omega).abs() <= w_tol && (aa - ab).abs() <= a_tol
+}
+
+fn windows_agree(analysis: &Analysis, i: usize, j: usize, sigmas: f64) -> bool {
+    match (&analysis.windows[i].fit, &analysis.windows[j].fit) {
+        (Some(a), Some(b)) => agree(a, b, sigmas),
+        _ => false,
+    }
+}
+
+/// The runs of agreeing windows, joined where neighbouring runs agree.
+pub(super) fn runs(analysis: &Analysis, options: &SegmentOptions) -> Vec<Run> {
+    let k = options.consistency_sigmas;
+    let mut found: Vec<Run> = Vec::new();
+    let mut current: Option<Run> = None;
+    let close = |run: Option<Run>, found: &mut Vec<Run>| {
+        if let Some(r) = run
+            && r.last + 1 - r.first >= MIN_RUN_WINDOWS
+        {
+            found.push(r);
+        }
+    };
+    for (i, w) in analysis.windows.iter().enumerate() {
+        if w.class == Class::Transition {
+            close(current.take(), &mut found);
+            continue;
+        }
+        let extends = current.is_some_and(|r| {
+            r.class == w.class
+                && (w.class != Class::Sine
+                    || (windows_agree(analysis, r.first, i, k)
+                        && windows_agree(analysis, r.last, i, k)))
+        });
+        if extends {
+            if let Some(r) = current.as_mut() {
+                r.last = i;
+            }
+        } else {
+            close(current.take(), &mut found);
+            current = Some(Run {
+                class: w.class,
+                first: i,
+                last: i,
+            });
+        }
+    }
+    close(current.take(), &mut found);
+    // Join neighbours that agree (a transition window inside a step, e.g. a spike).
+    let mut joined: Vec<Run> = Vec::new();
+    for r in found {
+        if let Some(prev) = joined.last_mut()
+            && prev.class == r.class
+            && (r.class != Class::Sine || windows_agree(analysis, middle(prev), middle(&r), k))
+        {
+            prev.last = r.last;
+            continue;
+        }
+        joined.push(r);
+    }
+    joined
+}
+
+/// The middle window of a run (its representative).
+pub(super) fn middle(r: &Run) -> usize {
+    (r.first + r.last) / 2
+}
+
+/// The mean frequency [rad/sample] of a sine run's windows.
+pub(super) fn run_omega(analysis: &Analysis, r: &Run) -> Option<f64> {
+    let omegas: Vec<f64> = analysis.windows[r.first..=r.last]
+        .iter()
+        .filter_map(|w| w.fit.map(|f| f.omega))
+        .collect();
+    (!omegas.is_empty()).then(|| omegas.iter().sum::<f64>() / omegas.len() as f64)
+}
