@@ -17,6 +17,9 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
             params,
         } => {
             let csv = read_csv(file)?;
+            for notice in &csv.notices {
+                eprintln!("notice: {notice}");
+            }
             if !csv.ignored_columns.is_empty() {
                 eprintln!(
                     "notice: {}: ignored columns not in the contract: {}",

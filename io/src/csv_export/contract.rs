@@ -36,6 +36,9 @@ pub struct CsvImport {
     /// The caller decides whether and how to tell the user.
     pub ignored_columns: Vec<String>,
     pub kind: SetupKind,
+    /// What the user is told: the dialect detected when it is not the plain one, a truncated
+    /// last line skipped (each names the file and, where it applies, the line).
+    pub notices: Vec<String>,
 }
 
 /// Where a header puts the contract's columns.

@@ -44,6 +44,7 @@
 //! [`Channel::name`]: forcemap_math::record::Channel::name
 
 mod contract;
+pub mod dialect;
 mod error;
 mod read;
 mod write;
@@ -54,4 +55,5 @@ pub use contract::{
 };
 pub use error::CsvError;
 pub use read::{read_csv, read_csv_from};
+pub(crate) use write::fmt_f64;
 pub use write::write_csv;
