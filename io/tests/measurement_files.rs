@@ -133,6 +133,15 @@ fn mdf4_tdms_and_a_lab_csv_give_the_plain_csvs_records_and_theta() {
         println!("{name}: theta {t:?} (plain CSV {theta_ref:?})");
     }
 
+    // Channels over two channel groups: refused, naming the groups.
+    let e = load(&dir.path().join("run_two_groups.mf4"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("run_two_groups.mf4: MDF4: forcemap channels are in several channel groups"),
+        "{e}"
+    );
+
     // The dialect and the skipped line are told, with the line.
     let lab = read_csv(dir.path().join("run_semicolon.csv")).unwrap();
     let notices = lab.notices.join("\n");

@@ -5,6 +5,7 @@ csv module. Python is for this third-party check only.
     measurement_files.py PLAIN_CSV OUT_DIR
 
 Writes OUT_DIR/run.mf4 (one channel group, asammdf's `time` master, `step` as int64),
+OUT_DIR/run_two_groups.mf4 (the channels split over two channel groups),
 OUT_DIR/run.tdms (channels with a `time_s` channel, over several segments),
 OUT_DIR/run_wf.tdms (no time channel: wf_start_offset/wf_increment on each channel) and
 OUT_DIR/run_semicolon.csv (UTF-8 byte-order mark, `;`, decimal commas, a units row, CRLF, and
@@ -46,6 +47,11 @@ def main():
         signals.append(Signal(samples, time, name=n, unit=unit(n)))
     mdf.append(signals, comment="forcemap run")
     mdf.save(out / "run.mf4", overwrite=True)
+    # The same channels over two groups (two time bases to forcemap): refused.
+    mdf = MDF(version="4.10")
+    mdf.append(signals[:3])
+    mdf.append(signals[3:])
+    mdf.save(out / "run_two_groups.mf4", overwrite=True)
 
     # TDMS with a time channel, written in three segments.
     cuts = np.array_split(np.arange(len(time)), 3)
