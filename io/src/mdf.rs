@@ -27,8 +27,92 @@ pub fn is_mdf(bytes: &[u8]) -> bool {
 }
 
 /// Reads an MDF4 file's forcemap channels into records.
+///
+/// mdf4-rs 0.3.0 follows some links without checking them (fuzzing found a slice past the
+/// file's end within 343 inputs; 0.6 checks them but needs Rust 1.97): the chains of data
+/// groups, channel groups and channels are checked here first (inside the file, the expected
+/// block, no cycle), and a panic left in the crate is caught and reported as a malformed file.
 pub fn read_mdf(path: &Path) -> Result<CsvImport, TableError> {
-    read_table(path)?.into_import(path, FORMAT)
+    let fail = |message: String| TableError::Format {
+        path: path.to_path_buf(),
+        format: FORMAT,
+        message,
+    };
+    let bytes = std::fs::read(path).map_err(|source| TableError::Io {
+        path: path.to_path_buf(),
+        action: "cannot read",
+        source,
+    })?;
+    check_chains(&bytes).map_err(fail)?;
+    drop(bytes);
+    let table = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read_table(path)))
+        .map_err(|_| {
+            fail("malformed: the MDF4 parser (mdf4-rs) failed on a block of this file".to_string())
+        })??;
+    table.into_import(path, FORMAT)
+}
+
+fn u64_at(bytes: &[u8], at: usize) -> Option<u64> {
+    let b = bytes.get(at..at.checked_add(8)?)?;
+    Some(u64::from_le_bytes(b.try_into().ok()?))
+}
+
+/// The chains mdf4-rs 0.3.0 walks unchecked: from the header block (byte 64) the data groups,
+/// their channel groups and their channels, each link inside the file at a block of its kind
+/// whose links fit in it, no block reached twice.
+fn check_chains(bytes: &[u8]) -> Result<(), String> {
+    let mut seen = std::collections::HashSet::new();
+    // The block at `addr`, checked to be `id`: its start, for reading its links.
+    let mut block = |addr: u64, id: &[u8; 4]| -> Result<usize, String> {
+        let kind = String::from_utf8_lossy(id).into_owned();
+        let a = usize::try_from(addr)
+            .ok()
+            .filter(|a| a.checked_add(24).is_some_and(|e| e <= bytes.len()))
+            .ok_or_else(|| {
+                format!("a link to a {kind} block at byte {addr} is outside the file")
+            })?;
+        if &bytes[a..a + 4] != id {
+            return Err(format!("byte {a}: expected a {kind} block"));
+        }
+        let length = u64_at(bytes, a + 8).unwrap_or(0);
+        let links = u64_at(bytes, a + 16).unwrap_or(u64::MAX);
+        let fits = links
+            .checked_mul(8)
+            .and_then(|l| l.checked_add(24))
+            .is_some_and(|l| l <= length)
+            && (a as u64)
+                .checked_add(length)
+                .is_some_and(|e| e <= bytes.len() as u64);
+        if !fits || links < 2 {
+            return Err(format!(
+                "byte {a}: the {kind} block's length or links do not fit"
+            ));
+        }
+        if !seen.insert(a) {
+            return Err(format!(
+                "byte {a}: the {kind} block is linked twice (a cycle)"
+            ));
+        }
+        Ok(a)
+    };
+    let link = |a: usize, k: usize| u64_at(bytes, a + 24 + 8 * k).unwrap_or(0);
+    let hd = block(64, b"##HD")?;
+    let mut dg = link(hd, 0);
+    while dg != 0 {
+        let d = block(dg, b"##DG")?;
+        let mut cg = link(d, 1);
+        while cg != 0 {
+            let c = block(cg, b"##CG")?;
+            let mut cn = link(c, 1);
+            while cn != 0 {
+                let n = block(cn, b"##CN")?;
+                cn = link(n, 0);
+            }
+            cg = link(c, 0);
+        }
+        dg = link(d, 0);
+    }
+    Ok(())
 }
 
 fn read_table(path: &Path) -> Result<SampleTable, TableError> {

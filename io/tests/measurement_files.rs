@@ -173,3 +173,16 @@ fn the_format_is_told_by_content_before_extension() {
     let e = load(&p).unwrap_err().to_string();
     assert!(e.contains("empty.tdms: TDMS: not a TDMS file"), "{e}");
 }
+
+/// The input with which fuzzing made mdf4-rs 0.3.0 slice past the end of the file (an asammdf
+/// file whose channel link points far outside it): an error naming the file, no panic.
+#[test]
+fn a_channel_link_outside_the_file_is_an_error() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mdf_channel_link_past_end.mf4");
+    let e = load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("mdf_channel_link_past_end.mf4: MDF4:") && e.contains("outside the file"),
+        "{e}"
+    );
+}
