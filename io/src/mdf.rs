@@ -104,6 +104,22 @@ fn check_chains(bytes: &[u8]) -> Result<(), String> {
         while cg != 0 {
             let c = block(cg, b"##CG")?;
             let mut cn = link(c, 1);
+            // Its record's data and invalidation bytes (after record id, cycle count, flags,
+            // path separator and reserved): records of 0 bytes made the crate divide by zero.
+            let links = u64_at(bytes, c + 16).unwrap_or(0) as usize;
+            let at = c + 24 + 8 * links + 24;
+            let record = bytes
+                .get(at..at + 8)
+                .map(|b| {
+                    u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                        + u64::from(u32::from_le_bytes([b[4], b[5], b[6], b[7]]))
+                })
+                .unwrap_or(0);
+            if cn != 0 && record == 0 {
+                return Err(format!(
+                    "byte {c}: a channel group with channels has records of 0 bytes"
+                ));
+            }
             while cn != 0 {
                 let n = block(cn, b"##CN")?;
                 cn = link(n, 0);

@@ -186,3 +186,13 @@ fn a_channel_link_outside_the_file_is_an_error() {
         "{e}"
     );
 }
+
+/// The input with which fuzzing made mdf4-rs 0.3.0 divide by zero (a channel group whose
+/// records have 0 bytes): an error naming the file, no panic.
+#[test]
+fn a_record_of_zero_bytes_is_an_error() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mdf_zero_record_size.mf4");
+    let e = load(&path).unwrap_err().to_string();
+    assert!(e.contains("mdf_zero_record_size.mf4: MDF4:"), "{e}");
+    println!("{e}");
+}
