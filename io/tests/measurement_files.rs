@@ -196,3 +196,15 @@ fn a_record_of_zero_bytes_is_an_error() {
     assert!(e.contains("mdf_zero_record_size.mf4: MDF4:"), "{e}");
     println!("{e}");
 }
+
+/// A third fuzz input: a data-block link far outside the file, which the chain check does not
+/// look at; mdf4-rs 0.3.0 panics on it, and the reader reports the file as malformed.
+#[test]
+fn a_panic_in_the_mdf_crate_is_an_error() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mdf_data_link_past_end.mf4");
+    let e = load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("mdf_data_link_past_end.mf4: MDF4: malformed: the MDF4 parser (mdf4-rs) failed"),
+        "{e}"
+    );
+}
