@@ -1,5 +1,5 @@
-//! Measured data from whichever form the user has: a bag directory, a bare .mcap, or a
-//! test-bench CSV export.
+//! Measured data from whichever form the user has: a bag directory, a bare .mcap, a
+//! test-bench CSV export, an ASAM MDF4 or an NI TDMS file.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -57,8 +57,43 @@ pub fn kind_of(records: &[Record], source: &str) -> anyhow::Result<SetupKind> {
         .map_err(|e| anyhow::anyhow!("{source}: {e}"))
 }
 
-/// The records of a bag directory, a bare `.mcap` or a test-bench CSV export, with the
-/// constants and notices that came with them.
+/// A measurement file's format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FileFormat {
+    Mdf,
+    Tdms,
+    Csv,
+}
+
+impl FileFormat {
+    /// The format of the file at `path`: by its first bytes (MDF's `MDF     ` or `UnFinMF `,
+    /// TDMS's `TDSm`), else by its extension (`.mf4`, `.mdf`, `.tdms`), else a CSV export.
+    pub fn of(path: &Path) -> FileFormat {
+        let mut head = [0u8; 8];
+        let n = std::fs::File::open(path)
+            .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
+            .unwrap_or(0);
+        let head = &head[..n];
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        if crate::mdf::is_mdf(head) {
+            FileFormat::Mdf
+        } else if crate::tdms::is_tdms(head) {
+            FileFormat::Tdms
+        } else {
+            match ext.as_deref() {
+                Some("mf4" | "mdf") => FileFormat::Mdf,
+                Some("tdms") => FileFormat::Tdms,
+                _ => FileFormat::Csv,
+            }
+        }
+    }
+}
+
+/// The records of a bag directory, a bare `.mcap`, a test-bench CSV export, an MDF4 or a TDMS
+/// file, with the constants and notices that came with them.
 pub fn load(path: &Path) -> anyhow::Result<Loaded> {
     if is_bag(path) {
         let bag = read_rig_bag(path)?;
@@ -73,9 +108,16 @@ pub fn load(path: &Path) -> anyhow::Result<Loaded> {
             ignored_columns: vec![],
         })
     } else {
-        let csv = read_csv(path)?;
+        let csv = match FileFormat::of(path) {
+            FileFormat::Mdf => crate::mdf::read_mdf(path)?,
+            FileFormat::Tdms => crate::tdms::read_tdms(path)?,
+            FileFormat::Csv => read_csv(path)?,
+        };
         for w in &csv.warnings {
             eprintln!("warning: {}: {w}", path.display());
+        }
+        for notice in &csv.notices {
+            eprintln!("notice: {notice}");
         }
         Ok(Loaded {
             records: csv.records,

@@ -10,10 +10,11 @@
 use std::path::{Path, PathBuf};
 
 use forcemap_io::csv_export::{CsvError, read_csv, write_csv};
-use forcemap_math::identify::{FdMultiOptions, Method, Setup};
+use forcemap_math::identify::{FdMultiOptions, Method};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::identify_records;
+use forcemap_math::recipe::Setup;
 use forcemap_math::recipe::SubstructureSpec;
 use forcemap_math::record::Record;
 use forcemap_math::sim::{RunSpec, ThreeDofCase};

@@ -20,6 +20,9 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
             for w in &csv.warnings {
                 eprintln!("warning: {}: {w}", file.display());
             }
+            for notice in &csv.notices {
+                eprintln!("notice: {notice}");
+            }
             if !csv.ignored_columns.is_empty() {
                 eprintln!(
                     "notice: {}: ignored columns not in the contract: {}",

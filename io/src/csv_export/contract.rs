@@ -43,6 +43,9 @@ pub struct CsvImport {
     /// Where the labels (`step`, `frequency_hz`) disagree with what the driven channel shows,
     /// one line each; empty for agreeing labels and for unlabelled exports.
     pub warnings: Vec<String>,
+    /// What the user is told: the dialect detected when it is not the plain one, a truncated
+    /// last line skipped (each names the file and, where it applies, the line).
+    pub notices: Vec<String>,
 }
 
 /// Where a header puts the contract's columns.

@@ -61,6 +61,17 @@ pub enum CsvError {
         last_s: f64,
         message: String,
     },
+    #[error(
+        "{}: line 2, column '{column}': the units row gives '{unit}' where the contract's SI \
+         unit is '{expected}' (forcemap does not scale; export in SI units)",
+        path.display()
+    )]
+    WrongUnit {
+        path: PathBuf,
+        column: String,
+        unit: String,
+        expected: &'static str,
+    },
     #[error("{}: line {line}, column '{column}': cell '{cell}' is not a number", path.display())]
     NonNumeric {
         path: PathBuf,

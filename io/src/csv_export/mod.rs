@@ -36,14 +36,19 @@
 //! [`write_csv`] writes the same contract, with full f64 precision (shortest round-trip
 //! formatting), atomically (temporary file in the same directory, renamed at the end).
 //!
-//! Files: `contract` (column names, required columns, the header's layout), `read`, `write`,
-//! `error`.
+//! Lab dialects (`;` or tab separators, decimal commas, a units row, a byte-order mark, CRLF, a
+//! truncated last line) are detected from the first lines and undone before the rows are read
+//! ([`dialect`]); [`CsvImport::notices`] says what was found.
+//!
+//! Files: `contract` (column names, required columns, the header's layout), `dialect`, `read`,
+//! `write`, `error`.
 //!
 //! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
 //! [`SetupKind::DrivePoint`]: forcemap_math::recipe::SetupKind::DrivePoint
 //! [`Channel::name`]: forcemap_math::record::Channel::name
 
 mod contract;
+pub mod dialect;
 mod error;
 mod read;
 mod write;
@@ -54,4 +59,5 @@ pub use contract::{
 };
 pub use error::CsvError;
 pub use read::{read_csv, read_csv_from};
+pub(crate) use write::fmt_f64;
 pub use write::write_csv;

@@ -13,6 +13,7 @@ use forcemap_math::record::Excitation;
 use super::contract::{
     CsvImport, FREQUENCY_COLUMN, Layout, SAMPLE_INTERVAL_REL_TOL, STEP_COLUMN, TIME_COLUMN,
 };
+use super::dialect;
 use super::error::{CsvError, csv_error};
 use crate::steps::unlabelled::{StepWithFrequency, check_labels, split_run};
 use crate::steps::{
@@ -32,13 +33,25 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<CsvImport, CsvError> {
 }
 
 /// Reads the CSV contract from any reader; `path` is used in error messages only.
-pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, CsvError> {
+pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImport, CsvError> {
     let p = || path.to_path_buf();
+    // The dialect is detected from the first lines and undone here (see `dialect`).
+    let mut bytes = Vec::new();
+    reader
+        .read_to_end(&mut bytes)
+        .map_err(|source| CsvError::Io {
+            path: p(),
+            action: "cannot read",
+            source,
+        })?;
+    let prepared = dialect::prepare(&bytes, path)?;
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::All)
         .flexible(false)
-        .from_reader(reader);
+        .delimiter(prepared.dialect.separator)
+        .from_reader(&prepared.text[..]);
+    let mut skip_units_row = prepared.dialect.units.is_some();
     let header = rdr.headers().map_err(|e| csv_error(path, e))?.clone();
     if header.is_empty() || (header.len() == 1 && header[0].is_empty()) {
         return Err(CsvError::Empty { path: p() });
@@ -60,6 +73,9 @@ pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, C
             Ok(true) => {}
             Ok(false) => break,
             Err(e) => return Err(csv_error(path, e)),
+        }
+        if std::mem::take(&mut skip_units_row) {
+            continue;
         }
         let line = row.position().map_or(0, csv::Position::line);
         let cell = |col: usize| row.get(col).unwrap_or("");
@@ -196,6 +212,7 @@ pub fn read_csv_from<R: io::Read>(reader: R, path: &Path) -> Result<CsvImport, C
         ignored_columns: layout.ignored_columns,
         kind: layout.profile,
         warnings,
+        notices: prepared.notices,
     })
 }
 

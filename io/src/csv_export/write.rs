@@ -204,7 +204,7 @@ fn validate_for_write(
 
 /// Shortest round-trip formatting; exponent form for very large or small magnitudes to keep
 /// cells short. Both forms parse back to the identical f64.
-fn fmt_f64(v: f64) -> String {
+pub(crate) fn fmt_f64(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 || (1e-5..1e16).contains(&a) {
         format!("{v}")

@@ -1,0 +1,150 @@
+//! Channels read from a measurement file (MDF4, TDMS) as one table of named columns, turned
+//! into records by the CSV contract's reader: the rows go through the same parsing, checks and
+//! step assembly as a CSV export's, so that the same run gives the same records from either.
+//!
+//! The table is handed over as CSV text in memory, each number in shortest round-trip form
+//! (the form [`write_csv`](crate::csv_export::write_csv) writes), so no value changes on the
+//! way. A row error names a line as the CSV reader does: line `k + 2` is sample `k` (the
+//! header is line 1).
+
+use std::path::{Path, PathBuf};
+
+use forcemap_math::record::Channel;
+
+use crate::csv_export::{
+    CsvError, CsvImport, FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN, fmt_f64, read_csv_from,
+};
+
+/// The contract column a channel of a measurement file stands for, by its name: a forcemap
+/// channel name (`force_n`, `base_displacement_m`, ...), `time_s`, `step` or `frequency_hz`.
+/// Other channels are not read. One function, so that a channel map (topic/field/scale) can
+/// take its place later.
+pub fn contract_column(name: &str) -> Option<&'static str> {
+    [TIME_COLUMN, STEP_COLUMN, FREQUENCY_COLUMN]
+        .into_iter()
+        .find(|c| *c == name)
+        .or_else(|| Channel::from_name(name).map(Channel::name))
+}
+
+/// Named columns of equal length, in the order they were found.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SampleTable {
+    pub columns: Vec<(&'static str, Vec<f64>)>,
+}
+
+/// Errors of reading a measurement file into records.
+#[derive(Debug, thiserror::Error)]
+pub enum TableError {
+    #[error("{}: {action}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        action: &'static str,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file's structure: what is wrong and where (segment, block, channel).
+    #[error("{}: {format}: {message}", path.display())]
+    Format {
+        path: PathBuf,
+        format: &'static str,
+        message: String,
+    },
+    /// The samples, by the rules of the CSV contract.
+    #[error("{source} ({format} data: line k + 2 is sample k of the channels)")]
+    Rows {
+        format: &'static str,
+        #[source]
+        source: CsvError,
+    },
+}
+
+impl SampleTable {
+    /// Adds a column; a second column of the same contract name is an error naming both.
+    pub fn push(
+        &mut self,
+        name: &'static str,
+        values: Vec<f64>,
+        path: &Path,
+        format: &'static str,
+    ) -> Result<(), TableError> {
+        if self.columns.iter().any(|(n, _)| *n == name) {
+            return Err(TableError::Format {
+                path: path.to_path_buf(),
+                format,
+                message: format!("channel '{name}' appears more than once"),
+            });
+        }
+        self.columns.push((name, values));
+        Ok(())
+    }
+
+    /// The records of the table, through the CSV contract's reader. Every column must have as
+    /// many samples as the first.
+    pub fn into_import(self, path: &Path, format: &'static str) -> Result<CsvImport, TableError> {
+        let Some((first, first_values)) = self.columns.first() else {
+            return Err(TableError::Format {
+                path: path.to_path_buf(),
+                format,
+                message: "no channel with a forcemap name (time_s, step, frequency_hz, \
+                          force_n, base_displacement_m, ...)"
+                    .to_string(),
+            });
+        };
+        let n = first_values.len();
+        if let Some((name, values)) = self.columns.iter().find(|(_, v)| v.len() != n) {
+            return Err(TableError::Format {
+                path: path.to_path_buf(),
+                format,
+                message: format!(
+                    "channel '{name}' has {} samples but '{first}' has {n}; the channels must \
+                     share one time base",
+                    values.len()
+                ),
+            });
+        }
+        let mut text = String::new();
+        let names: Vec<&str> = self.columns.iter().map(|(n, _)| *n).collect();
+        text.push_str(&names.join(","));
+        text.push('\n');
+        for k in 0..n {
+            for (i, (name, values)) in self.columns.iter().enumerate() {
+                if i > 0 {
+                    text.push(',');
+                }
+                // The step index as an integer, as an export writes it.
+                if *name == STEP_COLUMN && values[k].fract() == 0.0 && values[k].abs() < 1e15 {
+                    text.push_str(&format!("{}", values[k] as i64));
+                } else {
+                    text.push_str(&fmt_f64(values[k]));
+                }
+            }
+            text.push('\n');
+        }
+        read_csv_from(text.as_bytes(), path).map_err(|source| TableError::Rows { format, source })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_map_to_the_contract() {
+        assert_eq!(contract_column("force_n"), Some("force_n"));
+        assert_eq!(contract_column("time_s"), Some("time_s"));
+        assert_eq!(contract_column("Force"), None);
+    }
+
+    #[test]
+    fn unequal_columns_are_refused_by_name() {
+        let p = Path::new("x.tdms");
+        let mut t = SampleTable::default();
+        t.push("time_s", vec![0.0, 1.0, 2.0], p, "TDMS").unwrap();
+        t.push("force_n", vec![0.0, 1.0], p, "TDMS").unwrap();
+        let e = t.into_import(p, "TDMS").unwrap_err().to_string();
+        assert!(
+            e.contains("'force_n' has 2 samples but 'time_s' has 3"),
+            "{e}"
+        );
+    }
+}
