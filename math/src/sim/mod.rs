@@ -8,6 +8,8 @@
 
 pub mod excitation;
 mod hybrid;
+mod input_window;
+mod linear_step;
 pub mod noise;
 pub mod rig;
 pub mod run;
