@@ -42,7 +42,8 @@ pub enum Command {
     /// Start the nodes of a ROS 2 YAML launch file as separate processes:
     /// `forcemap launch launch_configs/rig_sim.launch.yaml out:=/tmp/run`.
     Launch(LaunchArgs),
-    /// Benchmarks of the node graph (throughput without loss, latency, CPU and memory).
+    /// Benchmarks: the node graph (throughput without loss, latency, CPU and memory) and
+    /// `identify` on a CSV export against its numpy peer.
     Bench(BenchArgs),
 }
 
@@ -57,6 +58,23 @@ pub enum BenchCommand {
     /// Run the harmonic node and the identifier as processes, play a simulated rig run into
     /// them and measure samples/s without loss, last-sample-to-theta latency, CPU and RSS.
     Graph(BenchGraphArgs),
+    /// Time `identify` on a rig CSV export stage by stage (CSV parsing, phasors, fit,
+    /// validation; medians over repeats) and, with --python, the numpy peer on the same file
+    /// (benches/numpy_peer.py), as a ratio.
+    Identify(BenchIdentifyArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct BenchIdentifyArgs {
+    /// The identification to time (file, --model, --method, ... as for `forcemap identify`).
+    #[command(flatten)]
+    pub identify: IdentifyArgs,
+    /// A python with numpy to run the numpy peer with (not run without it).
+    #[arg(long)]
+    pub python: Option<PathBuf>,
+    /// Repeats of each side (medians reported).
+    #[arg(long, default_value_t = 7)]
+    pub repeats: usize,
 }
 
 #[derive(Debug, Args)]

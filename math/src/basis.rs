@@ -28,6 +28,11 @@ pub trait Term: Debug + Send + Sync {
     fn describes_friction(&self) -> bool {
         self.jumps_at_zero_velocity()
     }
+    /// `Some((a, b))` when h(x, v) = a x + b v exactly (lets a model that is linear between
+    /// stick-slip events be simulated as a linear map).
+    fn linear_coefficients(&self) -> Option<(f64, f64)> {
+        None
+    }
 }
 
 /// x: linear stiffness, coefficient k [N/m].
@@ -95,6 +100,9 @@ impl Term for Displacement {
     fn eval(&self, x: f64, _v: f64) -> f64 {
         x
     }
+    fn linear_coefficients(&self) -> Option<(f64, f64)> {
+        Some((1.0, 0.0))
+    }
 }
 
 impl Term for Velocity {
@@ -106,6 +114,9 @@ impl Term for Velocity {
     }
     fn eval(&self, _x: f64, v: f64) -> f64 {
         v
+    }
+    fn linear_coefficients(&self) -> Option<(f64, f64)> {
+        Some((0.0, 1.0))
     }
 }
 
@@ -166,6 +177,13 @@ impl Term for Polynomial {
     }
     fn eval(&self, x: f64, v: f64) -> f64 {
         x.powi(self.i as i32) * v.powi(self.j as i32)
+    }
+    fn linear_coefficients(&self) -> Option<(f64, f64)> {
+        match (self.i, self.j) {
+            (1, 0) => Some((1.0, 0.0)),
+            (0, 1) => Some((0.0, 1.0)),
+            _ => None,
+        }
     }
 }
 

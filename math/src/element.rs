@@ -62,4 +62,11 @@ pub trait Element: Send + Sync {
 
     /// Time derivatives of the internal states.
     fn internal_rates(&self, _x: f64, _v: f64, _z: &[f64], _dz: &mut [f64]) {}
+
+    /// `Some((k, c))` when `smooth_force(x, v, z) == k x + c v` for every `x`, `v` and there are
+    /// no internal states: the simulators then step the element as a linear map between events
+    /// (the same RK4 step, without evaluating the element). None: unknown or nonlinear.
+    fn linear_coefficients(&self) -> Option<(f64, f64)> {
+        None
+    }
 }

@@ -215,11 +215,55 @@ impl Element for IdentifiedModel {
         let has = self.model.has_velocity_jump();
         has.then(|| Friction::coulomb(level.max(0.0)))
     }
+
+    fn linear_coefficients(&self) -> Option<(f64, f64)> {
+        let mut kc = (0.0, 0.0);
+        for (t, th) in self.model.terms.iter().zip(&self.theta) {
+            if t.jumps_at_zero_velocity() {
+                continue;
+            }
+            let (a, b) = t.linear_coefficients()?;
+            kc.0 += th * a;
+            kc.1 += th * b;
+        }
+        Some(kc)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn linear_coefficients_are_the_smooth_force() {
+        let o = ModelOptions {
+            atan_slope_s_per_m: Some(500.0),
+            polynomial_order: Some((1, 1)),
+        };
+        let coulomb = IdentifiedModel::new(
+            Model::by_name("coulomb", &o).unwrap(),
+            vec![6380.0, 184.0, 12.3],
+        );
+        assert_eq!(coulomb.linear_coefficients(), Some((6380.0, 184.0)));
+        for (x, v) in [(0.003, -0.2), (-0.01, 0.05)] {
+            assert_eq!(coulomb.smooth_force(x, v, &[]), 6380.0 * x + 184.0 * v);
+        }
+        // p10 and p01 are linear, p11 (x x') is not; atan and cubic are not.
+        let poly = Model::by_name("polynomial", &o).unwrap();
+        let n = poly.terms.len();
+        assert_eq!(
+            IdentifiedModel::new(poly, vec![1.0; n]).linear_coefficients(),
+            None
+        );
+        for name in ["coulomb-atan", "cubic"] {
+            let m = Model::by_name(name, &o).unwrap();
+            let n = m.terms.len();
+            assert_eq!(
+                IdentifiedModel::new(m, vec![1.0; n]).linear_coefficients(),
+                None
+            );
+        }
+    }
 
     #[test]
     fn named_models_have_the_papers_symbols() {

@@ -2,6 +2,7 @@
 
 pub mod bag;
 pub mod bench;
+pub mod bench_identify;
 pub mod diagnose;
 pub mod diagnose_eval;
 pub mod diagnose_time_domain;
@@ -33,6 +34,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Launch(a) => forcemap_nodes::launch::run(&a.file, &a.args, a.dry_run),
         Command::Bench(a) => match &a.command {
             crate::cli::BenchCommand::Graph(g) => bench::run_graph(g),
+            crate::cli::BenchCommand::Identify(i) => bench_identify::run(i),
         },
         Command::Models => {
             for (name, what) in forcemap_math::model::MODEL_NAMES {

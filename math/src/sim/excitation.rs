@@ -318,7 +318,8 @@ impl PiecewiseSignal {
         }
     }
 
-    fn index(&self, t_ref: f64) -> usize {
+    /// Index of the piece that holds at `t_ref`.
+    pub(crate) fn index(&self, t_ref: f64) -> usize {
         let tr = t_ref - self.shift;
         // Last j with starts[j] <= tr (starts[0] = -inf).
         self.starts.partition_point(|&s| s <= tr).saturating_sub(1)

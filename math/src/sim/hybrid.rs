@@ -12,6 +12,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::SimError;
+use super::linear_step::{Linear2, LinearStep};
 use crate::element::Friction;
 
 /// Integration settings.
@@ -74,7 +75,36 @@ pub(crate) trait Hybrid {
     fn needed_friction(&self, t: f64, t_ref: f64, y: &[f64]) -> f64;
     /// Jump conditions at an input breakpoint `t` (left limit to right limit).
     fn jump(&self, _t: f64, _y: &mut [f64]) {}
+    /// `Some` when, in `mode`, the state is only (x, v) with `x' = v, v' = -a x - b v + u(t)`
+    /// and `u` from [`Hybrid::forcing`]: full sub-steps are then taken as a linear map.
+    fn linear(&self, _mode: Mode) -> Option<Linear2> {
+        None
+    }
+    /// `u(t)` of [`Hybrid::linear`] in `mode`, inputs from the piece that holds at `t_ref`.
+    fn forcing(&self, _t: f64, _t_ref: f64, _mode: Mode) -> f64 {
+        0.0
+    }
+    /// [`Hybrid::forcing`] at two times.
+    fn forcing_pair(&self, t: [f64; 2], t_ref: f64, mode: Mode) -> [f64; 2] {
+        [
+            self.forcing(t[0], t_ref, mode),
+            self.forcing(t[1], t_ref, mode),
+        ]
+    }
+    /// True when the inputs at `t_ref` and at `other` come from the same pieces (a forcing
+    /// evaluated with one holds for the other).
+    fn same_inputs(&self, _t_ref: f64, _other: f64) -> bool {
+        false
+    }
+    /// True when no state moves while stuck (every rate is exactly zero), so that a stuck
+    /// sub-step leaves the state as it is.
+    fn static_when_stuck(&self) -> bool {
+        false
+    }
 }
+
+/// The last forcing evaluated at the end of a linear sub-step: (t, t_ref, mode, u).
+type LastForcing = (f64, f64, Mode, f64);
 
 /// Per-run statistics of the event-driven integration.
 #[derive(Debug, Clone, Default)]
@@ -90,6 +120,12 @@ pub(crate) struct Integrator<'a, H: Hybrid> {
     k: [Vec<f64>; 4],
     tmp: Vec<f64>,
     trial: Vec<f64>,
+    /// Sub-step length of the current node interval (`run` sets it).
+    substep_s: f64,
+    /// The linear step for (sub-step length, system) last used.
+    linear_step: Option<(f64, Linear2, LinearStep)>,
+    /// Its forcing at the end of the last linear sub-step (the start of the next one).
+    last_forcing: Option<LastForcing>,
 }
 
 impl<'a, H: Hybrid> Integrator<'a, H> {
@@ -101,7 +137,42 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
             k: [vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]],
             tmp: vec![0.0; n],
             trial: vec![0.0; n],
+            substep_s: opts.max_substep_s,
+            linear_step: None,
+            last_forcing: None,
         }
+    }
+
+    /// A full sub-step of length `dt` (about `substep_s`) from `y` into `out`: the linear map
+    /// when the system is linear in `mode`, else [`Integrator::rk4`].
+    fn full_step(&mut self, t: f64, t_ref: f64, y: &[f64], dt: f64, mode: Mode, out: &mut [f64]) {
+        let Some(lin) = self.sys.linear(mode) else {
+            self.rk4(t, t_ref, y, dt, mode, out);
+            return;
+        };
+        let h = self.substep_s;
+        let step = match self.linear_step {
+            Some((hh, l, s)) if hh == h && l == lin => s,
+            _ => {
+                let s = LinearStep::new(lin, h);
+                self.linear_step = Some((h, lin, s));
+                s
+            }
+        };
+        let u0 = match self.last_forcing {
+            Some((tt, tr, m, u))
+                if tt == t && m == mode && (tr == t_ref || self.sys.same_inputs(t_ref, tr)) =>
+            {
+                u
+            }
+            _ => self.sys.forcing(t, t_ref, mode),
+        };
+        let t1 = t + dt;
+        let [uh, u1] = self.sys.forcing_pair([t + 0.5 * dt, t1], t_ref, mode);
+        self.last_forcing = Some((t1, t_ref, mode, u1));
+        let [x, v] = step.apply([y[0], y[1]], u0, uh, u1);
+        out[0] = x;
+        out[1] = v;
     }
 
     /// One classic RK4 step of length `dt` from `y` into `out`.
@@ -191,12 +262,16 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
             }
             match *mode {
                 Mode::Free => {
-                    self.rk4(t, t_ref, y, dt, *mode, &mut trial);
+                    self.full_step(t, t_ref, y, dt, *mode, &mut trial);
                     y.copy_from_slice(&trial);
                     break Ok(());
                 }
                 Mode::Slip(dir) => {
-                    self.rk4(t, t_ref, y, dt, *mode, &mut trial);
+                    if t == t0 {
+                        self.full_step(t, t_ref, y, dt, *mode, &mut trial);
+                    } else {
+                        self.rk4(t, t_ref, y, dt, *mode, &mut trial);
+                    }
                     if dir * trial[vi] > 0.0 {
                         y.copy_from_slice(&trial);
                         break Ok(());
@@ -221,7 +296,11 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
                 }
                 Mode::Stick => {
                     let fr = self.sys.friction().expect("stick mode needs friction");
-                    self.rk4(t, t_ref, y, dt, *mode, &mut trial);
+                    if self.sys.static_when_stuck() {
+                        trial.copy_from_slice(y);
+                    } else {
+                        self.rk4(t, t_ref, y, dt, *mode, &mut trial);
+                    }
                     if self.stick_violated(t1, t_ref, &trial, &fr).is_none() {
                         y.copy_from_slice(&trial);
                         stuck += dt;
@@ -302,6 +381,7 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
             let Some(tn) = t_next else { break };
             let n = ((tn - t) / self.opts.max_substep_s).ceil().max(1.0) as usize;
             let h = (tn - t) / n as f64;
+            self.substep_s = h;
             for s in 0..n {
                 let a = t + s as f64 * h;
                 let b = if s + 1 == n {

@@ -9,6 +9,8 @@
 pub mod element;
 pub mod excitation;
 mod hybrid;
+mod input_window;
+mod linear_step;
 pub mod noise;
 pub mod rig;
 pub mod run;

@@ -5,6 +5,7 @@
 //! with a sensor low-pass, one filter state per measured channel. Stick-slip is exact (see
 //! `hybrid.rs`): while stuck v is exactly 0 and the mass moves with the base.
 
+use std::cell::{Cell, RefCell};
 use std::f64::consts::PI;
 use std::sync::Arc;
 
@@ -12,6 +13,8 @@ use serde::{Deserialize, Serialize};
 
 use super::excitation::{CubicSpline, Derivs, Piece, PiecewiseSignal, Program, SplineEnds};
 use super::hybrid::{Hybrid, Integrator, Mode, RunStats, SolverOptions, slip_force_dir};
+use super::input_window::{InputWindow, spline_d2};
+use super::linear_step::Linear2;
 use super::{SampleTrace, SimError, SimOutput, is_positive};
 use crate::element::{Element, Friction};
 use crate::record::{Channel, Record};
@@ -72,6 +75,13 @@ pub(crate) struct RigSystem<'a> {
     base_meas: PiecewiseSignal,
     nz: usize,
     omega_c: Option<f64>,
+    /// The element's (k, c) when it is linear (see `Element::linear_coefficients`).
+    linear: Option<(f64, f64)>,
+    /// Taylor windows of the true base acceleration and displacement (sine-like pieces).
+    windows: RefCell<[Option<InputWindow>; 2]>,
+    /// (start, end, index) of the piece of the true base that held at the last `t_ref`
+    /// (start and end in the undelayed time of the signal).
+    piece: Cell<(f64, f64, usize)>,
 }
 
 impl RigSystem<'_> {
@@ -79,35 +89,108 @@ impl RigSystem<'_> {
         self.base_true.eval(t, t_ref)
     }
 
-    /// Relative acceleration x'' and friction force in `mode`.
-    fn accel(&self, b: &Derivs, y: &[f64], mode: Mode) -> (f64, f64) {
+    /// Index of the piece of the true base at `t_ref` (the last one remembered: the search
+    /// is most of an evaluation otherwise).
+    fn base_true_index(&self, t_ref: f64) -> usize {
+        let sig = &self.base_true;
+        // The comparisons of `PiecewiseSignal::index`, in the signal's own time.
+        let tr = t_ref - sig.shift;
+        let (lo, hi, j) = self.piece.get();
+        if lo <= tr && tr < hi {
+            return j;
+        }
+        let j = sig.index(t_ref);
+        let end = sig.starts.get(j + 1).copied().unwrap_or(f64::INFINITY);
+        self.piece.set((sig.starts[j], end, j));
+        j
+    }
+
+    /// The true base acceleration (`order` 2) or displacement (0) at `t` (piece of `t_ref`),
+    /// without a `sin_cos` per component where the piece is sine-like.
+    fn base_true_window(&self, order: u32, t: f64, t_ref: f64) -> f64 {
+        let sig = &self.base_true;
+        let j = self.base_true_index(t_ref);
+        let piece = &sig.pieces[j];
+        let tl = t - sig.shift;
+        let slot = usize::from(order == 0);
+        InputWindow::eval(&mut self.windows.borrow_mut()[slot], order, j, piece, tl).unwrap_or_else(
+            || match piece {
+                Piece::Spline(s) if order == 2 => spline_d2(s, tl, t_ref - sig.shift),
+                _ => {
+                    let d = piece.eval(tl, t_ref - sig.shift);
+                    if order == 0 { d.value } else { d.d2 }
+                }
+            },
+        )
+    }
+
+    /// The true base acceleration at `t` (piece of `t_ref`).
+    fn base_true_d2(&self, t: f64, t_ref: f64) -> f64 {
+        self.base_true_window(2, t, t_ref)
+    }
+
+    /// The constant part of the forcing of `Hybrid::linear`: minus the slip friction (of
+    /// constant level there) per kg.
+    fn friction_per_kg(&self, mode: Mode) -> f64 {
+        let fr = match (mode, &self.friction) {
+            (Mode::Slip(d), Some(fr)) => slip_force_dir(fr, 0.0, d),
+            _ => 0.0,
+        };
+        -fr / self.mass_kg
+    }
+
+    /// [`RigSystem::base_true_d2`] at two times.
+    fn base_true_d2_pair(&self, t: [f64; 2], t_ref: f64) -> [f64; 2] {
+        let sig = &self.base_true;
+        let j = self.base_true_index(t_ref);
+        let piece = &sig.pieces[j];
+        let tl = [t[0] - sig.shift, t[1] - sig.shift];
+        let mut windows = self.windows.borrow_mut();
+        InputWindow::eval_pair(&mut windows[0], 2, j, piece, tl).unwrap_or_else(|| {
+            let tr = t_ref - sig.shift;
+            match piece {
+                Piece::Spline(s) => [spline_d2(s, tl[0], tr), spline_d2(s, tl[1], tr)],
+                _ => [piece.eval(tl[0], tr).d2, piece.eval(tl[1], tr).d2],
+            }
+        })
+    }
+
+    /// Relative acceleration x'' and friction force in `mode`, with base acceleration `b_d2`.
+    fn accel(&self, b_d2: f64, y: &[f64], mode: Mode) -> (f64, f64) {
         let (x, v) = (y[0], y[1]);
         let z = &y[2..2 + self.nz];
         match mode {
             Mode::Stick => (
                 0.0,
-                -self.mass_kg * b.d2 - self.element.smooth_force(x, 0.0, z),
+                -self.mass_kg * b_d2 - self.element.smooth_force(x, 0.0, z),
             ),
             Mode::Free => (
-                -self.element.smooth_force(x, v, z) / self.mass_kg - b.d2,
+                -self.element.smooth_force(x, v, z) / self.mass_kg - b_d2,
                 0.0,
             ),
             Mode::Slip(d) => {
                 let fr = slip_force_dir(self.friction.as_ref().expect("slip needs friction"), v, d);
                 (
-                    -(self.element.smooth_force(x, v, z) + fr) / self.mass_kg - b.d2,
+                    -(self.element.smooth_force(x, v, z) + fr) / self.mass_kg - b_d2,
                     fr,
                 )
             }
         }
     }
 
-    /// Unfiltered channel values in `RIG_CHANNELS` order.
-    fn channels(&self, t: f64, t_ref: f64, y: &[f64], mode: Mode) -> [f64; 5] {
-        let b = self.base_true_at(t, t_ref);
-        let m = self.base_meas.eval(t, t_ref);
-        let (a, _) = self.accel(&b, y, mode);
-        [m.value, y[0], a + b.d2, y[0] + b.value, m.d2]
+    /// Unfiltered channel values in `RIG_CHANNELS` order and the friction force.
+    fn channels(&self, t: f64, t_ref: f64, y: &[f64], mode: Mode) -> ([f64; 5], f64) {
+        let b_d2 = self.base_true_d2(t, t_ref);
+        let b_value = self.base_true_window(0, t, t_ref);
+        // Without an exciter delay the measured base is the true one.
+        let (m_value, m_d2) = if self.base_true.shift == self.base_meas.shift {
+            (b_value, b_d2)
+        } else {
+            let m = self.base_meas.eval(t, t_ref);
+            (m.value, m.d2)
+        };
+        let (a, fr) = self.accel(b_d2, y, mode);
+        ([m_value, y[0], a + b_d2, y[0] + b_value, m_d2], fr)
     }
 }
 
@@ -125,8 +208,8 @@ impl Hybrid for RigSystem<'_> {
     }
 
     fn rhs(&self, t: f64, t_ref: f64, y: &[f64], mode: Mode, dy: &mut [f64]) {
-        let b = self.base_true_at(t, t_ref);
-        let (a, _) = self.accel(&b, y, mode);
+        let b_d2 = self.base_true_d2(t, t_ref);
+        let (a, _) = self.accel(b_d2, y, mode);
         let v = if mode == Mode::Stick { 0.0 } else { y[1] };
         dy[0] = v;
         dy[1] = a;
@@ -136,8 +219,9 @@ impl Hybrid for RigSystem<'_> {
                 .internal_rates(y[0], v, &y[2..2 + nz], &mut dy[2..2 + nz]);
         }
         if let Some(wc) = self.omega_c {
+            let b = self.base_true_at(t, t_ref);
             let m = self.base_meas.eval(t, t_ref);
-            let u = [m.value, y[0], a + b.d2, y[0] + b.value, m.d2];
+            let u = [m.value, y[0], a + b_d2, y[0] + b.value, m.d2];
             for j in 0..5 {
                 dy[2 + nz + j] = wc * (u[j] - y[2 + nz + j]);
             }
@@ -145,8 +229,44 @@ impl Hybrid for RigSystem<'_> {
     }
 
     fn needed_friction(&self, t: f64, t_ref: f64, y: &[f64]) -> f64 {
-        let b = self.base_true_at(t, t_ref);
-        -self.mass_kg * b.d2 - self.element.smooth_force(y[0], 0.0, &y[2..2 + self.nz])
+        -self.mass_kg * self.base_true_d2(t, t_ref)
+            - self.element.smooth_force(y[0], 0.0, &y[2..2 + self.nz])
+    }
+
+    fn linear(&self, mode: Mode) -> Option<Linear2> {
+        if self.nz > 0 || self.omega_c.is_some() {
+            return None;
+        }
+        let (k, c) = self.linear?;
+        let constant_friction = match (mode, &self.friction) {
+            (Mode::Free, _) => true,
+            // Without a Stribeck excess the slip force is the constant level of `dir`.
+            (Mode::Slip(_), Some(fr)) => fr.breakaway_n <= fr.kinetic_n,
+            _ => false,
+        };
+        constant_friction.then(|| Linear2 {
+            stiffness_per_kg: k / self.mass_kg,
+            damping_per_kg: c / self.mass_kg,
+        })
+    }
+
+    fn forcing(&self, t: f64, t_ref: f64, mode: Mode) -> f64 {
+        self.friction_per_kg(mode) - self.base_true_d2(t, t_ref)
+    }
+
+    fn forcing_pair(&self, t: [f64; 2], t_ref: f64, mode: Mode) -> [f64; 2] {
+        let f = self.friction_per_kg(mode);
+        let [a, b] = self.base_true_d2_pair(t, t_ref);
+        [f - a, f - b]
+    }
+
+    fn same_inputs(&self, t_ref: f64, other: f64) -> bool {
+        // The true base alone drives the forcing.
+        self.base_true_index(t_ref) == self.base_true_index(other)
+    }
+
+    fn static_when_stuck(&self) -> bool {
+        self.nz == 0 && self.omega_c.is_none()
     }
 
     fn jump(&self, t: f64, y: &mut [f64]) {
@@ -203,6 +323,9 @@ fn run_rig(setup: RigSetup<'_>, solver: &SolverOptions) -> Result<RigRunOut, Sim
         base_meas,
         nz,
         omega_c: lowpass_hz.map(|f| 2.0 * PI * f),
+        linear: element.linear_coefficients(),
+        windows: RefCell::new([None, None]),
+        piece: Cell::new((0.0, 0.0, 0)),
     };
     let mut y = vec![0.0; sys.dim()];
     let b0 = sys.base_true.eval_right(0.0);
@@ -231,19 +354,19 @@ fn run_rig(setup: RigSetup<'_>, solver: &SolverOptions) -> Result<RigRunOut, Sim
         sample_rate_hz,
         &breaks,
         |i, t, t_ref, y, mode| {
+            let (channels, friction_force_n) = sys.channels(t, t_ref, y, mode);
             out[i] = match sys.omega_c {
                 Some(_) => {
                     let mut c = [0.0; 5];
                     c.copy_from_slice(&y[2 + nz..2 + nz + 5]);
                     c
                 }
-                None => sys.channels(t, t_ref, y, mode),
+                None => channels,
             };
-            let b = sys.base_true_at(t, t_ref);
             trace[i] = SampleTrace {
                 relative_velocity_mps: y[1],
                 stuck: mode == Mode::Stick,
-                friction_force_n: sys.accel(&b, y, mode).1,
+                friction_force_n,
             };
         },
     )?;

@@ -158,11 +158,50 @@ impl Element for TruthElement {
             *d = bw.rate(zz, v);
         }
     }
+
+    fn linear_coefficients(&self) -> Option<(f64, f64)> {
+        let linear = self.preload_n == 0.0
+            && self.cubic_stiffness_n_per_m3 == 0.0
+            && self.quadratic_stiffness_n_per_m2 == 0.0
+            && self.quadratic_damping_n_s2_per_m2 == 0.0
+            && self.asymmetric_damping.is_none()
+            && self.free_play.is_none()
+            && self.bouc_wen.is_none();
+        linear.then_some((self.stiffness_n_per_m, self.damping_n_s_per_m))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn linear_coefficients_are_the_smooth_force() {
+        let e = TruthElement::rig_coulomb();
+        let (k, c) = e.linear_coefficients().unwrap();
+        for (x, v) in [(0.003, -0.2), (-0.01, 0.05), (0.0, 1.0)] {
+            assert_eq!(e.smooth_force(x, v, &[]), k * x + c * v);
+        }
+        // Any nonlinear term: none.
+        assert_eq!(
+            TruthElement::three_dof_element().linear_coefficients(),
+            None
+        );
+        let fp = TruthElement {
+            free_play: Some(FreePlay {
+                gap_m: 0.002,
+                stiffness_n_per_m: 1000.0,
+            }),
+            ..TruthElement::rig_coulomb()
+        };
+        assert_eq!(fp.linear_coefficients(), None);
+        // A preload is no k x + c v either.
+        let preloaded = TruthElement {
+            preload_n: 150.0,
+            ..TruthElement::rig_coulomb()
+        };
+        assert_eq!(preloaded.linear_coefficients(), None);
+    }
 
     #[test]
     fn terms() {
