@@ -20,8 +20,13 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use std::f64::consts::PI;
 
-/// The record's samples pushed one at a time (all channels of a sample together).
-fn stream(record: &Record, options: &PhasorOptions) -> Result<HarmonicAnalysis, PhasorError> {
+/// The record's samples pushed one at a time (all channels of a sample together), the stream
+/// told the step's length (so that it prepares the joint fits of the end) or not.
+fn stream_told(
+    record: &Record,
+    options: &PhasorOptions,
+    told: bool,
+) -> Result<HarmonicAnalysis, PhasorError> {
     let channels = record.channels.iter().map(|(c, _)| *c).collect();
     let mut s = PhasorStream::new(
         record.step,
@@ -31,6 +36,9 @@ fn stream(record: &Record, options: &PhasorOptions) -> Result<HarmonicAnalysis, 
         channels,
         options,
     )?;
+    if told {
+        s.expect_samples(record.len());
+    }
     let mut values = vec![0.0; record.channels.len()];
     for k in 0..record.len() {
         for (v, (_, x)) in values.iter_mut().zip(&record.channels) {
@@ -40,6 +48,10 @@ fn stream(record: &Record, options: &PhasorOptions) -> Result<HarmonicAnalysis, 
     }
     assert_eq!(s.samples(), record.len());
     s.finish()
+}
+
+fn stream(record: &Record, options: &PhasorOptions) -> Result<HarmonicAnalysis, PhasorError> {
+    stream_told(record, options, false)
 }
 
 /// The stream must be the batch analysis up to rounding: the per-period fits share Cholesky
@@ -75,9 +87,11 @@ fn simulated_rig_run_streams_to_the_batch_analysis() {
             .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
         {
             let batch = analyse_record(r, &options).unwrap();
-            let streamed = stream(r, &options).unwrap();
-            let d = assert_same(&batch, &streamed, &format!("{rate_hz} Hz step {}", r.step));
-            worst = worst.max(d);
+            for told in [false, true] {
+                let streamed = stream_told(r, &options, told).unwrap();
+                let what = format!("{rate_hz} Hz step {} (length told: {told})", r.step);
+                worst = worst.max(assert_same(&batch, &streamed, &what));
+            }
             compared += 1;
         }
         assert!(compared >= 5, "{rate_hz} Hz: only {compared} sine steps");
@@ -200,12 +214,13 @@ proptest! {
         max_harmonic in prop::sample::select(vec![1usize, 3, 20, 100, usize::MAX]),
         noise in prop::sample::select(vec![0.0, 1e-3, 0.1]),
         seed in 0u64..1000,
+        told in any::<bool>(),
     ) {
         let f = fs / spp;
         let len = (periods_per_step * spp).ceil() as usize;
         let r = synthetic(fs, f, len, noise, seed);
         let options = PhasorOptions { max_harmonic, ..PhasorOptions::default() };
-        match (analyse_record(&r, &options), stream(&r, &options)) {
+        match (analyse_record(&r, &options), stream_told(&r, &options, told)) {
             (Ok(batch), Ok(streamed)) => {
                 let d = batch.relative_difference(&streamed);
                 prop_assert!(d.is_some_and(|d| d <= TOLERANCE), "{d:?}");

@@ -227,7 +227,7 @@ pub fn analyse_record(
 
     let harmonics = options.max_harmonic.min(cap);
     let data: Vec<&[f64]> = record.channels.iter().map(|(_, v)| v.as_slice()).collect();
-    let work = Periods::new(
+    let mut work = Periods::new(
         Grid { nu, harmonics },
         &data,
         (0..=periods).map(|p| boundary(p, spp)).collect(),
@@ -242,7 +242,7 @@ pub fn analyse_record(
         channels: &channels,
         harmonic_cap: cap,
     };
-    settle_and_fit(work, &info, options)
+    settle_and_fit(&mut work, &info, options)
 }
 
 /// Least-squares fit of DC + harmonics `1..=harmonics` of `frequency_hz` to uniformly sampled

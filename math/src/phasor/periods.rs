@@ -10,6 +10,7 @@ use num_complex::Complex64;
 
 /// Per-period sums and fits of one record, computed on demand (the settling walk runs from
 /// the end of the record and stops at the transient, so the transient periods are never fitted).
+#[derive(Clone)]
 pub(super) struct Periods<'a> {
     grid: Grid,
     /// The samples of each channel; empty when every period was fitted already (a stream).
@@ -21,7 +22,13 @@ pub(super) struct Periods<'a> {
     /// Per period: `X_n` sums (re, im; `[channel * (N+1) + n]`), `sum x^2` per channel, and
     /// the per-period phasors `[channel][n]`.
     done: Vec<Option<PeriodFit>>,
+    /// Cholesky factors of joint windows (start, length), exact keys: the same window gives
+    /// the same factor whether it was computed ahead ([`Periods::prefetch_joint`]) or now.
+    joint_factors: Vec<(usize, usize, Factor)>,
 }
+
+/// Joint-window factors kept (each `(2N + 1)^2` twice: ~0.6 MB at N = 100).
+const KEEP_JOINT_FACTORS: usize = 6;
 
 #[derive(Clone)]
 pub(super) struct PeriodFit {
@@ -72,29 +79,88 @@ impl<'a> Periods<'a> {
             step,
             cache: FactorCache::new(),
             done: (0..n).map(|_| None).collect(),
+            joint_factors: Vec::new(),
         }
     }
 
-    /// Periods that were all fitted already (`fits[p]` is period `bounds[p]..bounds[p + 1]`),
-    /// with the factor cache they were fitted with.
-    pub fn fitted(
-        grid: Grid,
-        n_channels: usize,
-        bounds: Vec<usize>,
-        step: usize,
-        cache: FactorCache,
-        fits: Vec<PeriodFit>,
-    ) -> Periods<'static> {
-        debug_assert_eq!(fits.len() + 1, bounds.len());
+    /// No periods yet; a stream appends them with [`Periods::push_period`] as they complete.
+    pub fn streamed(grid: Grid, n_channels: usize, step: usize) -> Periods<'static> {
         Periods {
             grid,
             data: &[],
             n_channels,
-            bounds,
+            bounds: vec![0],
             step,
-            cache,
-            done: fits.into_iter().map(Some).collect(),
+            cache: FactorCache::new(),
+            done: Vec::new(),
+            joint_factors: Vec::new(),
         }
+    }
+
+    /// Fits the period from the last boundary to `end` from its sums and appends it.
+    pub fn push_period(
+        &mut self,
+        end: usize,
+        sums: (Vec<f64>, Vec<f64>, Vec<f64>),
+    ) -> Result<(), PhasorError> {
+        let start = self.bounds[self.bounds.len() - 1];
+        let f = PeriodFit::solve(
+            &self.grid,
+            &mut self.cache,
+            self.step,
+            start,
+            end - start,
+            sums,
+        )?;
+        self.bounds.push(end);
+        self.done.push(Some(f));
+        Ok(())
+    }
+
+    /// Periods held.
+    pub fn count(&self) -> usize {
+        self.done.len()
+    }
+
+    /// First sample of period `p` (`p = count()` gives the end of the last).
+    pub fn bound(&self, p: usize) -> usize {
+        self.bounds[p]
+    }
+
+    /// Keeps the first `periods` periods.
+    pub fn truncate(&mut self, periods: usize) {
+        self.done.truncate(periods);
+        self.bounds.truncate(periods + 1);
+    }
+
+    /// The factor of the joint window `start..start + len`, computed now or found.
+    fn joint_factor(&mut self, start: usize, len: usize) -> Result<&Factor, PhasorError> {
+        let i = match self
+            .joint_factors
+            .iter()
+            .position(|(s, l, _)| *s == start && *l == len)
+        {
+            Some(i) => i,
+            None => {
+                let f = Factor::new(&self.grid.normal_matrix(start, len), self.grid.params())
+                    .ok_or(PhasorError::IllConditioned {
+                        step: self.step,
+                        samples: len,
+                    })?;
+                if self.joint_factors.len() >= KEEP_JOINT_FACTORS {
+                    self.joint_factors.remove(0);
+                }
+                self.joint_factors.push((start, len, f));
+                self.joint_factors.len() - 1
+            }
+        };
+        Ok(&self.joint_factors[i].2)
+    }
+
+    /// Computes the factor of a joint window ahead of its use (`O(N^3)`, data-independent).
+    pub fn prefetch_joint(&mut self, start: usize, len: usize) {
+        // An ill-conditioned window fails again, with its error, when it is used.
+        let _ = self.joint_factor(start, len);
     }
 
     fn fit(&mut self, p: usize) -> Result<&PeriodFit, PhasorError> {
@@ -161,15 +227,9 @@ impl<'a> Periods<'a> {
             self.bounds[periods] - self.bounds[first],
         );
         let params = self.grid.params();
-        let chol = Factor::new(&self.grid.normal_matrix(start, n), params).ok_or(
-            PhasorError::IllConditioned {
-                step: self.step,
-                samples: n,
-            },
-        )?;
         let rhs = rhs_matrix(self.grid.harmonics, nc, &re, &im);
         let mut beta = rhs.clone();
-        chol.solve(&mut beta);
+        self.joint_factor(start, n)?.solve(&mut beta);
         let dof = n.saturating_sub(params).max(1) as f64;
         // RSS = sum x^2 - beta . rhs at the least-squares solution.
         let var = (0..nc)
@@ -200,7 +260,7 @@ pub(super) struct StepInfo<'a> {
 /// Steps 2-5 of the method (module docs) over the whole periods of `work`: the tail's noise
 /// level, the settling walk, the joint fit of the used periods and their noise.
 pub(super) fn settle_and_fit(
-    mut work: Periods<'_>,
+    work: &mut Periods<'_>,
     info: &StepInfo<'_>,
     options: &PhasorOptions,
 ) -> Result<HarmonicAnalysis, PhasorError> {

@@ -12,8 +12,8 @@
 //! when the step starts; a caller that only knows it at the end (from the stamps) compares it
 //! then and analyses the record in batch if it differs.
 
-use super::fit::{ANCHOR, FactorCache, Grid, Rotor};
-use super::periods::{PeriodFit, Periods, StepInfo, settle_and_fit};
+use super::fit::{ANCHOR, Grid, Rotor};
+use super::periods::{Periods, StepInfo, settle_and_fit};
 use super::{
     HarmonicAnalysis, PhasorError, PhasorOptions, SineGrid, boundary, validate_options,
     whole_periods,
@@ -40,10 +40,11 @@ pub struct PhasorStream {
     re: Vec<f64>,
     im: Vec<f64>,
     sumsq: Vec<f64>,
-    cache: FactorCache,
-    /// The completed periods' fits and boundaries (`bounds[p]..bounds[p + 1]` is period `p`).
-    fits: Vec<PeriodFit>,
-    bounds: Vec<usize>,
+    /// The completed periods, fitted.
+    periods: Periods<'static>,
+    /// Samples the step will have, when known: the joint fits of its end are then prepared
+    /// while its last period streams in ([`PhasorStream::expect_samples`]).
+    expected_samples: Option<usize>,
     /// The first problem met; [`PhasorStream::finish`] returns it.
     error: Option<PhasorError>,
 }
@@ -86,9 +87,8 @@ impl PhasorStream {
             re: vec![0.0; nc * h],
             im: vec![0.0; nc * h],
             sumsq: vec![0.0; nc],
-            cache: FactorCache::new(),
-            fits: Vec::new(),
-            bounds: vec![0],
+            periods: Periods::streamed(grid, nc, step),
+            expected_samples: None,
             error: None,
         })
     }
@@ -109,6 +109,15 @@ impl PhasorStream {
     /// Samples pushed so far.
     pub fn samples(&self) -> usize {
         self.samples
+    }
+
+    /// Tells the stream how many samples the step will have (a plan's count), so that when
+    /// the last whole period starts, the factors of the joint fits of the step's end (the tail,
+    /// and the settled part as it stands) are computed ahead: [`PhasorStream::finish`] then
+    /// only solves with them, unless the last period moves the start of the settled part.
+    /// The results are the same either way.
+    pub fn expect_samples(&mut self, samples: usize) {
+        self.expected_samples = (samples > 0).then_some(samples);
     }
 
     /// Adds the next sample: one value per channel, in the order given to [`PhasorStream::new`].
@@ -157,27 +166,47 @@ impl PhasorStream {
 
     /// Fits the period that just completed and starts the next one.
     fn complete_period(&mut self) {
-        let (start, end) = (self.period_start, self.period_end);
+        let end = self.period_end;
         let (n, nc) = (self.re.len(), self.sumsq.len());
         let sums = (
             std::mem::replace(&mut self.re, vec![0.0; n]),
             std::mem::replace(&mut self.im, vec![0.0; n]),
             std::mem::replace(&mut self.sumsq, vec![0.0; nc]),
         );
-        match PeriodFit::solve(
-            &self.grid,
-            &mut self.cache,
-            self.step,
-            start,
-            end - start,
-            sums,
-        ) {
-            Ok(fit) => self.fits.push(fit),
-            Err(e) => self.error = Some(e),
+        if let Err(e) = self.periods.push_period(end, sums) {
+            self.error = Some(e);
+            return;
         }
-        self.bounds.push(end);
         self.period_start = end;
-        self.period_end = boundary(self.fits.len() + 1, self.sine.samples_per_period);
+        let done = self.periods.count();
+        self.period_end = boundary(done + 1, self.sine.samples_per_period);
+        if let Some(n) = self.expected_samples {
+            let last = whole_periods(n, self.grid.nu);
+            if last >= 3 && done == last - 1 {
+                self.prefetch(last);
+            }
+        }
+    }
+
+    /// Prepares the joint fits of a step that ends with whole period `last - 1` (the one that
+    /// starts now): the tail's window exactly, the used window as the settled part stands now.
+    fn prefetch(&mut self, last: usize) {
+        let spp = self.sine.samples_per_period;
+        let end = boundary(last, spp);
+        let tail = boundary(last - self.options.min_periods.max(2).min(last), spp);
+        self.periods.prefetch_joint(tail, end - tail);
+        let info = StepInfo {
+            step: self.step,
+            frequency_hz: self.sine.frequency_hz,
+            amplitude: self.sine.amplitude,
+            start_time_s: self.start_time_s,
+            channels: &self.channels,
+            harmonic_cap: self.sine.cap,
+        };
+        if let Ok(a) = settle_and_fit(&mut self.periods, &info, &self.options) {
+            let start = self.periods.bound(a.periods_available - a.periods_used);
+            self.periods.prefetch_joint(start, end - start);
+        }
     }
 
     /// The analysis of the step from the samples pushed: the settled part, the joint fit and
@@ -199,27 +228,17 @@ impl PhasorStream {
         }
         // The periods completed by the samples are the record's whole periods (the tolerance of
         // the count is below that of the boundaries); more cannot be used.
-        let (mut fits, mut bounds) = (self.fits, self.bounds);
-        fits.truncate(periods);
-        bounds.truncate(periods + 1);
-        if fits.len() < periods {
+        let mut work = self.periods;
+        if work.count() < periods {
             return Err(PhasorError::InvalidFit {
                 reason: format!(
-                    "step {}: {} whole periods in {len} samples but only {} completed",
+                    "step {}: {periods} whole periods in {len} samples but only {} completed",
                     self.step,
-                    periods,
-                    fits.len()
+                    work.count()
                 ),
             });
         }
-        let work = Periods::fitted(
-            self.grid,
-            self.channels.len(),
-            bounds,
-            self.step,
-            self.cache,
-            fits,
-        );
+        work.truncate(periods);
         let info = StepInfo {
             step: self.step,
             frequency_hz: self.sine.frequency_hz,
@@ -228,6 +247,6 @@ impl PhasorStream {
             channels: &self.channels,
             harmonic_cap: self.sine.cap,
         };
-        settle_and_fit(work, &info, &self.options)
+        settle_and_fit(&mut work, &info, &self.options)
     }
 }

@@ -40,6 +40,8 @@ impl Analysis {
 pub(super) struct StepStream {
     pub(super) step: usize,
     excitation: Excitation,
+    /// The plan's sample count (0: not known).
+    expected: usize,
     /// The first sample's time and values, held until the second gives the sample rate.
     first: Option<(f64, Vec<f64>)>,
     /// `None` until the second sample, and when the stream cannot run (random excitation, an
@@ -60,6 +62,7 @@ impl StepStream {
                 },
                 |p| p.excitation.clone(),
             ),
+            expected: plan.map_or(0, |p| p.sample_count),
             first: None,
             phasors: None,
             values: Vec::new(),
@@ -88,6 +91,7 @@ impl StepStream {
         if let Ok(mut s) =
             PhasorStream::new(self.step, &self.excitation, rate_hz, t0, channels, options)
         {
+            s.expect_samples(self.expected);
             s.push(&first);
             s.push(&values().collect::<Vec<_>>());
             self.phasors = Some(s);
