@@ -194,7 +194,7 @@ impl HarmonicState {
             Ok(rec) => match rec.excitation {
                 Excitation::Sine { .. } => {
                     let analysis = match stream.and_then(|s| s.matching(&rec)) {
-                        Some(s) => Analysis::Streamed(s),
+                        Some(s) => Analysis::Streamed(Box::new(s)),
                         None => Analysis::Batch(rec),
                     };
                     Outcome::Analyse(analysis, self.assembler.origin().unwrap_or(Time::ZERO))

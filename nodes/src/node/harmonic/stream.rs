@@ -10,7 +10,7 @@ use forcemap_math::record::{Excitation, Record};
 /// A complete sine step, ready for its analysis.
 pub enum Analysis {
     /// Accumulated as the samples arrived: only the settling and the joint fit remain.
-    Streamed(PhasorStream),
+    Streamed(Box<PhasorStream>),
     /// The record, to be analysed whole (the stream did not match it; see the module docs).
     Batch(Record),
 }
