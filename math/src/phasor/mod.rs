@@ -65,7 +65,8 @@
 //! [`PhasorStream`] does the same work as the samples arrive (each period fitted when it
 //! completes), so that after a step's last sample only the settling and the joint fits remain:
 //! 8.8 ms against 129 ms for [`analyse_record`] of a 13 s step at 10 kHz, 6 channels, N = 100
-//! (criterion `phasor_step_end_*`, machine under heavy load).
+//! (criterion `phasor_step_end_*`, machine under heavy load); a pushed six-channel sample costs
+//! ~0.35 us at N = 100 (`phasor_stream_push_*`, ~2.9 M samples/s).
 
 mod fit;
 mod periods;
