@@ -1,5 +1,7 @@
 //! Throughput of `analyse_record` in samples per second (per-channel samples counted once:
-//! `Throughput::Elements(record length)`, six channels each).
+//! `Throughput::Elements(record length)`, six channels each), and of the stream: the cost of
+//! pushing a sample (six channels) and of `PhasorStream::finish` after a step's last sample,
+//! against `analyse_record` of the same 13 s step at 10 kHz (what the harmonic node did then).
 //!
 //! `cargo bench -p forcemap_math --bench phasor`
 #![allow(
@@ -7,8 +9,9 @@
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
 )]
 
+use criterion::BatchSize;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use forcemap_math::phasor::{PhasorOptions, analyse_record};
+use forcemap_math::phasor::{PhasorOptions, PhasorStream, analyse_record};
 use forcemap_math::record::{Channel, Excitation, Record};
 use std::f64::consts::PI;
 use std::hint::black_box;
@@ -88,5 +91,66 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// A stream of `rec` fed `samples` of its samples.
+fn fed(rec: &Record, opts: &PhasorOptions, samples: usize) -> PhasorStream {
+    let channels = rec.channels.iter().map(|(c, _)| *c).collect();
+    let mut s = PhasorStream::new(
+        rec.step,
+        &rec.excitation,
+        rec.sample_rate_hz,
+        rec.start_time_s,
+        channels,
+        opts,
+    )
+    .unwrap();
+    let mut values = vec![0.0; rec.channels.len()];
+    for k in 0..samples {
+        for (v, (_, x)) in values.iter_mut().zip(&rec.channels) {
+            *v = x[k];
+        }
+        s.push(black_box(&values));
+    }
+    s
+}
+
+fn bench_stream(c: &mut Criterion) {
+    let opts = PhasorOptions::for_identification(); // N = 100, as the harmonic node
+    // The `forcemap bench graph --sample-rate-hz 10000` step: 13 s at 10 kHz, 1.6 Hz.
+    let step = record(10_000.0, 1.6, 130_000, 0.8);
+    let small = record(100.0, 1.6, 1300, 0.8);
+
+    let mut group = c.benchmark_group("phasor_stream_push");
+    for (name, rec) in [
+        ("10kHz_6ch_N100_20000samples", &step),
+        ("100Hz_6ch_N30_1300samples", &small),
+    ] {
+        let n = rec.len().min(20_000);
+        group.throughput(Throughput::Elements(n as u64));
+        group.bench_function(name, |b| b.iter(|| fed(rec, &opts, n).samples()));
+    }
+    group.finish();
+
+    // After the last sample: what remains of the stream against the whole batch analysis.
+    let mut group = c.benchmark_group("phasor_step_end_10kHz_130000samples_6ch_N100");
+    group.sample_size(20);
+    let full = fed(&step, &opts, step.len());
+    let a = full.clone().finish().unwrap();
+    eprintln!(
+        "13 s step at 10 kHz: N = {}, periods used {} of {}, settled {}",
+        a.harmonics, a.periods_used, a.periods_available, a.settled
+    );
+    group.bench_function("stream_finish", |b| {
+        b.iter_batched(
+            || full.clone(),
+            |s| s.finish().unwrap(),
+            BatchSize::SmallInput,
+        );
+    });
+    group.bench_function("batch_analyse_record", |b| {
+        b.iter(|| analyse_record(black_box(&step), black_box(&opts)).unwrap());
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench, bench_stream);
 criterion_main!(benches);

@@ -109,7 +109,9 @@ impl Grid {
     ///
     /// The vector `e^{-j n theta_k}` (`n = 0..=N`) is advanced from sample to sample by an
     /// element-wise rotation (vectorisable, no per-sample trigonometry) and re-anchored exactly
-    /// every `ANCHOR` samples, so rounding drift stays below `~ANCHOR * eps`.
+    /// every [`ANCHOR`] samples from the start of `range`, so rounding drift stays below
+    /// `~ANCHOR * eps`. [`Rotor`] holds the rule, so a stream fed sample by sample gives the same
+    /// sums to the last bit.
     pub fn accumulate(
         &self,
         channels: &[&[f64]],
@@ -118,52 +120,102 @@ impl Grid {
         im: &mut [f64],
         sumsq: &mut [f64],
     ) {
-        const ANCHOR: usize = 128;
         let h = self.harmonics + 1;
         assert!(
             re.len() == channels.len() * h && im.len() == re.len() && sumsq.len() == channels.len()
         );
-        let (dr, di): (Vec<f64>, Vec<f64>) = (0..h)
-            .map(|n| {
-                let (s, c) = (2.0 * PI * frac(n as f64 * self.nu)).sin_cos();
-                (c, -s)
-            })
-            .unzip();
-        let mut wr = vec![0.0; h];
-        let mut wi = vec![0.0; h];
+        let mut rotor = Rotor::new(self);
         let mut k0 = range.start;
         while k0 < range.end {
             let k1 = (k0 + ANCHOR).min(range.end);
-            let ph = frac(k0 as f64 * self.nu);
-            for n in 0..h {
-                let (s, c) = (2.0 * PI * frac(n as f64 * ph)).sin_cos();
-                wr[n] = c;
-                wi[n] = -s;
-            }
+            rotor.anchor(k0);
             for k in k0..k1 {
                 for ((x, (acc_r, acc_i)), sq) in channels
                     .iter()
                     .zip(re.chunks_exact_mut(h).zip(im.chunks_exact_mut(h)))
                     .zip(sumsq.iter_mut())
                 {
-                    let x = x[k];
-                    *sq += x * x;
-                    for ((r, i), (a, b)) in acc_r
-                        .iter_mut()
-                        .zip(acc_i.iter_mut())
-                        .zip(wr.iter().zip(&wi))
-                    {
-                        *r += x * a;
-                        *i += x * b;
-                    }
+                    rotor.add(x[k], acc_r, acc_i, sq);
                 }
-                for ((a, b), (c, d)) in wr.iter_mut().zip(wi.iter_mut()).zip(dr.iter().zip(&di)) {
-                    let (ar, ai) = (*a, *b);
-                    *a = ar * c - ai * d;
-                    *b = ar * d + ai * c;
-                }
+                rotor.advance();
             }
             k0 = k1;
+        }
+    }
+}
+
+/// Samples between exact re-anchorings of a [`Rotor`], counted from the start of a window.
+pub(crate) const ANCHOR: usize = 128;
+
+/// The vector `e^{-j n theta_k}`, `n = 0..=N`, at the current sample `k`, advanced by one
+/// sample with an element-wise rotation and set exactly with [`Rotor::anchor`].
+#[derive(Clone)]
+pub(crate) struct Rotor {
+    nu: f64,
+    /// `e^{-j n 2 pi nu}`: one sample's rotation of each harmonic.
+    dr: Vec<f64>,
+    di: Vec<f64>,
+    wr: Vec<f64>,
+    wi: Vec<f64>,
+}
+
+impl Rotor {
+    /// A rotor of `grid`, anchored at sample 0.
+    pub fn new(grid: &Grid) -> Rotor {
+        let h = grid.harmonics + 1;
+        let (dr, di): (Vec<f64>, Vec<f64>) = (0..h)
+            .map(|n| {
+                let (s, c) = (2.0 * PI * frac(n as f64 * grid.nu)).sin_cos();
+                (c, -s)
+            })
+            .unzip();
+        let mut r = Rotor {
+            nu: grid.nu,
+            dr,
+            di,
+            wr: vec![0.0; h],
+            wi: vec![0.0; h],
+        };
+        r.anchor(0);
+        r
+    }
+
+    /// Sets the vector exactly at sample `k` (phase reduced to one cycle first).
+    pub fn anchor(&mut self, k: usize) {
+        let ph = frac(k as f64 * self.nu);
+        for (n, (wr, wi)) in self.wr.iter_mut().zip(self.wi.iter_mut()).enumerate() {
+            let (s, c) = (2.0 * PI * frac(n as f64 * ph)).sin_cos();
+            *wr = c;
+            *wi = -s;
+        }
+    }
+
+    /// Adds sample `x` of one channel at the current sample: `acc += x e^{-j n theta_k}`.
+    #[inline]
+    pub fn add(&self, x: f64, acc_r: &mut [f64], acc_i: &mut [f64], sq: &mut f64) {
+        *sq += x * x;
+        for ((r, i), (a, b)) in acc_r
+            .iter_mut()
+            .zip(acc_i.iter_mut())
+            .zip(self.wr.iter().zip(&self.wi))
+        {
+            *r += x * a;
+            *i += x * b;
+        }
+    }
+
+    /// Moves to the next sample.
+    #[inline]
+    pub fn advance(&mut self) {
+        for ((a, b), (c, d)) in self
+            .wr
+            .iter_mut()
+            .zip(self.wi.iter_mut())
+            .zip(self.dr.iter().zip(&self.di))
+        {
+            let (ar, ai) = (*a, *b);
+            *a = ar * c - ai * d;
+            *b = ar * d + ai * c;
         }
     }
 }
@@ -215,6 +267,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// Cholesky factor `G = L L^T` of a small dense symmetric positive definite matrix; `L` and
 /// `L^T` are both kept row-major so that both substitutions run over contiguous memory.
+#[derive(Clone)]
 pub(crate) struct Factor {
     p: usize,
     l: Vec<f64>,
@@ -283,6 +336,7 @@ impl Factor {
 
 /// Cholesky factors of per-window normal matrices, shared between windows of the same length
 /// and the same starting phase (to 1e-12 of a cycle), e.g. 2 kinds for 62.5 samples per period.
+#[derive(Clone)]
 pub(crate) struct FactorCache {
     entries: Vec<(usize, f64, Factor)>,
 }

@@ -61,17 +61,27 @@
 //! Measured (criterion, `benches/phasor.rs`, 6 channels, shared 2-core machine): 1300 samples
 //! at 100 Hz with N = 30 in ~0.45 ms (~2.9 M samples/s); 20000 samples at 10 kHz with N = 20
 //! in ~1.1-1.7 ms (~12-18 M samples/s).
+//!
+//! [`PhasorStream`] does the same work as the samples arrive (each period fitted when it
+//! completes), so that after a step's last sample only the settling and the joint fits remain:
+//! 8.8 ms against 129 ms for [`analyse_record`] of a 13 s step at 10 kHz, 6 channels, N = 100
+//! (criterion `phasor_step_end_*`, machine under heavy load); a pushed six-channel sample costs
+//! ~0.35 us at N = 100 (`phasor_stream_push_*`, ~2.9 M samples/s).
 
 mod fit;
+mod periods;
+mod stream;
 mod types;
 
+pub use stream::PhasorStream;
 pub use types::{
     ChannelPhasors, HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorError, PhasorOptions,
 };
 
-use crate::record::{Excitation, Record};
-use fit::{Factor, FactorCache, Grid, frac, phasors_of, rhs_matrix};
+use crate::record::{Channel, Excitation, Record};
+use fit::{Factor, Grid, frac, phasors_of, rhs_matrix};
 use num_complex::Complex64;
+use periods::{Periods, StepInfo, settle_and_fit};
 
 /// Fewest samples per period for which a per-period fit of DC + fundamental is possible.
 pub const MIN_SAMPLES_PER_PERIOD: f64 = 3.0;
@@ -96,6 +106,11 @@ fn boundary(p: usize, samples_per_period: f64) -> usize {
     x.ceil().max(0.0) as usize
 }
 
+/// Whole periods in `len` samples at `nu` cycles per sample (with the boundary tolerance).
+fn whole_periods(len: usize, nu: f64) -> usize {
+    ((len as f64 + BOUNDARY_TOLERANCE_SAMPLES) * nu).floor() as usize
+}
+
 fn validate_options(options: &PhasorOptions) -> Result<(), PhasorError> {
     let bad = |reason: &str| {
         Err(PhasorError::InvalidOptions {
@@ -112,134 +127,57 @@ fn validate_options(options: &PhasorOptions) -> Result<(), PhasorError> {
     Ok(())
 }
 
-/// Per-period sums and fits of one record, computed on demand (the settling walk runs from
-/// the end of the record and stops at the transient, so the transient periods are never fitted).
-struct Periods<'a> {
-    grid: Grid,
-    data: &'a [&'a [f64]],
-    bounds: Vec<usize>,
-    step: usize,
-    cache: FactorCache,
-    /// Per period: `X_n` sums (re, im; `[channel * (N+1) + n]`), `sum x^2` per channel, and
-    /// the per-period phasors `[channel][n]`.
-    done: Vec<Option<PeriodFit>>,
+/// The excitation of a sine step on its sampling grid, checked for a harmonic analysis.
+#[derive(Clone)]
+struct SineGrid {
+    frequency_hz: f64,
+    amplitude: f64,
+    samples_per_period: f64,
+    /// The harmonic cap (at least 1).
+    cap: usize,
 }
 
-struct PeriodFit {
-    re: Vec<f64>,
-    im: Vec<f64>,
-    sumsq: Vec<f64>,
-    phasors: Vec<Vec<Complex64>>,
-}
-
-impl<'a> Periods<'a> {
-    fn new(grid: Grid, data: &'a [&'a [f64]], bounds: Vec<usize>, step: usize) -> Self {
-        let n = bounds.len() - 1;
-        Periods {
-            grid,
-            data,
-            bounds,
-            step,
-            cache: FactorCache::new(),
-            done: (0..n).map(|_| None).collect(),
-        }
-    }
-
-    fn fit(&mut self, p: usize) -> Result<&PeriodFit, PhasorError> {
-        if self.done[p].is_none() {
-            let (h, nc) = (self.grid.harmonics + 1, self.data.len());
-            let (start, end) = (self.bounds[p], self.bounds[p + 1]);
-            let (mut re, mut im, mut sumsq) = (vec![0.0; nc * h], vec![0.0; nc * h], vec![0.0; nc]);
-            self.grid
-                .accumulate(self.data, start..end, &mut re, &mut im, &mut sumsq);
-            let chol = self.cache.get(&self.grid, start, end - start).ok_or(
-                PhasorError::IllConditioned {
-                    step: self.step,
-                    samples: end - start,
-                },
-            )?;
-            let mut beta = rhs_matrix(self.grid.harmonics, nc, &re, &im);
-            chol.solve(&mut beta);
-            let phasors = (0..nc)
-                .map(|c| phasors_of(&beta, c, self.grid.harmonics))
-                .collect();
-            self.done[p] = Some(PeriodFit {
-                re,
-                im,
-                sumsq,
-                phasors,
+impl SineGrid {
+    fn of(step: usize, excitation: &Excitation, sample_rate_hz: f64) -> Result<Self, PhasorError> {
+        let (frequency_hz, amplitude) = match *excitation {
+            Excitation::Sine {
+                frequency_hz,
+                amplitude,
+            } => (frequency_hz, amplitude),
+            Excitation::Random { .. } => return Err(PhasorError::NotSine { step }),
+        };
+        let fs = sample_rate_hz;
+        if !(fs.is_finite() && fs > 0.0) {
+            return Err(PhasorError::InvalidSampleRate {
+                step,
+                sample_rate_hz: fs,
             });
         }
-        Ok(self.done[p].as_ref().expect("just computed"))
-    }
-
-    fn phasors(&mut self, p: usize) -> Result<&[Vec<Complex64>], PhasorError> {
-        Ok(&self.fit(p)?.phasors)
-    }
-
-    /// `v_n`: complex variance of a per-period phasor per unit sample variance (diagonal of
-    /// the inverse normal matrix of period `p`, `a_n` and `b_n` added).
-    fn per_period_variance_factors(&mut self, p: usize) -> Result<Vec<f64>, PhasorError> {
-        let (start, len) = (self.bounds[p], self.bounds[p + 1] - self.bounds[p]);
-        let d = self
-            .cache
-            .get(&self.grid, start, len)
-            .ok_or(PhasorError::IllConditioned {
-                step: self.step,
-                samples: len,
-            })?
-            .inverse_diagonal();
-        Ok((0..=self.grid.harmonics)
-            .map(|n| {
-                if n == 0 {
-                    d[0]
-                } else {
-                    d[fit::idx_a(n)] + d[fit::idx_b(n)]
-                }
-            })
-            .collect())
-    }
-
-    /// Joint fit over whole periods `first..` to the end: the solution (channel-major) and the
-    /// residual variance per sample of each channel, `RSS / (samples - (2N+1))`.
-    fn joint(&mut self, first: usize) -> Result<(Vec<f64>, Vec<f64>), PhasorError> {
-        let periods = self.done.len();
-        let (h, nc) = (self.grid.harmonics + 1, self.data.len());
-        let (mut re, mut im, mut sq) = (vec![0.0; nc * h], vec![0.0; nc * h], vec![0.0; nc]);
-        for p in first..periods {
-            let f = self.fit(p)?;
-            re.iter_mut().zip(&f.re).for_each(|(a, b)| *a += b);
-            im.iter_mut().zip(&f.im).for_each(|(a, b)| *a += b);
-            sq.iter_mut().zip(&f.sumsq).for_each(|(a, b)| *a += b);
+        if !(frequency_hz.is_finite() && frequency_hz > 0.0) {
+            return Err(PhasorError::InvalidFrequency { step, frequency_hz });
         }
-        let (start, n) = (
-            self.bounds[first],
-            self.bounds[periods] - self.bounds[first],
-        );
-        let params = self.grid.params();
-        let chol = Factor::new(&self.grid.normal_matrix(start, n), params).ok_or(
-            PhasorError::IllConditioned {
-                step: self.step,
-                samples: n,
-            },
-        )?;
-        let rhs = rhs_matrix(self.grid.harmonics, nc, &re, &im);
-        let mut beta = rhs.clone();
-        chol.solve(&mut beta);
-        let dof = n.saturating_sub(params).max(1) as f64;
-        // RSS = sum x^2 - beta . rhs at the least-squares solution.
-        let var = (0..nc)
-            .map(|c| {
-                let r = c * params..(c + 1) * params;
-                let fitted: f64 = beta[r.clone()]
-                    .iter()
-                    .zip(&rhs[r])
-                    .map(|(b, r)| b * r)
-                    .sum();
-                (sq[c] - fitted).max(0.0) / dof
-            })
-            .collect();
-        Ok((beta, var))
+        if frequency_hz >= 0.5 * fs {
+            return Err(PhasorError::AboveNyquist {
+                step,
+                frequency_hz,
+                nyquist_hz: 0.5 * fs,
+            });
+        }
+        let spp = fs / frequency_hz;
+        let cap = harmonic_cap(spp);
+        if cap == 0 {
+            return Err(PhasorError::TooFewSamplesPerPeriod {
+                step,
+                frequency_hz,
+                samples_per_period: spp,
+            });
+        }
+        Ok(SineGrid {
+            frequency_hz,
+            amplitude,
+            samples_per_period: spp,
+            cap,
+        })
     }
 }
 
@@ -251,39 +189,13 @@ pub fn analyse_record(
 ) -> Result<HarmonicAnalysis, PhasorError> {
     validate_options(options)?;
     let step = record.step;
-    let (frequency_hz, amplitude) = match record.excitation {
-        Excitation::Sine {
-            frequency_hz,
-            amplitude,
-        } => (frequency_hz, amplitude),
-        Excitation::Random { .. } => return Err(PhasorError::NotSine { step }),
-    };
+    let SineGrid {
+        frequency_hz,
+        amplitude,
+        samples_per_period: spp,
+        cap,
+    } = SineGrid::of(step, &record.excitation, record.sample_rate_hz)?;
     let fs = record.sample_rate_hz;
-    if !(fs.is_finite() && fs > 0.0) {
-        return Err(PhasorError::InvalidSampleRate {
-            step,
-            sample_rate_hz: fs,
-        });
-    }
-    if !(frequency_hz.is_finite() && frequency_hz > 0.0) {
-        return Err(PhasorError::InvalidFrequency { step, frequency_hz });
-    }
-    if frequency_hz >= 0.5 * fs {
-        return Err(PhasorError::AboveNyquist {
-            step,
-            frequency_hz,
-            nyquist_hz: 0.5 * fs,
-        });
-    }
-    let spp = fs / frequency_hz;
-    let cap = harmonic_cap(spp);
-    if cap == 0 {
-        return Err(PhasorError::TooFewSamplesPerPeriod {
-            step,
-            frequency_hz,
-            samples_per_period: spp,
-        });
-    }
     let Some((first, first_data)) = record.channels.first() else {
         return Err(PhasorError::NoChannels { step });
     };
@@ -308,7 +220,7 @@ pub fn analyse_record(
         }
     }
     let nu = frequency_hz / fs;
-    let periods = ((len as f64 + BOUNDARY_TOLERANCE_SAMPLES) * nu).floor() as usize;
+    let periods = whole_periods(len, nu);
     if periods < 2 {
         return Err(PhasorError::TooShort {
             step,
@@ -327,100 +239,16 @@ pub fn analyse_record(
         (0..=periods).map(|p| boundary(p, spp)).collect(),
         step,
     );
-    let h = harmonics + 1;
-    let n_ch = data.len();
-
-    // 2. Noise level from the joint fit of the tail (periods are fitted lazily from the end).
-    let min_periods = options.min_periods.max(2);
-    let tail_first = periods - min_periods.min(periods);
-    let (_, tail_var) = work.joint(tail_first)?;
-    let last = periods - 1;
-    let v = work.per_period_variance_factors(last)?;
-
-    // 3. Walk backwards from the last period.
-    let k = options.settle_noise_factor;
-    let tol = options.settle_relative_tolerance;
-    let mut sum: Vec<Vec<Complex64>> = work.phasors(last)?.to_vec();
-    let mut accepted = 1usize;
-    let mut first_accepted = last;
-    for p in (0..last).rev() {
-        let a = accepted as f64;
-        let inflate = (1.0 + 1.0 / a).sqrt();
-        let cp = work.phasors(p)?;
-        let agrees = (0..n_ch).all(|c| {
-            let mean: Vec<Complex64> = sum[c].iter().map(|s| s / a).collect();
-            let scale_ac = mean[1..]
-                .iter()
-                .map(Complex64::norm_sqr)
-                .sum::<f64>()
-                .sqrt();
-            let scale = if scale_ac > 0.0 {
-                scale_ac
-            } else {
-                mean[0].norm()
-            };
-            let floor = 1e-10 * scale_ac.max(mean[0].norm());
-            (0..h).all(|n| {
-                let noise = k * (tail_var[c] * v[n]).sqrt() * inflate;
-                let thr = noise.max(tol * scale).max(floor);
-                (cp[c][n] - mean[n]).norm() <= thr
-            })
-        });
-        if !agrees {
-            break;
-        }
-        for (s, c) in sum.iter_mut().zip(cp) {
-            for (s, c) in s.iter_mut().zip(c) {
-                *s += c;
-            }
-        }
-        accepted += 1;
-        first_accepted = p;
-    }
-    let settled = accepted >= min_periods;
-    let first_used = if settled { first_accepted } else { tail_first };
-
-    // 4. Joint fit over the used periods; 5. standard error from the per-period scatter.
-    let used = periods - first_used;
-    let (beta, var) = work.joint(first_used)?;
-    let mut channels = Vec::with_capacity(n_ch);
-    for (c, (channel, _)) in record.channels.iter().enumerate() {
-        let mut noise_std = Vec::with_capacity(h);
-        for n in 0..h {
-            let mut mean = Complex64::new(0.0, 0.0);
-            for p in first_used..periods {
-                mean += work.phasors(p)?[c][n];
-            }
-            mean /= used as f64;
-            let mut ss = 0.0;
-            for p in first_used..periods {
-                ss += (work.phasors(p)?[c][n] - mean).norm_sqr();
-            }
-            noise_std.push((ss / (used * (used - 1)) as f64).sqrt());
-        }
-        channels.push(ChannelPhasors {
-            channel: *channel,
-            phasors: phasors_of(&beta, c, harmonics),
-            noise_std,
-            residual_rms: var[c].sqrt(),
-        });
-    }
-    let bounds = &work.bounds;
-
-    Ok(HarmonicAnalysis {
+    let channels: Vec<Channel> = record.channels.iter().map(|(c, _)| *c).collect();
+    let info = StepInfo {
         step,
         frequency_hz,
         amplitude,
-        t_ref_s: record.start_time_s + first_used as f64 / frequency_hz,
-        periods_used: used,
-        periods_available: periods,
-        first_settled_sample: bounds[first_used],
-        samples_used: bounds[periods] - bounds[first_used],
-        settled,
-        harmonics,
+        start_time_s: record.start_time_s,
+        channels: &channels,
         harmonic_cap: cap,
-        channels,
-    })
+    };
+    settle_and_fit(&mut work, &info, options)
 }
 
 /// Least-squares fit of DC + harmonics `1..=harmonics` of `frequency_hz` to uniformly sampled

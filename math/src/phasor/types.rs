@@ -99,6 +99,54 @@ impl HarmonicAnalysis {
     pub fn channel(&self, c: Channel) -> Option<&ChannelPhasors> {
         self.channels.iter().find(|p| p.channel == c)
     }
+
+    /// How far `other` is from this analysis in its real numbers: the largest difference of a
+    /// phasor, noise or residual, relative to the largest phasor of its channel, and of
+    /// `t_ref_s`, relative to a period. `None` when they differ in anything else (step,
+    /// frequency, periods, settled part, harmonics, channels): not the same analysis at all.
+    pub fn relative_difference(&self, other: &HarmonicAnalysis) -> Option<f64> {
+        let same = self.step == other.step
+            && self.frequency_hz == other.frequency_hz
+            && self.amplitude.to_bits() == other.amplitude.to_bits()
+            && self.periods_used == other.periods_used
+            && self.periods_available == other.periods_available
+            && self.first_settled_sample == other.first_settled_sample
+            && self.samples_used == other.samples_used
+            && self.settled == other.settled
+            && self.harmonics == other.harmonics
+            && self.harmonic_cap == other.harmonic_cap
+            && self.channels.len() == other.channels.len()
+            && self.channels.iter().zip(&other.channels).all(|(a, b)| {
+                a.channel == b.channel
+                    && a.phasors.len() == b.phasors.len()
+                    && a.noise_std.len() == b.noise_std.len()
+            });
+        if !same {
+            return None;
+        }
+        let mut d = ((self.t_ref_s - other.t_ref_s) * self.frequency_hz).abs();
+        for (a, b) in self.channels.iter().zip(&other.channels) {
+            let scale = a.phasors.iter().map(|c| c.norm()).fold(0.0, f64::max);
+            let rel = |x: f64| if scale > 0.0 { x / scale } else { x };
+            let phasors = a
+                .phasors
+                .iter()
+                .zip(&b.phasors)
+                .map(|(p, q)| (p - q).norm());
+            let noise = a
+                .noise_std
+                .iter()
+                .zip(&b.noise_std)
+                .map(|(p, q)| (p - q).abs());
+            let residual = (a.residual_rms - b.residual_rms).abs();
+            d = phasors
+                .chain(noise)
+                .chain(std::iter::once(residual))
+                .map(rel)
+                .fold(d, f64::max);
+        }
+        Some(d)
+    }
 }
 
 /// Why a record could not be analysed.
@@ -126,6 +174,15 @@ pub enum PhasorError {
         channel: Channel,
         sample: usize,
         value: f64,
+    },
+    #[error(
+        "step {step}: sample {sample} has {values} values for the stream's {channels} channels"
+    )]
+    SampleWidth {
+        step: usize,
+        sample: usize,
+        values: usize,
+        channels: usize,
     },
     #[error("step {step}: sample rate {sample_rate_hz} Hz is not a positive finite number")]
     InvalidSampleRate { step: usize, sample_rate_hz: f64 },

@@ -6,13 +6,20 @@
 //! complete. Steps with gaps, lost samples or non-finite values are dropped and reported on
 //! /diagnostics, never used. Random (validation) records give no phasors.
 //!
+//! The phasors are accumulated as the samples arrive ([`PhasorStream`](forcemap_math::phasor::PhasorStream)), so that when a step's
+//! last sample comes only the settling walk and the joint fit remain (independent of the step's
+//! length). The stream needs the sample rate from the start: it takes the nearest whole Hz of
+//! the step's first interval; if the completed step's rate (from all its stamps) differs, or
+//! anything else of the record differs from what was streamed, the record is analysed in batch
+//! ([`analyse_record`](forcemap_math::phasor::analyse_record)), which gives what the stream would have given at that rate.
+//!
 //! Parameters: `max_harmonic` (100, as `forcemap identify`), `min_periods` (the phasor
 //! analysis' minimum of settled periods), `frame_id`.
 
 use std::collections::{BTreeMap, VecDeque};
 use std::time::{Duration, Instant};
 
-use forcemap_math::phasor::{IDENTIFICATION_MAX_HARMONIC, PhasorOptions, analyse_record};
+use forcemap_math::phasor::{IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::record::{Excitation, Record};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
@@ -20,9 +27,14 @@ use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, RigSample};
 use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
+mod stream;
+
+pub use stream::Analysis;
+use stream::StepStream;
+
 use crate::log_line;
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos};
-use forcemap_io::steps::{StepAssembler, StepError, StepPlan};
+use forcemap_io::steps::{StepAssembler, StepError, StepPlan, StepSample};
 use forcemap_io::topics;
 
 /// Samples of a step whose excitation state has not arrived are held this long (the two topics
@@ -42,7 +54,7 @@ pub enum Input {
 /// What the node decided about a step.
 pub enum Outcome {
     /// A complete sine step to analyse, with the run's time origin.
-    Analyse(Record, Time),
+    Analyse(Analysis, Time),
     /// A complete random record: kept for validation, no phasors.
     Skipped(usize, String),
     Dropped(StepError),
@@ -50,6 +62,8 @@ pub enum Outcome {
 
 /// The node's logic without the middleware, so that it can be tested alone.
 pub struct HarmonicState {
+    options: PhasorOptions,
+    stream: Option<StepStream>,
     assembler: StepAssembler,
     plans: BTreeMap<u32, Option<StepPlan>>,
     pending: VecDeque<(RigSample, Instant)>,
@@ -65,8 +79,16 @@ impl Default for HarmonicState {
 }
 
 impl HarmonicState {
+    /// A state with the identification's phasor options.
     pub fn new() -> HarmonicState {
+        HarmonicState::with_options(PhasorOptions::for_identification())
+    }
+
+    /// A state whose streams analyse with `options` (those the records are analysed with).
+    pub fn with_options(options: PhasorOptions) -> HarmonicState {
         HarmonicState {
+            options,
+            stream: None,
             assembler: StepAssembler::new(),
             plans: BTreeMap::new(),
             pending: VecDeque::new(),
@@ -120,7 +142,10 @@ impl HarmonicState {
                 {
                     self.idle_since = None;
                     self.flush_pending(&mut done, true);
-                    done.extend(self.assembler.finish().map(|r| self.outcome(r)));
+                    if let Some(r) = self.assembler.finish() {
+                        let stream = self.stream.take();
+                        done.push(self.outcome(r, stream));
+                    }
                 }
             }
         }
@@ -140,16 +165,39 @@ impl HarmonicState {
 
     fn push(&mut self, s: &RigSample, done: &mut Vec<Outcome>) {
         let plan = self.plans.get(&s.step).cloned().flatten();
-        for r in self.assembler.push(s, plan.as_ref()) {
-            done.push(self.outcome(r));
+        // What `StepAssembler::push` does with a rig sample, so that the stream gets the same
+        // sample (time from the same origin, same values) before the assembler.
+        self.assembler.set_origin(s.header.stamp);
+        let origin = self.assembler.origin().unwrap_or(s.header.stamp);
+        let sample = StepSample::of_rig(s, s.header.stamp.secs_since(origin));
+        let step = sample.step;
+        let previous = self.stream.take_if(|st| st.step != step);
+        let stream = self
+            .stream
+            .get_or_insert_with(|| StepStream::new(step, plan.as_ref()));
+        stream.push(&sample, &self.options);
+        let mut previous = previous;
+        for r in self.assembler.push_sample(&sample, plan.as_ref()) {
+            let r = r.map(|a| a.record);
+            let step_of = r.as_ref().map_or_else(|e| e.step, |rec| rec.step);
+            let st = if previous.as_ref().is_some_and(|p| p.step == step_of) {
+                previous.take()
+            } else {
+                self.stream.take_if(|st| st.step == step_of)
+            };
+            done.push(self.outcome(r, st));
         }
     }
 
-    fn outcome(&self, r: Result<Record, StepError>) -> Outcome {
+    fn outcome(&self, r: Result<Record, StepError>, stream: Option<StepStream>) -> Outcome {
         match r {
             Ok(rec) => match rec.excitation {
                 Excitation::Sine { .. } => {
-                    Outcome::Analyse(rec, self.assembler.origin().unwrap_or(Time::ZERO))
+                    let analysis = match stream.and_then(|s| s.matching(&rec)) {
+                        Some(s) => Analysis::Streamed(Box::new(s)),
+                        None => Analysis::Batch(rec),
+                    };
+                    Outcome::Analyse(analysis, self.assembler.origin().unwrap_or(Time::ZERO))
                 }
                 Excitation::Random { .. } => Outcome::Skipped(
                     rec.step,
@@ -208,7 +256,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     });
 
     // Analysis runs on its own task, in step order, so sample intake never waits for it.
-    let (atx, mut arx) = mpsc::unbounded_channel::<(Record, Time)>();
+    let (atx, mut arx) = mpsc::unbounded_channel::<(Analysis, Time)>();
     let status_name = format!("{fq}: harmonic analysis");
     let diag_pub = std::sync::Arc::new(diag_pub);
     let diag_for_worker = diag_pub.clone();
@@ -218,15 +266,20 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let worker = tokio::spawn(async move {
         let options = options_w;
         let mut analysed = 0usize;
-        while let Some((rec, origin)) = arx.recv().await {
-            let step = rec.step;
+        while let Some((analysis, origin)) = arx.recv().await {
+            let step = analysis.step();
+            let how = if analysis.is_streamed() {
+                ""
+            } else {
+                " (batch: the record's sample rate was not the stream's)"
+            };
             let opts = options.clone();
-            let result = tokio::task::spawn_blocking(move || analyse_record(&rec, &opts)).await;
+            let result = tokio::task::spawn_blocking(move || analysis.run(&opts)).await;
             match result {
                 Ok(Ok(an)) => {
                     analysed += 1;
                     log_line!(
-                        "step {step}: {:.3} Hz, {} settled periods{} -> phasors of {} harmonics",
+                        "step {step}: {:.3} Hz, {} settled periods{} -> phasors of {} harmonics{how}",
                         an.frequency_hz,
                         an.periods_used,
                         if an.settled { "" } else { " (NOT settled)" },
@@ -265,7 +318,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         }
     });
 
-    let mut state = HarmonicState::new();
+    let mut state = HarmonicState::with_options(options.clone());
     let mut dropped = 0usize;
     log_line!(
         "waiting for samples on {} (max_harmonic {})",
@@ -279,8 +332,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         };
         for out in state.handle(input, Instant::now()) {
             match out {
-                Outcome::Analyse(rec, origin) => {
-                    let _ = atx.send((rec, origin));
+                Outcome::Analyse(analysis, origin) => {
+                    let _ = atx.send((analysis, origin));
                 }
                 Outcome::Skipped(step, why) => log_line!("step {step}: {why}"),
                 Outcome::Dropped(e) => {
@@ -360,10 +413,13 @@ mod tests {
             out.extend(h.handle(Input::Sample(sample(0, k)), t));
         }
         assert_eq!(out.len(), 1);
-        let Outcome::Analyse(rec, origin) = out.pop().unwrap() else {
-            panic!("step 0 should be analysed")
+        let Outcome::Analyse(Analysis::Streamed(st), origin) = out.pop().unwrap() else {
+            panic!("step 0 should be analysed from its stream")
         };
-        assert_eq!((rec.step, rec.len(), rec.sample_rate_hz), (0, 5, 100.0));
+        assert_eq!(
+            (st.step(), st.samples(), st.sample_rate_hz()),
+            (0, 5, 100.0)
+        );
         assert_eq!(origin, Time::from_nanos(5_000_000_000));
 
         out.extend(h.handle(Input::Excitation(state(1, 4, false)), t));
@@ -405,7 +461,9 @@ mod tests {
             out.extend(h.handle(Input::Sample(sample(0, k)), t + Duration::from_millis(400)));
         }
         assert_eq!(out.len(), 1);
-        assert!(matches!(out.pop(), Some(Outcome::Analyse(r, _)) if r.len() == 5));
+        assert!(
+            matches!(out.pop(), Some(Outcome::Analyse(Analysis::Streamed(s), _)) if s.samples() == 5)
+        );
     }
 
     /// Samples whose excitation state never comes are dropped after the wait, not used.

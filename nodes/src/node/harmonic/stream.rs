@@ -1,0 +1,112 @@
+//! The harmonic node's stream of the step being assembled, and what it hands to the analysis
+//! when the step completes: the stream, or the record when the stream does not match it.
+
+use forcemap_io::steps::{StepPlan, StepSample};
+use forcemap_math::phasor::{
+    HarmonicAnalysis, PhasorError, PhasorOptions, PhasorStream, analyse_record,
+};
+use forcemap_math::record::{Excitation, Record};
+
+/// A complete sine step, ready for its analysis.
+pub enum Analysis {
+    /// Accumulated as the samples arrived: only the settling and the joint fit remain.
+    Streamed(Box<PhasorStream>),
+    /// The record, to be analysed whole (the stream did not match it; see the module docs).
+    Batch(Record),
+}
+
+impl Analysis {
+    pub fn step(&self) -> usize {
+        match self {
+            Analysis::Streamed(s) => s.step(),
+            Analysis::Batch(r) => r.step,
+        }
+    }
+
+    pub fn is_streamed(&self) -> bool {
+        matches!(self, Analysis::Streamed(_))
+    }
+
+    /// The phasors of the step (the same either way for the same record).
+    pub fn run(self, options: &PhasorOptions) -> Result<HarmonicAnalysis, PhasorError> {
+        match self {
+            Analysis::Streamed(s) => s.finish(),
+            Analysis::Batch(r) => analyse_record(&r, options),
+        }
+    }
+}
+
+/// The stream of the step being assembled.
+pub(super) struct StepStream {
+    pub(super) step: usize,
+    excitation: Excitation,
+    /// The plan's sample count (0: not known).
+    expected: usize,
+    /// The first sample's time and values, held until the second gives the sample rate.
+    first: Option<(f64, Vec<f64>)>,
+    /// `None` until the second sample, and when the stream cannot run (random excitation, an
+    /// unusable first interval): the record is then analysed in batch if at all.
+    phasors: Option<PhasorStream>,
+    /// The values of the sample being pushed (reused: no allocation per sample).
+    values: Vec<f64>,
+}
+
+impl StepStream {
+    pub(super) fn new(step: usize, plan: Option<&StepPlan>) -> StepStream {
+        StepStream {
+            step,
+            excitation: plan.map_or(
+                Excitation::Random {
+                    band_hz: None,
+                    rms: f64::NAN,
+                },
+                |p| p.excitation.clone(),
+            ),
+            expected: plan.map_or(0, |p| p.sample_count),
+            first: None,
+            phasors: None,
+            values: Vec::new(),
+        }
+    }
+
+    pub(super) fn push(&mut self, sample: &StepSample, options: &PhasorOptions) {
+        if !matches!(self.excitation, Excitation::Sine { .. }) {
+            return;
+        }
+        let values = || sample.values.iter().map(|(_, v)| *v);
+        if let Some(s) = &mut self.phasors {
+            self.values.clear();
+            self.values.extend(values());
+            s.push(&self.values);
+            return;
+        }
+        let Some((t0, first)) = self.first.take() else {
+            self.first = Some((sample.t_s, values().collect()));
+            return;
+        };
+        // Rigs sample at whole rates and the assembler snaps a step's rate to them; a rate that
+        // is not one is caught when the step completes.
+        let rate_hz = (1.0 / (sample.t_s - t0)).round();
+        let channels = sample.values.iter().map(|(c, _)| *c).collect();
+        if let Ok(mut s) =
+            PhasorStream::new(self.step, &self.excitation, rate_hz, t0, channels, options)
+        {
+            s.expect_samples(self.expected);
+            s.push(&first);
+            s.push(&values().collect::<Vec<_>>());
+            self.phasors = Some(s);
+        }
+    }
+
+    /// The stream if it holds exactly the samples of `record` at its rate.
+    pub(super) fn matching(self, record: &Record) -> Option<PhasorStream> {
+        let s = self.phasors?;
+        let same = s.step() == record.step
+            && s.samples() == record.len()
+            && s.sample_rate_hz() == record.sample_rate_hz
+            && s.channels()
+                .iter()
+                .eq(record.channels.iter().map(|(c, _)| c));
+        same.then_some(s)
+    }
+}
