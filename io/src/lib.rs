@@ -5,13 +5,16 @@
 pub mod atomic;
 pub mod axis;
 pub mod bag;
+pub mod channel_map;
 pub mod csv_export;
 pub mod distro;
 pub mod emps;
+pub mod foreign_bag;
 pub mod input;
 pub mod params;
 pub mod rig_bag;
 pub mod rig_constants;
 pub mod rig_messages;
+pub mod ros_msg;
 pub mod steps;
 pub mod topics;
