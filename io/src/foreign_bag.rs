@@ -4,12 +4,14 @@
 //! stamps (the log time for a message without a header), and the samples are assembled into
 //! steps by the same [`StepAssembler`] as forcemap's own bags.
 //!
-//! Alignment: the data topics must have one sample rate; over the time span they all cover,
-//! the k-th message of each topic must be stamped within [`ALIGN_TOLERANCE`] sample intervals
-//! of the k-th of the first channel's topic (no resampling: a lost message, a clock offset or a
-//! different rate is an error that says which). The labels (`step`, `frequency_hz`) hold from
-//! their message's stamp until the next one, so a state topic published once per step works as
-//! well as one published with every sample; samples before the first label are left out.
+//! Alignment: the samples take the times of a reference topic (the first channel's topic whose
+//! type has a header, else the first channel's). The data topics must have one sample rate;
+//! over the time span they all cover, each reference message takes the nearest message of every
+//! other data topic, which must be stamped within [`ALIGN_TOLERANCE`] sample intervals of it,
+//! once each (no resampling: a lost message, a clock offset or a different rate is an error
+//! that says which). The labels (`step`, `frequency_hz`) hold from their message's stamp (less
+//! the tolerance) until the next one, so a state topic published once per step works as well as
+//! one published with every sample; samples before the first label are left out.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -259,7 +261,7 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
     assemble(&p, map, &samples, &steps, &freqs)
 }
 
-/// The aligned data: one time per sample (the first channel's topic's) and the channel values.
+/// The aligned data: one time per sample (the reference topic's) and the channel values.
 struct Aligned {
     times: Vec<i64>,
     /// Per sample, the channels' values in the map's order.
@@ -314,8 +316,15 @@ fn align(
     let tol = (ALIGN_TOLERANCE * interval).max(1.0);
     for name in &order[1..] {
         let rows = &topics[name].rows;
+        if rows.len() < 2 {
+            return Err(err(format!(
+                "{name} has {} messages where {reference} has {}",
+                rows.len(),
+                ref_rows.len()
+            )));
+        }
         let other = median_interval(rows);
-        if rows.len() < 2 || (other / interval - 1.0).abs() > RATE_TOLERANCE {
+        if (other / interval - 1.0).abs() > RATE_TOLERANCE {
             return Err(err(format!(
                 "{name} has a sample rate of {:.6} Hz where {reference} has {:.6} Hz: channels from different topics must share one rate (forcemap does not resample)",
                 1e9 / other,
