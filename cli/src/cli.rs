@@ -61,7 +61,7 @@ pub enum BenchCommand {
     /// Time `identify` on a rig CSV export stage by stage (CSV parsing, phasors, fit,
     /// validation; medians over repeats) and, with --python, the numpy peer on the same file
     /// (benches/numpy_peer.py), as a ratio.
-    Identify(BenchIdentifyArgs),
+    Identify(Box<BenchIdentifyArgs>),
 }
 
 #[derive(Debug, Args)]
@@ -186,6 +186,10 @@ pub struct IdentifyArgs {
     /// Rig constants in a ROS 2 params YAML (`/**: ros__parameters: {mass_kg: 36.0}`).
     #[arg(long)]
     pub params: Option<PathBuf>,
+    /// A channel map (YAML): FILE is a bag recorded with the bench's own message types, each
+    /// channel read from the topic and field the map names (see docs/data.md).
+    #[arg(long, value_name = "MAP")]
+    pub channels: Option<PathBuf>,
     /// Highest harmonic to analyse (default: as many as the sampling allows, at most 100;
     /// harmonics that do not stand out of their noise are dropped by the improved method).
     #[arg(long)]
@@ -355,6 +359,10 @@ pub struct DiagnoseArgs {
     /// Rig constants in a ROS 2 params YAML.
     #[arg(long)]
     pub params: Option<PathBuf>,
+    /// A channel map (YAML): DATA (and --validate) are bags recorded with the bench's own
+    /// message types (see docs/data.md).
+    #[arg(long, value_name = "MAP")]
+    pub channels: Option<PathBuf>,
     /// Slope M [s/m] of the atan friction term (coulomb-atan baselines).
     #[arg(long)]
     pub atan_m: Option<f64>,

@@ -6,8 +6,10 @@ use std::path::Path;
 
 use forcemap_math::record::Record;
 
+use crate::channel_map::ChannelMap;
 use crate::csv_export::read_csv;
-use crate::rig_bag::read_rig_bag;
+use crate::foreign_bag::read_foreign_bag;
+use crate::rig_bag::{RigBag, read_rig_bag};
 use forcemap_math::recipe::SetupKind;
 
 /// Records and what came with them.
@@ -96,17 +98,7 @@ impl FileFormat {
 /// file, with the constants and notices that came with them.
 pub fn load(path: &Path) -> anyhow::Result<Loaded> {
     if is_bag(path) {
-        let bag = read_rig_bag(path)?;
-        if let Some(why) = &bag.left_out {
-            eprintln!("notice: {}: {why}", path.display());
-        }
-        let kind = kind_of(&bag.records, &path.display().to_string())?;
-        Ok(Loaded {
-            records: bag.records,
-            kind,
-            parameters: bag.parameters,
-            ignored_columns: vec![],
-        })
+        of_bag(path, read_rig_bag(path)?)
     } else {
         let csv = match FileFormat::of(path) {
             FileFormat::Mdf => crate::mdf::read_mdf(path)?,
@@ -125,5 +117,42 @@ pub fn load(path: &Path) -> anyhow::Result<Loaded> {
             parameters: BTreeMap::new(),
             ignored_columns: csv.ignored_columns,
         })
+    }
+}
+
+fn of_bag(path: &Path, bag: RigBag) -> anyhow::Result<Loaded> {
+    if let Some(why) = &bag.left_out {
+        eprintln!("notice: {}: {why}", path.display());
+    }
+    let kind = kind_of(&bag.records, &path.display().to_string())?;
+    Ok(Loaded {
+        records: bag.records,
+        kind,
+        parameters: bag.parameters,
+        ignored_columns: vec![],
+    })
+}
+
+/// As [`load`]; with a channel map (`channels`), `path` is a bag recorded by a bench's own
+/// tools, read through the map ([`crate::foreign_bag`]).
+pub fn load_mapped(path: &Path, channels: Option<&Path>) -> anyhow::Result<Loaded> {
+    let Some(map_path) = channels else {
+        return load(path);
+    };
+    if !is_bag(path) {
+        anyhow::bail!(
+            "{}: a channel map applies to bags (a directory or a .mcap file) only",
+            path.display()
+        );
+    }
+    let map = ChannelMap::read(map_path)?;
+    of_bag(path, read_foreign_bag(path, &map)?)
+}
+
+/// As [`load_measured`]; with a channel map, the steps of a bench's own bag.
+pub fn load_measured_mapped(path: &Path, channels: Option<&Path>) -> anyhow::Result<Measured> {
+    match channels {
+        None => load_measured(path),
+        Some(_) => Ok(Measured::Steps(load_mapped(path, channels)?)),
     }
 }

@@ -55,7 +55,7 @@ fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data
     .setup()?;
     let validation = match &args.validate {
         Some(v) => {
-            let vi = forcemap_io::input::load(v)?;
+            let vi = forcemap_io::input::load_mapped(v, args.channels.as_deref())?;
             if vi.kind != SetupKind::BaseExcited {
                 bail!(
                     "{}: validation data must hold the rig channels",
@@ -91,7 +91,10 @@ fn demo_data() -> anyhow::Result<Data> {
 pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     // What the data are decides the path: a force-driven axis record goes to the time domain.
     let measured = match &args.data {
-        Some(path) if !args.demo => Some(forcemap_io::input::load_measured(path)?),
+        Some(path) if !args.demo => Some(forcemap_io::input::load_measured_mapped(
+            path,
+            args.channels.as_deref(),
+        )?),
         _ => None,
     };
     if let (Some(Measured::Axis(fit)), Some(path)) = (&measured, &args.data) {

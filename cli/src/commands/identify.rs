@@ -64,7 +64,7 @@ pub fn recipe(
 
 pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     let file = args.file.display().to_string();
-    let import = forcemap_io::input::load(&args.file)?;
+    let import = forcemap_io::input::load_mapped(&args.file, args.channels.as_deref())?;
     if !import.ignored_columns.is_empty() {
         eprintln!(
             "notice: {file}: ignored columns not in the contract: {}",

@@ -18,6 +18,7 @@ use super::error::{CsvError, csv_error};
 use crate::steps::unlabelled::{StepWithFrequency, check_labels, split_run};
 use crate::steps::{
     AssembledStep, StepAssembler, StepError, StepFault, StepPlan, StepRules, StepSample,
+    estimated_excitation, rms_about_mean,
 };
 use forcemap_math::segment::SegmentOptions;
 
@@ -359,21 +360,6 @@ fn common_sample_rate(path: &Path, steps: &[ReadStep]) -> Result<f64, CsvError> 
     Ok(sample_rate_hz)
 }
 
-/// The excitation of a step estimated from the RMS `level` of its driven channel: a sine of
-/// amplitude `sqrt(2) * level`, or random of RMS `level`.
-fn estimated_excitation(frequency: Option<f64>, level: f64) -> Excitation {
-    match frequency {
-        Some(frequency_hz) => Excitation::Sine {
-            frequency_hz,
-            amplitude: std::f64::consts::SQRT_2 * level,
-        },
-        None => Excitation::Random {
-            band_hz: None,
-            rms: level,
-        },
-    }
-}
-
 fn parse_number(path: &Path, line: u64, column: &str, cell: &str) -> Result<f64, CsvError> {
     if cell.is_empty() {
         return Err(CsvError::EmptyCell {
@@ -431,13 +417,4 @@ fn decimal_resolution(text: &str) -> f64 {
             .count()
     });
     10f64.powi(exponent - decimals as i32)
-}
-
-fn rms_about_mean(x: &[f64]) -> f64 {
-    if x.is_empty() {
-        return 0.0;
-    }
-    let n = x.len() as f64;
-    let mean = x.iter().sum::<f64>() / n;
-    (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt()
 }

@@ -493,5 +493,31 @@ fn interval_fault(stamps: &[f64], timing: &StepTiming, rule: IntervalRule) -> Op
     }
 }
 
+/// The excitation of a step whose source carries no amplitude (a CSV export, a foreign bag),
+/// estimated from the RMS `level` of its driven channel: a sine of amplitude
+/// `sqrt(2) * level`, or random of RMS `level`.
+pub fn estimated_excitation(frequency: Option<f64>, level: f64) -> Excitation {
+    match frequency {
+        Some(frequency_hz) => Excitation::Sine {
+            frequency_hz,
+            amplitude: std::f64::consts::SQRT_2 * level,
+        },
+        None => Excitation::Random {
+            band_hz: None,
+            rms: level,
+        },
+    }
+}
+
+/// Root mean square of `x` about its mean (0 for no samples).
+pub fn rms_about_mean(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt()
+}
+
 #[cfg(test)]
 mod tests;
