@@ -93,7 +93,9 @@ impl Layout {
         } else if has(Channel::ForceN) && has(Channel::DrivePointDisplacementM) {
             Some(SetupKind::DrivePoint)
         } else {
-            None
+            // Any other setup only when all its channels are there (the element test: the
+            // relative displacement and the force).
+            SetupKind::of_channels(has).ok()
         };
         let missing = match profile {
             Some(SetupKind::BaseExcited) => missing_rig.clone(),

@@ -33,7 +33,7 @@ pub enum CsvError {
     DuplicateColumn { path: PathBuf, column: String },
     #[error(
         "{}: line 1: missing required column(s) {}{}; the rig profile requires [{}]{}, the \
-         drive-point profile requires [{}]{}",
+         drive-point profile requires [{}]{}, the element profile requires [{}]",
         path.display(),
         missing.join(", "),
         match profile { Some(p) => format!(" for the {p} profile"), None => String::new() },
@@ -41,6 +41,7 @@ pub enum CsvError {
         fmt_missing(missing_rig),
         required_columns(SetupKind::DrivePoint).join(", "),
         fmt_missing(missing_drive_point),
+        required_columns(SetupKind::Element).join(", "),
     )]
     MissingColumns {
         path: PathBuf,
