@@ -168,14 +168,14 @@ fn free_play_is_a_spring_without_gap_and_nothing_when_the_gap_is_never_closed() 
     assert!((fp[1] / base[1] - 1.0).abs() < 0.001 && (fp[2] / base[2] - 1.0).abs() < 0.001);
 
     // The gap is the total width: the spring engages at |x| = gap/2. With gap/2 just above the
-    // largest |x| of the run it never does (the record is the plain one, bit for bit); just
-    // below, it does. (2 % above: between the 100 Hz samples |x| peaks up to (w h)^2/8 = 0.3 %
-    // higher than the largest sample at the step of the largest amplitude, 2.6 Hz.)
-    let peak = relative_displacements(&base_csv)
-        .iter()
-        .fold(0.0f64, |m, x| m.max(x.abs()));
+    // largest |x| of the run it never does (the record is the plain one, to round-off: the
+    // plain linear element is stepped by the simulator's linear fast path, the free-play one by
+    // the general RK4, the same step in another order of operations); just below, it does.
+    // (2 % above: between the 100 Hz samples |x| peaks up to (w h)^2/8 = 0.3 % higher than the
+    // largest sample at the step of the largest amplitude, 2.6 Hz.)
+    let base_x = relative_displacements(&base_csv);
+    let peak = base_x.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     assert!(peak > 1e-3, "peak |x| {peak}");
-    let base_text = std::fs::read_to_string(&base_csv).unwrap();
     for (factor, engaged) in [(1.02, false), (0.98, true)] {
         let gap = format!("{}", 2.0 * peak * factor);
         let csv = simulate(
@@ -188,8 +188,19 @@ fn free_play_is_a_spring_without_gap_and_nothing_when_the_gap_is_never_closed() 
                 "50000",
             ],
         );
-        let same = std::fs::read_to_string(csv).unwrap() == base_text;
-        assert_eq!(same, !engaged, "gap {gap} m, peak |x| {peak} m");
+        let x = relative_displacements(&csv);
+        let largest_difference = x
+            .iter()
+            .zip(&base_x)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let same = largest_difference < 1e-9 * peak;
+        assert_eq!(
+            same, !engaged,
+            "gap {gap} m, peak |x| {peak} m, largest difference {largest_difference:e} m"
+        );
+        if engaged {
+            assert!(largest_difference > 1e-6 * peak, "{largest_difference:e}");
+        }
     }
 }
 
