@@ -17,7 +17,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use forcemap_math::recipe::SetupKind;
-use forcemap_math::record::{Excitation, Record};
+use forcemap_math::record::Record;
 use forcemap_msgs::builtin_interfaces::Time;
 
 use crate::bag::{BagError, BagReader};
@@ -476,16 +476,8 @@ fn assemble(
         let step = step as usize;
         let frequency = (freq > 0.0).then_some(freq);
         let (f0, plan) = plans.entry(step).or_insert_with(|| {
-            let excitation = match frequency {
-                Some(frequency_hz) => Excitation::Sine {
-                    frequency_hz,
-                    amplitude: f64::NAN,
-                },
-                None => Excitation::Random {
-                    band_hz: None,
-                    rms: f64::NAN,
-                },
-            };
+            // The level is not known until the step is complete (estimated then).
+            let excitation = estimated_excitation(frequency, f64::NAN);
             (
                 frequency,
                 StepPlan {

@@ -8,8 +8,6 @@ use std::fs::File;
 use std::io;
 use std::path::Path;
 
-use forcemap_math::record::Excitation;
-
 use super::contract::{
     CsvImport, FREQUENCY_COLUMN, Layout, SAMPLE_INTERVAL_REL_TOL, STEP_COLUMN, TIME_COLUMN,
 };
@@ -239,16 +237,7 @@ struct ReadStep {
 impl StepRows {
     fn new(step: usize, frequency: Option<f64>) -> StepRows {
         // The export carries no amplitude: it is estimated once the step is complete.
-        let excitation = match frequency {
-            Some(frequency_hz) => Excitation::Sine {
-                frequency_hz,
-                amplitude: f64::NAN,
-            },
-            None => Excitation::Random {
-                band_hz: None,
-                rms: f64::NAN,
-            },
-        };
+        let excitation = estimated_excitation(frequency, f64::NAN);
         StepRows {
             step,
             frequency,
