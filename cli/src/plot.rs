@@ -181,14 +181,6 @@ pub fn span(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
     range(values.filter(|v| v.is_finite()))
 }
 
-/// Text for HTML element content and attribute values.
-pub fn html_escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-}
-
 /// One line of [`lines_svg`].
 pub struct Line<'a> {
     pub label: &'a str,

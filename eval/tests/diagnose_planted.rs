@@ -125,15 +125,15 @@ fn live_phasor_diagnosis_names_coulomb_friction_and_passes_the_clean_rig() {
         println!(
             "{}: {:?} {:?} ({:.2} % -> {:.2} %, floor {:.2} %)",
             planted.label(),
-            f.verdict,
-            f.top_effect,
-            f.gap_before_percent,
-            f.gap_after_percent,
-            f.noise_floor_percent
+            f.findings.verdict,
+            f.findings.top_effect,
+            f.findings.gap_before_percent,
+            f.findings.gap_after_percent,
+            f.findings.floor_percent
         );
-        assert_eq!(f.top_effect, expect, "{f:?}");
+        assert_eq!(f.findings.top_effect, expect, "{f:?}");
         if expect.is_none() {
-            assert_eq!(f.verdict, Verdict::Adequate);
+            assert_eq!(f.findings.verdict, Verdict::Adequate);
         }
     }
 }
@@ -198,7 +198,7 @@ fn sensor_lowpass_is_named_with_the_cutoff_nearest_the_truth() {
     )
     .unwrap()
     .diagnosis;
-    assert_eq!(d.top_effect, Some(Effect::SensorLowpass), "{d:#?}");
+    assert_eq!(d.findings.top_effect, Some(Effect::SensorLowpass), "{d:#?}");
     let cutoff = d.ranked_effects[0]
         .added_parameters
         .iter()

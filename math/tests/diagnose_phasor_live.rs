@@ -36,17 +36,21 @@ fn live_diagnosis_of_the_rig_bag_run() {
         let f = live.findings().unwrap();
         println!(
             "{baseline}: {:?} {:?} ({:.2} % -> {:.2} %, floor {:.2} %); ranked: {}",
-            f.verdict,
-            f.top_effect,
-            f.gap_before_percent,
-            f.gap_after_percent,
-            f.noise_floor_percent,
+            f.findings.verdict,
+            f.findings.top_effect,
+            f.findings.gap_before_percent,
+            f.findings.gap_after_percent,
+            f.findings.floor_percent,
             f.ranked_effects
                 .iter()
                 .map(|r| format!("{} {:.2}", r.effect.name(), r.cv_percent))
                 .collect::<Vec<_>>()
                 .join(", ")
         );
-        assert_eq!((f.verdict, f.top_effect), (verdict, top), "{baseline}");
+        assert_eq!(
+            (f.findings.verdict, f.findings.top_effect),
+            (verdict, top),
+            "{baseline}"
+        );
     }
 }

@@ -84,10 +84,10 @@ fn diagnose_with_noise(baseline: AxisBaseline, planted: Planted, noise_n: f64) -
     println!(
         "{}: {} {:?}: {:.2} % -> {:.2} % (floor {:.2} % set by {}; fit {:.2} %)",
         baseline.name(),
-        d.verdict.name(),
+        d.findings.verdict.name(),
         d.ranked_effects.first().map(|r| r.effect.name()),
-        d.gap_before_percent,
-        d.gap_after_percent,
+        d.findings.gap_before_percent,
+        d.findings.gap_after_percent,
         d.floor.floor_percent,
         d.floor.set_by,
         d.fit_before_percent
@@ -119,15 +119,19 @@ fn parameter(d: &AxisDiagnosis, name: &str) -> f64 {
 #[test]
 fn the_true_model_is_adequate() {
     let d = diagnose(AxisBaseline::EmpsCoulomb, |_, _| 0.0);
-    assert_eq!(d.verdict, Verdict::Adequate);
-    assert!(d.top_effect.is_none());
+    assert_eq!(d.findings.verdict, Verdict::Adequate);
+    assert!(d.findings.top_effect.is_none());
     // The gap is the noise: the flexible laws cannot do better than the true model.
-    assert!(d.gap_before_percent < 2.0, "{}", d.gap_before_percent);
     assert!(
-        d.floor.floor_percent > 0.8 * d.gap_before_percent,
+        d.findings.gap_before_percent < 2.0,
+        "{}",
+        d.findings.gap_before_percent
+    );
+    assert!(
+        d.floor.floor_percent > 0.8 * d.findings.gap_before_percent,
         "floor {} gap {}",
         d.floor.floor_percent,
-        d.gap_before_percent
+        d.findings.gap_before_percent
     );
 }
 
@@ -137,9 +141,13 @@ fn the_true_model_is_adequate_under_heavy_noise() {
     // before) this was "unexplained"; the flexible laws cannot beat the noise either, so the
     // floor is the gap.
     let d = diagnose_with_noise(AxisBaseline::EmpsCoulomb, |_, _| 0.0, 3.0 * NOISE_N);
-    assert!(d.gap_before_percent > 2.0, "{}", d.gap_before_percent);
-    assert_eq!(d.verdict, Verdict::Adequate);
-    assert!(d.top_effect.is_none());
+    assert!(
+        d.findings.gap_before_percent > 2.0,
+        "{}",
+        d.findings.gap_before_percent
+    );
+    assert_eq!(d.findings.verdict, Verdict::Adequate);
+    assert!(d.findings.top_effect.is_none());
 }
 
 #[test]
@@ -147,8 +155,8 @@ fn asymmetric_viscous_friction_is_named_with_its_size() {
     // Fv+ = 163, Fv- = 237 N s/m, as on EMPS.
     const CA: f64 = -37.0;
     let d = diagnose(AxisBaseline::EmpsCoulomb, |_, v| CA * v.abs());
-    assert_eq!(d.verdict, Verdict::Explained);
-    assert_eq!(d.top_effect, Some(Effect::AsymmetricDamping));
+    assert_eq!(d.findings.verdict, Verdict::Explained);
+    assert_eq!(d.findings.top_effect, Some(Effect::AsymmetricDamping));
     let ca = parameter(&d, "ca");
     assert!(((ca - CA) / CA).abs() < 0.03, "ca {ca}");
 }
@@ -156,8 +164,8 @@ fn asymmetric_viscous_friction_is_named_with_its_size() {
 #[test]
 fn coulomb_friction_is_named_against_the_viscous_baseline() {
     let d = diagnose(AxisBaseline::EmpsViscous, |_, _| 0.0);
-    assert_eq!(d.verdict, Verdict::Explained);
-    assert_eq!(d.top_effect, Some(Effect::CoulombFriction));
+    assert_eq!(d.findings.verdict, Verdict::Explained);
+    assert_eq!(d.findings.top_effect, Some(Effect::CoulombFriction));
     let fc = parameter(&d, "fc");
     assert!(((fc - FC_N) / FC_N).abs() < 0.03, "fc {fc}");
 }
@@ -169,10 +177,14 @@ fn cogging_is_not_given_a_library_name() {
     let d = diagnose(AxisBaseline::EmpsCoulomb, |q, _| {
         8.0 * (2.0 * PI * q / 0.02).sin()
     });
-    assert!(d.gap_before_percent > 3.0, "{}", d.gap_before_percent);
-    assert_ne!(d.verdict, Verdict::Explained);
-    assert!(d.top_effect.is_none());
+    assert!(
+        d.findings.gap_before_percent > 3.0,
+        "{}",
+        d.findings.gap_before_percent
+    );
+    assert_ne!(d.findings.verdict, Verdict::Explained);
+    assert!(d.findings.top_effect.is_none());
     // The flexible laws resolve it, so the floor stays near the noise and the gap is called
     // unexplained rather than adequate.
-    assert_eq!(d.verdict, Verdict::Unexplained);
+    assert_eq!(d.findings.verdict, Verdict::Unexplained);
 }

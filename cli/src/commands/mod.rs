@@ -5,7 +5,6 @@ pub mod bench;
 pub mod bench_identify;
 pub mod diagnose;
 pub mod diagnose_eval;
-pub mod diagnose_time_domain;
 pub mod identify;
 pub mod import;
 pub mod reproduce;

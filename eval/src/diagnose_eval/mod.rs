@@ -292,20 +292,21 @@ pub fn run_case(case: &CaseSpec) -> Result<CaseResult, DiagnoseError> {
             .nmse_percent;
     }
     truth_nmse /= random.len().max(1) as f64;
-    let named = match (d.verdict, d.top_effect) {
+    let f = &d.findings;
+    let named = match (f.verdict, f.top_effect) {
         (Verdict::Explained, Some(e)) => e.name().to_string(),
         (v, _) => v.name().to_string(),
     };
     Ok(CaseResult {
         case: *case,
         label: case.planted.label(),
-        verdict: d.verdict,
+        verdict: f.verdict,
         named,
-        gap_before_percent: d.gap_before_percent,
-        gap_after_percent: d.gap_after_percent,
+        gap_before_percent: f.gap_before_percent,
+        gap_after_percent: f.gap_after_percent,
         truth_nmse_percent: truth_nmse,
-        effect_gap_percent: d.gap_before_percent - truth_nmse,
-        noise_floor_percent: d.noise_floor_percent,
+        effect_gap_percent: f.gap_before_percent - truth_nmse,
+        noise_floor_percent: f.floor_percent,
         baseline_cv_percent: d.baseline_phasor_cv_percent,
         second: d.ranked_effects.get(1).map(|r| r.effect.name().to_string()),
         ranked: d

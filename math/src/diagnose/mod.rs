@@ -24,7 +24,7 @@
 //!    the lowest cross-validated force error on the sine steps goes first if that error is below
 //!    0.9 times the best's and it explains the gap by itself; a candidate whose error on the
 //!    steps is below half the best's goes first even without a tie ([`step_tie_break`]). The best pair of the top four is tried too.
-//! 4. **Verdict** ([`verdict`]), with `floor` the noise floor estimated from the data:
+//! 4. **Verdict** ([`findings`], shared with the live and the axis diagnosis), with `floor` the noise floor estimated from the data:
 //!    - a candidate's shrink is *significant* when its score beats the baseline's and it
 //!      removes more than `max(floor, 10 % of the gap, 0.2 %-points)`;
 //!    - **explained** when the top candidate is significant and leaves at most half of the
@@ -37,6 +37,7 @@
 
 pub mod cycles;
 pub mod effects;
+pub mod findings;
 pub mod fit;
 pub mod locate;
 pub mod phasor;
@@ -48,6 +49,7 @@ use serde::Serialize;
 use thiserror::Error;
 
 pub use effects::Effect;
+pub use findings::{Evidence, Findings, TopCandidate, Verdict, explains, significant, verdict};
 pub use locate::Located;
 pub use phasor::{PhasorDiagnosis, PhasorFindings};
 
@@ -108,24 +110,6 @@ impl Default for DiagnoseOptions {
     }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Verdict {
-    Adequate,
-    Explained,
-    Unexplained,
-}
-
-impl Verdict {
-    pub fn name(self) -> &'static str {
-        match self {
-            Verdict::Adequate => "adequate",
-            Verdict::Explained => "explained",
-            Verdict::Unexplained => "unexplained",
-        }
-    }
-}
-
 #[derive(Debug, Clone, Serialize)]
 pub struct ParameterValue {
     pub name: String,
@@ -174,13 +158,10 @@ pub struct PairResult {
 /// The diagnosis.
 #[derive(Debug, Clone, Serialize)]
 pub struct Diagnosis {
-    pub verdict: Verdict,
-    pub top_effect: Option<Effect>,
-    pub gap_before_percent: f64,
-    /// Held-out NMSE with the top effect (or, if none is explained, with the best candidate).
-    pub gap_after_percent: f64,
-    /// Held-out NMSE the measurement noise alone would leave (estimate) [%].
-    pub noise_floor_percent: f64,
+    /// The verdict on the held-out NMSE ([`Evidence::HeldOutNmse`]); its floor is the
+    /// held-out NMSE the measurement noise alone would leave (estimate) [%].
+    #[serde(flatten)]
+    pub findings: Findings,
     pub baseline_model: String,
     pub baseline_parameters: Vec<ParameterValue>,
     pub fit_steps: Vec<usize>,
@@ -193,7 +174,6 @@ pub struct Diagnosis {
     pub baseline_phasor_cv_percent: Option<f64>,
     /// Exciter delay from the kinematic identity [s] and its standard deviation.
     pub kinematic_delay_s: Option<[f64; 2]>,
-    pub rule: String,
     /// What the user should know (candidates left out, ...).
     pub notes: Vec<String>,
 }
@@ -210,40 +190,6 @@ pub struct DiagnosisDetail {
     pub after_fit: Option<Fitted>,
     /// Where the residual lies with the top (or best) candidate added.
     pub after_located: Option<Located>,
-}
-
-/// The verdict rule (see the module docs).
-pub const RULE: &str = "ranking: penalised held-out score; candidates within the best's excess over the floor are tied, and one that explains the gap by itself goes first if its cross-validated force error on the sine steps is below 0.9 times the best's (below 0.5 times: whatever the held-out scores); significant: score below the baseline's and shrink > max(floor, 10 % of the gap, 0.2 %-points); explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor); unexplained: gap_before > max(3 floor, 1 %) and not explained; adequate: otherwise";
-
-/// Whether a candidate's shrink is beyond what the noise explains.
-pub fn significant(
-    gap_before: f64,
-    floor: f64,
-    gap_after: f64,
-    score: f64,
-    baseline_score: f64,
-) -> bool {
-    score < baseline_score && gap_before - gap_after > floor.max(0.1 * gap_before).max(0.2)
-}
-
-/// Whether a candidate leaving `gap_after` would explain the gap: significant, and at most half
-/// of the excess over the floor left.
-pub fn explains(gap_before: f64, floor: f64, gap_after: f64, significant: bool) -> bool {
-    significant && gap_after - floor <= 0.5 * (gap_before - floor)
-}
-
-/// The verdict from the gap, the floor and the top candidate (gap_after, significant).
-pub fn verdict(gap_before: f64, floor: f64, top: Option<(f64, bool)>) -> Verdict {
-    if let Some((after, significant)) = top
-        && explains(gap_before, floor, after, significant)
-    {
-        return Verdict::Explained;
-    }
-    if gap_before > (3.0 * floor).max(1.0) {
-        Verdict::Unexplained
-    } else {
-        Verdict::Adequate
-    }
 }
 
 /// A candidate whose cross-validated force error on the sine steps is below this fraction of
@@ -483,15 +429,19 @@ pub fn diagnose(
         None
     };
 
-    let top = ranked.first().map(|r| (r.gap_after_percent, r.significant));
-    let v = verdict(gap_before, floor, top);
+    let findings = Findings::decide(
+        Evidence::HeldOutNmse,
+        gap_before,
+        floor,
+        ranked.first().map(|r| TopCandidate {
+            effect: r.effect,
+            gap_after_percent: r.gap_after_percent,
+            significant: r.significant,
+        }),
+    );
     let located = locate::locate(&search.baseline, &search.cycles);
     let diagnosis = Diagnosis {
-        verdict: v,
-        top_effect: (v == Verdict::Explained).then(|| ranked[0].effect),
-        gap_before_percent: gap_before,
-        gap_after_percent: ranked.first().map_or(gap_before, |r| r.gap_after_percent),
-        noise_floor_percent: floor,
+        findings,
         baseline_model: baseline.name.clone(),
         baseline_parameters: parameter_values(
             search
@@ -511,7 +461,6 @@ pub fn diagnose(
         located,
         baseline_phasor_cv_percent: search.baseline_cv_percent,
         kinematic_delay_s: search.exciter_delay.map(|(d, s)| [d, s]),
-        rule: RULE.into(),
         notes,
     };
     let (after_fit, after_heldout) = match top_fit {

@@ -5,10 +5,11 @@
 use serde::Serialize;
 
 use super::effects::Effect;
+use super::findings::{Evidence, Findings, TopCandidate, Verdict};
 use super::locate::{Located, locate};
 use super::score::penalised;
 use super::search::search;
-use super::{DiagnoseError, ParameterValue, Verdict, parameter_values, verdict};
+use super::{DiagnoseError, ParameterValue, parameter_values};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
@@ -32,14 +33,11 @@ pub struct PhasorEffect {
 #[derive(Debug, Clone, Serialize)]
 pub struct PhasorFindings {
     pub steps: usize,
-    pub verdict: Verdict,
-    pub top_effect: Option<Effect>,
-    /// Cross-validated element-force error of the baseline [%].
-    pub gap_before_percent: f64,
-    /// The same with the top candidate [%].
-    pub gap_after_percent: f64,
-    /// What the force noise alone would leave [%].
-    pub noise_floor_percent: f64,
+    /// The verdict on the cross-validated element-force error
+    /// ([`Evidence::CrossValidatedForceError`]); its floor is what the force noise alone
+    /// would leave [%].
+    #[serde(flatten)]
+    pub findings: Findings,
     pub ranked_effects: Vec<PhasorEffect>,
     pub located: Located,
     /// Exciter delay from the kinematic identity x_o - x = x_i [s] and its std, when the
@@ -69,7 +67,7 @@ pub struct PhasorFindings {
 /// few milliseconds per step: the baseline and each candidate are least-squares fits on one
 /// rebuilt period per step, cross-validated by leaving each step out) and returns the
 /// verdict, the ranked candidates and where the residual lies. The verdict rule is that of
-/// [`super::verdict`], applied to the cross-validated element-force error instead of the
+/// [`super::findings`], applied to the cross-validated element-force error instead of the
 /// held-out NMSE; its floor is what the force noise alone leaves.
 #[derive(Debug, Clone)]
 pub struct PhasorDiagnosis {
@@ -142,23 +140,22 @@ impl PhasorDiagnosis {
         let delay_named = s
             .exciter_delay
             .is_some_and(|(d, sd)| d > 4.0 * sd && d > 5e-4);
-        let mut v = verdict(
+        let mut findings = Findings::decide(
+            Evidence::CrossValidatedForceError,
             before,
             floor,
-            ranked.first().map(|r| (r.cv_percent, r.significant)),
+            ranked.first().map(|r| TopCandidate {
+                effect: r.effect,
+                gap_after_percent: r.cv_percent,
+                significant: r.significant,
+            }),
         );
-        let mut top = (v == Verdict::Explained).then(|| ranked[0].effect);
-        if delay_named && v != Verdict::Explained {
-            v = Verdict::Explained;
-            top = Some(Effect::ExciterDelay);
+        if delay_named && findings.verdict != Verdict::Explained {
+            findings = findings.explained_by(Effect::ExciterDelay);
         }
         Ok(PhasorFindings {
             steps: self.analyses.len(),
-            verdict: v,
-            top_effect: top,
-            gap_before_percent: before,
-            gap_after_percent: ranked.first().map_or(before, |r| r.cv_percent),
-            noise_floor_percent: floor,
+            findings,
             located: locate(&s.baseline, &s.cycles),
             ranked_effects: ranked,
             kinematic_delay_s: s.exciter_delay.map(|(d, sd)| [d, sd]),

@@ -33,11 +33,14 @@ pub fn diagnosis_message(baseline: &str, f: &PhasorFindings, header: Header) -> 
         header,
         baseline_model: baseline.to_string(),
         steps: f.steps as u32,
-        verdict: f.verdict.name().to_string(),
-        top_effect: f.top_effect.map_or(String::new(), |e| e.name().to_string()),
-        gap_before_percent: f.gap_before_percent,
-        gap_after_percent: f.gap_after_percent,
-        noise_floor_percent: f.noise_floor_percent,
+        verdict: f.findings.verdict.name().to_string(),
+        top_effect: f
+            .findings
+            .top_effect
+            .map_or(String::new(), |e| e.name().to_string()),
+        gap_before_percent: f.findings.gap_before_percent,
+        gap_after_percent: f.findings.gap_after_percent,
+        noise_floor_percent: f.findings.floor_percent,
         ranked_effects: f
             .ranked_effects
             .iter()
@@ -126,15 +129,9 @@ impl DiagnoserCore {
                 }
             };
             out.push(Output::Log(format!(
-                "after {} steps: {}{}; cross-validated gap {:.2} % -> {:.2} % (noise {:.2} %)",
+                "after {} steps: {}",
                 findings.steps,
-                findings.verdict.name(),
-                findings
-                    .top_effect
-                    .map_or(String::new(), |e| format!(" by {}", e.name())),
-                findings.gap_before_percent,
-                findings.gap_after_percent,
-                findings.noise_floor_percent
+                findings.findings.headline()
             )));
             out.push(Output::Diagnosis(diagnosis_message(
                 &self.baseline_name,
@@ -146,28 +143,16 @@ impl DiagnoserCore {
         Ok(out)
     }
 
-    fn status(&self, findings: &PhasorFindings) -> DiagnosticStatus {
-        let baseline_name = &self.baseline_name;
+    fn status(&self, found: &PhasorFindings) -> DiagnosticStatus {
+        let findings = &found.findings;
         let level = match findings.verdict {
             Verdict::Adequate => DiagnosticStatus::OK,
             _ => DiagnosticStatus::WARN,
         };
-        let message = match (findings.verdict, findings.top_effect) {
-            (Verdict::Explained, Some(e)) => format!(
-                "baseline '{baseline_name}' misses {}: gap {:.2} % -> {:.2} %",
-                e.name(),
-                findings.gap_before_percent,
-                findings.gap_after_percent
-            ),
-            (Verdict::Adequate, _) => format!("baseline '{baseline_name}' is adequate"),
-            _ => format!(
-                "baseline '{baseline_name}' has a gap of {:.2} % that no candidate explains",
-                findings.gap_before_percent
-            ),
-        };
+        let message = findings.status(&self.baseline_name);
         let mut status = DiagnosticStatus::new(level, &self.status_name, message, "diagnoser")
             .with_value("verdict", findings.verdict.name())
-            .with_value("steps", findings.steps)
+            .with_value("steps", found.steps)
             .with_value("gap_before_percent", findings.gap_before_percent)
             .with_value("gap_after_percent", findings.gap_after_percent);
         if let Some(e) = findings.top_effect {

@@ -11,9 +11,10 @@ use forcemap_math::record::Record;
 use forcemap_math::sim::{self, RunSpec};
 
 mod plots;
+mod time_domain;
 
 use crate::cli::DiagnoseArgs;
-use crate::plot::html_escape;
+use crate::report::{HtmlReport, parameters_text};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
 use forcemap_io::input::{Loaded, Measured};
 use forcemap_io::params::{Params, read_params};
@@ -100,7 +101,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
         _ => None,
     };
     if let (Some(Measured::Axis(fit)), Some(path)) = (&measured, &args.data) {
-        return super::diagnose_time_domain::run(args, path, fit);
+        return time_domain::run(args, path, fit);
     }
     // Refuse an existing report directory before any work.
     if let Some(dir) = &args.report
@@ -169,34 +170,24 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn fmt_params(list: &[diagnose::ParameterValue]) -> String {
-    list.iter()
-        .map(|p| match p.std {
-            Some(s) => format!("{} = {:.4e} +/- {:.1e}", p.name, p.value, s),
-            None => format!("{} = {:.4e}", p.name, p.value),
-        })
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
 fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
     let d = &detail.diagnosis;
     println!(
         "{source}: baseline {} fitted on sine steps {:?}: {}",
         d.baseline_model,
         d.fit_steps,
-        fmt_params(&d.baseline_parameters)
+        parameters_text(&d.baseline_parameters)
     );
     println!(
         "gap: held-out NMSE of the mass acceleration {:.2} % (records {:?}: {}); noise floor ~{:.2} %",
-        d.gap_before_percent,
+        d.findings.gap_before_percent,
         d.heldout_records,
         d.gap_before_by_record_percent
             .iter()
             .map(|v| format!("{v:.2} %"))
             .collect::<Vec<_>>()
             .join(", "),
-        d.noise_floor_percent
+        d.findings.floor_percent
     );
     println!("where:");
     for s in &d.located.summary {
@@ -226,7 +217,7 @@ fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
             r.phasor_cv_percent
                 .map_or("-".into(), |v| format!("{v:.2}")),
             if r.significant { "yes" } else { "no" },
-            fmt_params(&r.added_parameters)
+            parameters_text(&r.added_parameters)
         );
     }
     if let Some(p) = &d.best_pair {
@@ -235,26 +226,14 @@ fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
             p.effects[0].name(),
             p.effects[1].name(),
             p.gap_after_percent,
-            fmt_params(&p.added_parameters)
+            parameters_text(&p.added_parameters)
         );
     }
-    match (d.verdict, d.top_effect) {
-        (Verdict::Explained, Some(e)) => {
-            let r = &d.ranked_effects[0];
-            println!(
-                "verdict: explained by {}: {:.2} % -> {:.2} %",
-                e.name(),
-                d.gap_before_percent,
-                d.gap_after_percent
-            );
-            println!("  signature: {}", r.signature);
-        }
-        (v, _) => println!(
-            "verdict: {} (gap {:.2} %, best candidate leaves {:.2} %)",
-            v.name(),
-            d.gap_before_percent,
-            d.gap_after_percent
-        ),
+    println!("verdict: {}", d.findings.headline());
+    if d.findings.verdict == Verdict::Explained
+        && let Some(r) = d.ranked_effects.first()
+    {
+        println!("  signature: {}", r.signature);
     }
     for n in &d.notes {
         println!("note: {n}");
@@ -280,7 +259,7 @@ fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
             );
         }
     }
-    println!("rule: {}", d.rule);
+    println!("rule: {}", d.findings.rule);
 }
 
 /// Writes the report (nothing half-written: see [`write_dir_atomically`]).
@@ -336,56 +315,47 @@ fn write_report(
             "harmonics.svg".into(),
             "per-harmonic residuals against frequency and amplitude".into(),
         ));
-        let mut html = String::new();
-        html.push_str("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>forcemap gap diagnosis</title>\n<style>body{font-family:sans-serif;max-width:1250px;margin:auto}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td:first-child{text-align:left}</style></head><body>\n");
-        html.push_str(&format!(
-            "<h1>Gap diagnosis: baseline {}</h1>\n<p>{}</p>\n",
-            html_escape(&d.baseline_model),
-            html_escape(&data.source)
-        ));
-        let verdict = match (d.verdict, d.top_effect) {
-            (Verdict::Explained, Some(e)) => format!("explained by <b>{}</b>", e.name()),
-            (v, _) => v.name().to_string(),
-        };
-        html.push_str(&format!(
-            "<h2>Verdict: {verdict}</h2>\n<p>Held-out NMSE of the mass acceleration: {:.2} % before, {:.2} % after (noise floor ~{:.2} %).</p>\n",
-            d.gap_before_percent, d.gap_after_percent, d.noise_floor_percent
-        ));
+        let mut page = HtmlReport::new(&format!("Gap diagnosis: baseline {}", d.baseline_model));
+        page.paragraph(&data.source);
+        page.verdict(&d.findings);
         if demo {
-            html.push_str(&format!(
-                "<p>The paper's rig: linear {:.1} / {:.1} %, with Coulomb friction {:.1} / {:.1} % (Table 2).</p>\n",
+            page.paragraph(&format!(
+                "The paper's rig: linear {:.1} / {:.1} %, with Coulomb friction {:.1} / {:.1} % (Table 2).",
                 PAPER_LINEAR_NMSE[0], PAPER_LINEAR_NMSE[1], PAPER_COULOMB_NMSE[0], PAPER_COULOMB_NMSE[1]
             ));
         }
-        html.push_str("<h2>Where</h2>\n<ul>\n");
-        for s in &d.located.summary {
-            html.push_str(&format!("<li>{}</li>\n", html_escape(s)));
-        }
-        html.push_str("</ul>\n<h2>Candidates</h2>\n<table><tr><th>effect</th><th>after [%]</th><th>score [%]</th><th>CV [%]</th><th>significant</th><th>added</th><th>signature</th></tr>\n");
-        for r in &d.ranked_effects {
-            html.push_str(&format!(
-                "<tr><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{}</td><td>{}</td><td>{}</td><td style=\"text-align:left\">{}</td></tr>\n",
-                r.effect.name(),
-                r.gap_after_percent,
-                r.score_percent,
-                r.phasor_cv_percent.map_or("-".into(), |v| format!("{v:.2}")),
-                if r.significant { "yes" } else { "no" },
-                html_escape(&fmt_params(&r.added_parameters)),
-                html_escape(&r.signature)
-            ));
-        }
-        html.push_str("</table>\n");
-        for (file, caption) in &figures {
-            html.push_str(&format!(
-                "<h3>{}</h3>\n<img src=\"{file}\" alt=\"{}\">\n",
-                html_escape(caption),
-                html_escape(caption)
-            ));
-        }
-        html.push_str(&format!(
-            "<p>Rule: {}</p>\n</body></html>\n",
-            html_escape(&d.rule)
-        ));
+        page.list("Where", &d.located.summary);
+        let rows: Vec<Vec<String>> = d
+            .ranked_effects
+            .iter()
+            .map(|r| {
+                vec![
+                    r.effect.name().to_string(),
+                    format!("{:.3}", r.gap_after_percent),
+                    format!("{:.3}", r.score_percent),
+                    r.phasor_cv_percent
+                        .map_or("-".into(), |v| format!("{v:.2}")),
+                    if r.significant { "yes" } else { "no" }.into(),
+                    parameters_text(&r.added_parameters),
+                    r.signature.clone(),
+                ]
+            })
+            .collect();
+        page.table(
+            "Candidates",
+            &[
+                "effect",
+                "after [%]",
+                "score [%]",
+                "CV [%]",
+                "significant",
+                "added",
+                "signature",
+            ],
+            &rows,
+        );
+        page.figures(&figures);
+        let html = page.finish(&d.findings.rule);
         write_atomically(&tmp.join("index.html"), &html)
     })
 }

@@ -137,9 +137,6 @@ pub fn significant_on_axis(gap_before: f64, r: &AxisRankedEffect, baseline_score
         && r.shrink_t >= SHRINK_T_MIN
 }
 
-/// The rule of the time-domain path, for the output.
-pub const AXIS_RULE: &str = "relative force errors; significant: score below the baseline's, shrink > max(10 % of the gap, 0.2 %-points) and consistent over 1 s blocks of the validation record (t >= 3); explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor); unexplained: gap_before > max(3 floor, 1 %) and not explained; adequate: otherwise (floor: the flexible memoryless law's, see floor.what)";
-
 #[cfg(test)]
 mod tests {
     use super::*;

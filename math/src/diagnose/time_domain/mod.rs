@@ -61,7 +61,7 @@
 //! smallest of several on the validation record makes the floor slightly optimistic (low),
 //! which makes "explained" harder, not easier.
 //!
-//! The verdict ([`AXIS_RULE`]) keeps the rule of the stepped-sine path ([`super::verdict`])
+//! The verdict ([`Evidence::ValidationForceError`]) keeps the rule of the stepped-sine path ([`super::findings`])
 //! with this floor, "explained" when the top candidate's shrink is significant and it removes
 //! at least half of the removable gap (gap - floor); "unexplained" when no candidate does and
 //! the gap exceeds three floors (and 1 %); "adequate" otherwise, i.e. when what no element
@@ -86,15 +86,15 @@ mod preprocess;
 mod results;
 
 pub use candidates::{
-    AXIS_RULE, AxisRankedEffect, SHRINK_BLOCK_S, SHRINK_T_MIN, shrink_t_statistic,
-    significant_on_axis,
+    AxisRankedEffect, SHRINK_BLOCK_S, SHRINK_T_MIN, shrink_t_statistic, significant_on_axis,
 };
 pub use model::{AxisBaseline, AxisModelFit, fit_axis_model};
 pub use preprocess::{AxisRecord, BORDER_S, TimeDomainOptions};
 pub use results::{AxisDiagnosis, AxisFloor, AxisLocated, AxisTraces};
 
+use super::findings::{Evidence, Findings, TopCandidate};
+use super::parameter_values;
 use super::score::penalised;
-use super::{Verdict, parameter_values, verdict};
 use crate::lstsq::LstsqError;
 use candidates::{Variant, candidates};
 use floor::{FlexibleLaws, best_flexible_law};
@@ -239,12 +239,15 @@ pub fn diagnose_axis(
     for t in &mut tried {
         t.ranked.significant = significant_on_axis(b.validation_percent, &t.ranked, base_score);
     }
-    let v = verdict(
+    let findings = Findings::decide(
+        Evidence::ValidationForceError,
         b.validation_percent,
         floor_percent,
-        tried
-            .first()
-            .map(|t| (t.ranked.gap_after_percent, t.ranked.significant)),
+        tried.first().map(|t| TopCandidate {
+            effect: t.ranked.effect,
+            gap_after_percent: t.ranked.gap_after_percent,
+            significant: t.ranked.significant,
+        }),
     );
     let located = locate(&pv, &b);
     let traces = AxisTraces {
@@ -257,12 +260,7 @@ pub fn diagnose_axis(
     };
     let ranked: Vec<AxisRankedEffect> = tried.into_iter().map(|t| t.ranked).collect();
     Ok(AxisDiagnosis {
-        verdict: v,
-        top_effect: (v == Verdict::Explained).then(|| ranked[0].effect),
-        gap_before_percent: b.validation_percent,
-        gap_after_percent: ranked
-            .first()
-            .map_or(b.validation_percent, |r| r.gap_after_percent),
+        findings,
         fit_before_percent: b.fit_percent,
         floor: AxisFloor {
             floor_percent,
@@ -286,7 +284,6 @@ pub fn diagnose_axis(
         located,
         equations: pf.force.len(),
         validation_equations: pv.force.len(),
-        rule: AXIS_RULE.into(),
         traces,
     })
 }

@@ -5,8 +5,7 @@ use serde::Serialize;
 use super::candidates::AxisRankedEffect;
 use super::model::TdFit;
 use super::preprocess::Prepared;
-use crate::diagnose::effects::Effect;
-use crate::diagnose::{ParameterValue, Verdict};
+use crate::diagnose::{Findings, ParameterValue};
 
 /// Where the baseline's residual lies, by velocity.
 #[derive(Debug, Clone, Serialize)]
@@ -57,12 +56,10 @@ pub struct AxisTraces {
 /// The time-domain diagnosis.
 #[derive(Debug, Clone, Serialize)]
 pub struct AxisDiagnosis {
-    pub verdict: Verdict,
-    pub top_effect: Option<Effect>,
-    /// Relative force error of the baseline on the validation record [%].
-    pub gap_before_percent: f64,
-    /// The same with the top candidate (the baseline's when there is none) [%].
-    pub gap_after_percent: f64,
+    /// The verdict on the relative force error on the validation record
+    /// ([`crate::diagnose::Evidence::ValidationForceError`]); its floor is `floor.floor_percent`.
+    #[serde(flatten)]
+    pub findings: Findings,
     pub fit_before_percent: f64,
     pub floor: AxisFloor,
     pub baseline_model: String,
@@ -72,7 +69,6 @@ pub struct AxisDiagnosis {
     /// Decimated equations on the fitting and the validation record.
     pub equations: usize,
     pub validation_equations: usize,
-    pub rule: String,
     #[serde(skip)]
     pub traces: AxisTraces,
 }

@@ -8,14 +8,14 @@ use anyhow::{Context, bail};
 use forcemap_math::diagnose::time_domain::{
     AxisBaseline, AxisDiagnosis, AxisRecord, SHRINK_T_MIN, TimeDomainOptions, diagnose_axis,
 };
-use forcemap_math::diagnose::{ParameterValue, Verdict};
 use plotters::style::colors::BLACK;
 
 use crate::cli::DiagnoseArgs;
 use crate::plot::{
-    AFTER_COLOR, BASELINE_COLOR, BinnedMean, Line, ScatterPanel, heatmap_panels_svg, html_escape,
-    lines_svg, scatter_panels_svg,
+    AFTER_COLOR, BASELINE_COLOR, BinnedMean, Line, ScatterPanel, heatmap_panels_svg, lines_svg,
+    scatter_panels_svg,
 };
+use crate::report::{HtmlReport, parameters_text};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
 use forcemap_io::axis::read_axis;
 
@@ -75,11 +75,11 @@ pub fn run(args: &DiagnoseArgs, data: &Path, fit: &AxisRecord) -> anyhow::Result
         data.display(),
         d.baseline_model,
         d.equations,
-        fmt_params(&d.baseline_parameters)
+        parameters_text(&d.baseline_parameters)
     );
     println!(
         "gap: relative force error {:.2} % on {} ({:.2} % on the fitting record)",
-        d.gap_before_percent,
+        d.findings.gap_before_percent,
         val_path.display(),
         d.fit_before_percent
     );
@@ -110,26 +110,13 @@ pub fn run(args: &DiagnoseArgs, data: &Path, fit: &AxisRecord) -> anyhow::Result
             r.score_percent,
             r.shrink_t,
             if r.significant { "yes" } else { "no" },
-            fmt_params(&r.added_parameters)
+            parameters_text(&r.added_parameters)
         );
     }
     if let Some(top) = d.ranked_effects.first() {
         println!("  {}", removable_text(&d, top.effect.name()));
     }
-    match (d.verdict, d.top_effect) {
-        (Verdict::Explained, Some(e)) => println!(
-            "verdict: explained by {}: {:.2} % -> {:.2} %",
-            e.name(),
-            d.gap_before_percent,
-            d.gap_after_percent
-        ),
-        (v, _) => println!(
-            "verdict: {} (best candidate {:.2} % -> {:.2} %)",
-            v.name(),
-            d.gap_before_percent,
-            d.gap_after_percent
-        ),
-    }
+    println!("verdict: {}", d.findings.headline());
     println!(
         "published: {}",
         PUBLISHED
@@ -144,21 +131,14 @@ pub fn run(args: &DiagnoseArgs, data: &Path, fit: &AxisRecord) -> anyhow::Result
 /// How much of the removable gap (gap - floor) the top candidate removes, against the rule's
 /// thresholds.
 fn removable_text(d: &AxisDiagnosis, top: &str) -> String {
-    let removable = d.gap_before_percent - d.floor.floor_percent;
-    let removed = d.gap_before_percent - d.gap_after_percent;
+    let removable = d.findings.gap_before_percent - d.floor.floor_percent;
+    let removed = d.findings.gap_before_percent - d.findings.gap_after_percent;
     format!(
         "removable gap (gap - floor) {removable:.2} %-points; {top} removes {removed:.2} of them ({:.0} %); explained needs at least half of them, a shrink above max(10 % of the gap, 0.2) = {:.2} %-points, consistent over the validation record (block t >= {}), and a penalised score below the baseline's",
         100.0 * removed / removable.max(f64::MIN_POSITIVE),
-        (0.1 * d.gap_before_percent).max(0.2),
+        (0.1 * d.findings.gap_before_percent).max(0.2),
         SHRINK_T_MIN
     )
-}
-
-fn fmt_params(list: &[ParameterValue]) -> String {
-    list.iter()
-        .map(|p| format!("{} = {:.4}", p.name, p.value))
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// Length of the readable window of the force trace [s].
@@ -229,7 +209,7 @@ fn write_report(dir: &Path, d: &AxisDiagnosis, fit: &Path, val: &Path) -> anyhow
         }
         let errors = format!(
             "{:.2} % {}{}",
-            d.gap_before_percent,
+            d.findings.gap_before_percent,
             d.baseline_model,
             top.map_or(String::new(), |r| format!(
                 ", {:.2} % {after_label}",
@@ -276,7 +256,10 @@ fn write_report(dir: &Path, d: &AxisDiagnosis, fit: &Path, val: &Path) -> anyhow
             "Measured against predicted force, the whole validation record".into(),
         ));
         let mut panels = vec![ScatterPanel {
-            caption: format!("{} ({:.2} %)", d.baseline_model, d.gap_before_percent),
+            caption: format!(
+                "{} ({:.2} %)",
+                d.baseline_model, d.findings.gap_before_percent
+            ),
             x: &tr.velocity_mps,
             y: &before,
             color: BASELINE_COLOR,
@@ -332,80 +315,81 @@ fn write_report(dir: &Path, d: &AxisDiagnosis, fit: &Path, val: &Path) -> anyhow
 }
 
 fn html(d: &AxisDiagnosis, fit: &Path, val: &Path, figures: &[(&str, String)]) -> String {
-    let mut h = String::new();
-    h.push_str("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>forcemap gap diagnosis (time domain)</title>\n<style>body{font-family:sans-serif;max-width:1250px;margin:auto}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td:first-child{text-align:left}</style></head><body>\n");
-    h.push_str(&format!(
-        "<h1>Gap diagnosis (time domain): baseline {}</h1>\n<p>Fitted on {} ({} equations), scored on {} ({} equations); relative force error of the decimated force.</p>\n<p>Baseline parameters: {}</p>\n",
-        html_escape(&d.baseline_model),
-        html_escape(&fit.display().to_string()),
-        d.equations,
-        html_escape(&val.display().to_string()),
-        d.validation_equations,
-        html_escape(&fmt_params(&d.baseline_parameters))
+    let mut page = HtmlReport::new(&format!(
+        "Gap diagnosis (time domain): baseline {}",
+        d.baseline_model
     ));
-    let verdict = match (d.verdict, d.top_effect) {
-        (Verdict::Explained, Some(e)) => format!("explained by <b>{}</b>", e.name()),
-        (v, _) => v.name().to_string(),
-    };
-    h.push_str(&format!(
-        "<h2>Verdict: {verdict}</h2>\n<p>Relative force error on the validation record: {:.2} % with the baseline, {:.2} % with the top candidate ({:.2} % and {} on the fitting record). Floor {:.2} % (set by {}): {}.</p>\n<p>Best flexible law: {} ({:.2} % on the validation record, {:.2} % on the fitting record; best of {}).</p>\n",
-        d.gap_before_percent,
-        d.gap_after_percent,
+    page.paragraph(&format!(
+        "Fitted on {} ({} equations), scored on {} ({} equations); relative force error of the decimated force.",
+        fit.display(),
+        d.equations,
+        val.display(),
+        d.validation_equations
+    ));
+    page.paragraph(&format!(
+        "Baseline parameters: {}",
+        parameters_text(&d.baseline_parameters)
+    ));
+    page.verdict(&d.findings);
+    page.paragraph(&format!(
+        "On the fitting record: {:.2} % with the baseline, {} with the top candidate. Floor {:.2} % (set by {}): {}.",
         d.fit_before_percent,
         d.ranked_effects
             .first()
             .map_or("-".into(), |r| format!("{:.2} %", r.fit_percent)),
         d.floor.floor_percent,
-        html_escape(&d.floor.set_by),
-        html_escape(&d.floor.what),
-        html_escape(&d.floor.flexible_law),
+        d.floor.set_by,
+        d.floor.what,
+    ));
+    page.paragraph(&format!(
+        "Best flexible law: {} ({:.2} % on the validation record, {:.2} % on the fitting record; best of {}).",
+        d.floor.flexible_law,
         d.floor.flexible_law_percent,
         d.floor.flexible_law_fit_percent,
         d.floor.flexible_laws_tried,
     ));
     if let Some(top) = d.ranked_effects.first() {
-        h.push_str(&format!(
-            "<p>{}.</p>\n",
-            html_escape(&removable_text(d, top.effect.name()))
-        ));
+        page.paragraph(&format!("{}.", removable_text(d, top.effect.name())));
     }
-    h.push_str(&format!(
-        "<p>Published (EMPS): {}.</p>\n",
+    page.paragraph(&format!(
+        "Published (EMPS): {}.",
         PUBLISHED
             .iter()
-            .map(|(w, e)| format!("{e:.2} % ({})", html_escape(w)))
+            .map(|(w, e)| format!("{e:.2} % ({w})"))
             .collect::<Vec<_>>()
             .join(", ")
     ));
-    h.push_str("<h2>Where</h2>\n<ul>\n");
-    for s in &d.located.summary {
-        h.push_str(&format!("<li>{}</li>\n", html_escape(s)));
-    }
-    h.push_str("</ul>\n<h2>Candidates</h2>\n<table><tr><th>effect</th><th>validation [%]</th><th>fit [%]</th><th>score [%]</th><th>t</th><th>significant</th><th>added</th><th>signature</th></tr>\n");
-    for r in &d.ranked_effects {
-        h.push_str(&format!(
-            "<tr><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.2}</td><td>{}</td><td>{}</td><td style=\"text-align:left\">{}</td></tr>\n",
-            r.effect.name(),
-            r.gap_after_percent,
-            r.fit_percent,
-            r.score_percent,
-            r.shrink_t,
-            if r.significant { "yes" } else { "no" },
-            html_escape(&fmt_params(&r.added_parameters)),
-            html_escape(&r.signature)
-        ));
-    }
-    h.push_str("</table>\n");
-    for (file, caption) in figures {
-        h.push_str(&format!(
-            "<h3>{}</h3>\n<img src=\"{file}\" alt=\"{}\">\n",
-            html_escape(caption),
-            html_escape(caption)
-        ));
-    }
-    h.push_str(&format!(
-        "<p>Rule: {}</p>\n</body></html>\n",
-        html_escape(&d.rule)
-    ));
-    h
+    page.list("Where", &d.located.summary);
+    let rows: Vec<Vec<String>> = d
+        .ranked_effects
+        .iter()
+        .map(|r| {
+            vec![
+                r.effect.name().to_string(),
+                format!("{:.3}", r.gap_after_percent),
+                format!("{:.3}", r.fit_percent),
+                format!("{:.3}", r.score_percent),
+                format!("{:.2}", r.shrink_t),
+                if r.significant { "yes" } else { "no" }.into(),
+                parameters_text(&r.added_parameters),
+                r.signature.clone(),
+            ]
+        })
+        .collect();
+    page.table(
+        "Candidates",
+        &[
+            "effect",
+            "validation [%]",
+            "fit [%]",
+            "score [%]",
+            "t",
+            "significant",
+            "added",
+            "signature",
+        ],
+        &rows,
+    );
+    page.figures(figures);
+    page.finish(&d.findings.rule)
 }

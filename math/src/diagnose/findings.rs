@@ -1,0 +1,317 @@
+//! What every diagnosis concludes, whichever evidence it weighs: the verdict, the rule it
+//! follows, and the sentence a user reads. The stepped-sine rig diagnosis ([`super::diagnose`]),
+//! the live phasor diagnosis ([`super::PhasorDiagnosis`]) and the time-domain axis diagnosis
+//! ([`super::time_domain`]) differ in their evidence ([`Evidence`]: what the gap measures, how
+//! candidates are ranked, when a shrink counts, what the floor is) and share everything else
+//! here: one [`Findings`] type, one verdict rule ([`verdict`]), one description of it
+//! ([`Evidence::rule`]) and one wording ([`Findings::headline`], [`Findings::status`]).
+
+use serde::Serialize;
+
+use super::effects::Effect;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    Adequate,
+    Explained,
+    Unexplained,
+}
+
+impl Verdict {
+    pub fn name(self) -> &'static str {
+        match self {
+            Verdict::Adequate => "adequate",
+            Verdict::Explained => "explained",
+            Verdict::Unexplained => "unexplained",
+        }
+    }
+}
+
+/// The evidence a diagnosis weighs: what its gap measures and how it judges candidates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Evidence {
+    /// Stepped-sine rig: fit on the sine steps, the NMSE of the mass acceleration simulated on
+    /// held-out records.
+    HeldOutNmse,
+    /// Live phasors: the element-force error cross-validated by leaving each step out.
+    CrossValidatedForceError,
+    /// Force-driven axis record: the relative force error on a validation record.
+    ValidationForceError,
+}
+
+/// The part of the rule every evidence shares.
+const SHARED_RULE: &str = "explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor); unexplained: gap_before > max(3 floor, 1 %) and not explained; adequate: otherwise";
+
+impl Evidence {
+    /// What the gap figures measure, for a sentence ("held-out NMSE").
+    pub fn measure(self) -> &'static str {
+        match self {
+            Evidence::HeldOutNmse => "held-out NMSE of the mass acceleration",
+            Evidence::CrossValidatedForceError => "cross-validated element-force error",
+            Evidence::ValidationForceError => "relative force error on the validation record",
+        }
+    }
+
+    fn ranking(self) -> &'static str {
+        match self {
+            Evidence::HeldOutNmse => {
+                "penalised held-out score; candidates within the best's excess over the floor are tied, and one that explains the gap by itself goes first if its cross-validated force error on the sine steps is below 0.9 times the best's (below 0.5 times: whatever the held-out scores)"
+            }
+            Evidence::CrossValidatedForceError => {
+                "penalised cross-validated score; an exciter delay that stands out of its noise in the kinematic identity (4 standard deviations and 0.5 ms) is named when no force candidate explains the gap"
+            }
+            Evidence::ValidationForceError => "penalised validation score",
+        }
+    }
+
+    fn significance(self) -> &'static str {
+        match self {
+            Evidence::HeldOutNmse | Evidence::CrossValidatedForceError => {
+                "score below the baseline's and shrink > max(floor, 10 % of the gap, 0.2 %-points)"
+            }
+            Evidence::ValidationForceError => {
+                "score below the baseline's, shrink > max(10 % of the gap, 0.2 %-points) and consistent over 1 s blocks of the validation record (t >= 3)"
+            }
+        }
+    }
+
+    fn floor(self) -> &'static str {
+        match self {
+            Evidence::HeldOutNmse => "the measurement noise's share of the held-out NMSE",
+            Evidence::CrossValidatedForceError => "what the force noise alone leaves",
+            Evidence::ValidationForceError => {
+                "the smallest validation error of the flexible memoryless laws, the baseline and the candidates (see floor.what)"
+            }
+        }
+    }
+
+    /// The verdict rule as applied with this evidence, for the output.
+    pub fn rule(self) -> String {
+        format!(
+            "gap: {}; ranking: {}; significant: {}; {SHARED_RULE}; floor: {}",
+            self.measure(),
+            self.ranking(),
+            self.significance(),
+            self.floor()
+        )
+    }
+}
+
+/// Whether a candidate's shrink is beyond what the noise explains (the rig's and the live
+/// diagnosis's significance; the axis has its own, see [`Evidence::ValidationForceError`]).
+pub fn significant(
+    gap_before: f64,
+    floor: f64,
+    gap_after: f64,
+    score: f64,
+    baseline_score: f64,
+) -> bool {
+    score < baseline_score && gap_before - gap_after > floor.max(0.1 * gap_before).max(0.2)
+}
+
+/// Whether a candidate leaving `gap_after` would explain the gap: significant, and at most half
+/// of the excess over the floor left.
+pub fn explains(gap_before: f64, floor: f64, gap_after: f64, significant: bool) -> bool {
+    significant && gap_after - floor <= 0.5 * (gap_before - floor)
+}
+
+/// The verdict from the gap, the floor and the top candidate (gap_after, significant).
+pub fn verdict(gap_before: f64, floor: f64, top: Option<(f64, bool)>) -> Verdict {
+    if let Some((after, significant)) = top
+        && explains(gap_before, floor, after, significant)
+    {
+        return Verdict::Explained;
+    }
+    if gap_before > (3.0 * floor).max(1.0) {
+        Verdict::Unexplained
+    } else {
+        Verdict::Adequate
+    }
+}
+
+/// The top-ranked candidate as the verdict sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct TopCandidate {
+    pub effect: Effect,
+    pub gap_after_percent: f64,
+    pub significant: bool,
+}
+
+/// What a diagnosis concludes.
+#[derive(Debug, Clone, Serialize)]
+pub struct Findings {
+    pub verdict: Verdict,
+    /// The effect that explains the gap (only when explained).
+    pub top_effect: Option<Effect>,
+    /// The best-ranked candidate, explained or not.
+    pub best_candidate: Option<Effect>,
+    pub gap_before_percent: f64,
+    /// The gap with the best candidate (the baseline's when there is none).
+    pub gap_after_percent: f64,
+    /// What would be left with nothing more to explain ([`Evidence::rule`] says what).
+    pub floor_percent: f64,
+    pub evidence: Evidence,
+    pub rule: String,
+}
+
+impl Findings {
+    /// Applies the verdict rule.
+    pub fn decide(
+        evidence: Evidence,
+        gap_before_percent: f64,
+        floor_percent: f64,
+        top: Option<TopCandidate>,
+    ) -> Findings {
+        let verdict = verdict(
+            gap_before_percent,
+            floor_percent,
+            top.map(|t| (t.gap_after_percent, t.significant)),
+        );
+        Findings {
+            verdict,
+            top_effect: top
+                .filter(|_| verdict == Verdict::Explained)
+                .map(|t| t.effect),
+            best_candidate: top.map(|t| t.effect),
+            gap_before_percent,
+            gap_after_percent: top.map_or(gap_before_percent, |t| t.gap_after_percent),
+            floor_percent,
+            evidence,
+            rule: evidence.rule(),
+        }
+    }
+
+    /// Names `effect` as the explanation whatever the gap figures say (the live diagnosis's
+    /// exciter delay, seen in the kinematic identity rather than in the force fit).
+    pub fn explained_by(mut self, effect: Effect) -> Findings {
+        self.verdict = Verdict::Explained;
+        self.top_effect = Some(effect);
+        self
+    }
+
+    /// The verdict in one line: "explained by coulomb_friction: 14.80 % -> 0.96 %".
+    pub fn headline(&self) -> String {
+        match (self.verdict, self.top_effect) {
+            (Verdict::Explained, Some(e)) => format!(
+                "explained by {}: {:.2} % -> {:.2} %",
+                e.name(),
+                self.gap_before_percent,
+                self.gap_after_percent
+            ),
+            (v, _) => format!(
+                "{} (gap {:.2} %, floor {:.2} %{})",
+                v.name(),
+                self.gap_before_percent,
+                self.floor_percent,
+                self.best_candidate.map_or(String::new(), |e| format!(
+                    ", best candidate {} leaves {:.2} %",
+                    e.name(),
+                    self.gap_after_percent
+                ))
+            ),
+        }
+    }
+
+    /// The verdict as a status line about `baseline` (the diagnoser's /diagnostics message,
+    /// the report's heading).
+    pub fn status(&self, baseline: &str) -> String {
+        match (self.verdict, self.top_effect) {
+            (Verdict::Explained, Some(e)) => format!(
+                "baseline '{baseline}' misses {}: gap {:.2} % -> {:.2} %",
+                e.name(),
+                self.gap_before_percent,
+                self.gap_after_percent
+            ),
+            (Verdict::Adequate, _) => format!("baseline '{baseline}' is adequate"),
+            _ => format!(
+                "baseline '{baseline}' has a gap of {:.2} % that no candidate explains",
+                self.gap_before_percent
+            ),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn top(after: f64, significant: bool) -> Option<TopCandidate> {
+        Some(TopCandidate {
+            effect: Effect::CoulombFriction,
+            gap_after_percent: after,
+            significant,
+        })
+    }
+
+    #[test]
+    fn the_rule_names_the_effect_only_when_it_removes_half_the_excess() {
+        // Gap 10 %, floor 1 %: the excess is 9; leaving 5.5 removes exactly half.
+        let f = Findings::decide(Evidence::HeldOutNmse, 10.0, 1.0, top(5.5, true));
+        assert_eq!(f.verdict, Verdict::Explained);
+        assert_eq!(f.top_effect, Some(Effect::CoulombFriction));
+        let f = Findings::decide(Evidence::HeldOutNmse, 10.0, 1.0, top(5.6, true));
+        assert_eq!(f.verdict, Verdict::Unexplained);
+        assert_eq!(f.top_effect, None);
+        assert_eq!(f.best_candidate, Some(Effect::CoulombFriction));
+        assert_eq!(f.gap_after_percent, 5.6);
+        // Not significant: never explained.
+        let f = Findings::decide(Evidence::HeldOutNmse, 10.0, 1.0, top(1.0, false));
+        assert_eq!(f.verdict, Verdict::Unexplained);
+        // A gap below max(3 floor, 1 %) is adequate.
+        let f = Findings::decide(Evidence::HeldOutNmse, 2.9, 1.0, None);
+        assert_eq!(f.verdict, Verdict::Adequate);
+        assert_eq!(f.gap_after_percent, 2.9);
+        let f = Findings::decide(Evidence::HeldOutNmse, 0.9, 0.1, None);
+        assert_eq!(f.verdict, Verdict::Adequate);
+    }
+
+    #[test]
+    fn significance_needs_the_score_and_a_shrink_beyond_floor_and_tenth() {
+        assert!(significant(10.0, 0.5, 8.9, 1.0, 2.0));
+        assert!(!significant(10.0, 0.5, 9.1, 1.0, 2.0)); // below 10 % of the gap
+        assert!(!significant(10.0, 1.5, 8.9, 1.0, 2.0)); // below the floor
+        assert!(!significant(10.0, 0.5, 5.0, 2.0, 2.0)); // score not better
+        assert!(!significant(1.0, 0.0, 0.85, 0.5, 1.0)); // below 0.2 %-points
+    }
+
+    #[test]
+    fn every_rule_shares_the_verdict_and_names_its_measure() {
+        for e in [
+            Evidence::HeldOutNmse,
+            Evidence::CrossValidatedForceError,
+            Evidence::ValidationForceError,
+        ] {
+            let r = e.rule();
+            assert!(r.contains(SHARED_RULE), "{r}");
+            assert!(r.contains(e.measure()), "{r}");
+        }
+    }
+
+    #[test]
+    fn the_wording_says_what_was_found() {
+        let f = Findings::decide(Evidence::HeldOutNmse, 14.8, 0.5, top(0.96, true));
+        assert_eq!(
+            f.headline(),
+            "explained by coulomb_friction: 14.80 % -> 0.96 %"
+        );
+        assert_eq!(
+            f.status("linear"),
+            "baseline 'linear' misses coulomb_friction: gap 14.80 % -> 0.96 %"
+        );
+        let f = Findings::decide(Evidence::HeldOutNmse, 14.8, 0.5, top(12.0, true));
+        assert_eq!(
+            f.headline(),
+            "unexplained (gap 14.80 %, floor 0.50 %, best candidate coulomb_friction leaves 12.00 %)"
+        );
+        assert_eq!(
+            f.status("linear"),
+            "baseline 'linear' has a gap of 14.80 % that no candidate explains"
+        );
+        let f = Findings::decide(Evidence::HeldOutNmse, 0.8, 0.5, None);
+        assert_eq!(f.status("linear"), "baseline 'linear' is adequate");
+        let f = f.explained_by(Effect::ExciterDelay);
+        assert_eq!(f.top_effect, Some(Effect::ExciterDelay));
+    }
+}
