@@ -46,11 +46,15 @@ pub fn axis_topic_of(reader: &BagReader) -> anyhow::Result<Option<String>> {
 
 /// The axis record of a MAT file (the EMPS benchmark's variables) or of a bag's axis topic.
 pub fn read_axis(path: &Path) -> anyhow::Result<AxisRecord> {
-    let record = if is_mat_file(path) {
-        axis_record(&read_emps(path)?)
+    if is_mat_file(path) {
+        with_sample_rate(axis_record(&read_emps(path)?), path)
     } else {
-        read_axis_bag(path)?
-    };
+        read_axis_bag(&BagReader::open(path)?, path)
+    }
+}
+
+/// `record`, refused when it has no sample rate.
+fn with_sample_rate(record: AxisRecord, path: &Path) -> anyhow::Result<AxisRecord> {
     let fs = record.sample_rate_hz;
     if !(fs.is_finite() && fs > 0.0) {
         bail!(
@@ -63,10 +67,9 @@ pub fn read_axis(path: &Path) -> anyhow::Result<AxisRecord> {
 
 /// The axis record on a bag's `AxisSample` topic: position and force in log-time order, the
 /// sample rate from the first and last stamps (as the EMPS file's from its first and last
-/// times).
-pub fn read_axis_bag(path: &Path) -> anyhow::Result<AxisRecord> {
-    let reader = BagReader::open(path)?;
-    let topic = axis_topic_of(&reader)
+/// times). `reader` is the bag at `path`.
+pub fn read_axis_bag(reader: &BagReader, path: &Path) -> anyhow::Result<AxisRecord> {
+    let topic = axis_topic_of(reader)
         .with_context(|| path.display().to_string())?
         .with_context(|| {
             format!(
@@ -107,9 +110,12 @@ pub fn read_axis_bag(path: &Path) -> anyhow::Result<AxisRecord> {
     } else {
         (n - 1) as f64 / ((stamps_ns[n - 1] - stamps_ns[0]) as f64 * 1e-9)
     };
-    Ok(AxisRecord {
-        sample_rate_hz,
-        position_m,
-        force_n,
-    })
+    with_sample_rate(
+        AxisRecord {
+            sample_rate_hz,
+            position_m,
+            force_n,
+        },
+        path,
+    )
 }

@@ -6,10 +6,11 @@ use std::path::Path;
 
 use forcemap_math::record::Record;
 
+use crate::bag::BagReader;
 use crate::channel_map::ChannelMap;
 use crate::csv_export::read_csv;
 use crate::foreign_bag::read_foreign_bag;
-use crate::rig_bag::{RigBag, read_rig_bag};
+use crate::rig_bag::{RigBag, RigBagReader, read_rig_bag};
 use forcemap_math::recipe::SetupKind;
 
 /// Records and what came with them.
@@ -36,13 +37,19 @@ pub enum Measured {
 /// Reads `path` as whatever it holds: an axis record (a MAT file, or a bag with an axis
 /// topic), else the steps of a bag or a CSV export.
 pub fn load_measured(path: &Path) -> anyhow::Result<Measured> {
-    let axis = crate::axis::is_mat_file(path)
-        || (is_bag(path)
-            && crate::axis::axis_topic_of(&crate::bag::BagReader::open(path)?)?.is_some());
-    if axis {
-        Ok(Measured::Axis(crate::axis::read_axis(path)?))
+    if crate::axis::is_mat_file(path) {
+        return Ok(Measured::Axis(crate::axis::read_axis(path)?));
+    }
+    if !is_bag(path) {
+        return Ok(Measured::Steps(load(path)?));
+    }
+    // One opening of the bag decides what it holds and reads it.
+    let reader = BagReader::open(path)?;
+    if crate::axis::axis_topic_of(&reader)?.is_some() {
+        Ok(Measured::Axis(crate::axis::read_axis_bag(&reader, path)?))
     } else {
-        Ok(Measured::Steps(load(path)?))
+        let bag = RigBagReader::new(reader, path)?.records()?;
+        Ok(Measured::Steps(of_bag(path, bag)?))
     }
 }
 

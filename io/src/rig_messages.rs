@@ -1,6 +1,7 @@
 //! Records as the sensor's message stream: the rig constants, then per step its
 //! `ExcitationState` and its `RigSample`s, then the exciter's IDLE. The simulated sensor node
-//! publishes it, `forcemap bench graph` plays it, and a rig bag is written from it. Plain
+//! publishes it, `forcemap bench graph` plays it, and a rig bag is written from it (and read
+//! back by `rig_bag::read_rig_messages`). Plain
 //! message structs: no ROS runtime needed.
 
 use forcemap_math::record::{Channel, Record};
@@ -9,14 +10,7 @@ use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
 use forcemap_msgs::std_msgs::Header;
 
-use std::path::Path;
-
-use anyhow::bail;
-use forcemap_msgs::RosMessage;
-
-use crate::bag::BagReader;
 use crate::rig_bag::PARAMETERS_NAME;
-use crate::topics;
 
 /// One message of a rig run, in publishing order.
 #[derive(Debug, Clone, PartialEq)]
@@ -95,67 +89,6 @@ pub fn rig_messages<'a>(
         .into_iter()
         .chain(steps)
         .chain(std::iter::once(RigMessage::Excitation(idle)))
-}
-
-/// The rig messages of a bag (samples, excitation states and constants on topics whose last
-/// name component is forcemap's, with forcemap's types), in log-time order; an IDLE state is
-/// added one sample period after the last sample when the bag has none (a recording stopped
-/// before the exciter went idle). What the sensor node plays.
-pub fn read_rig_messages(path: &Path) -> anyhow::Result<Vec<RigMessage>> {
-    let reader = BagReader::open(path)?;
-    let base = |name: &str| name.rsplit('/').next().unwrap_or("").to_string();
-    let mut out = Vec::new();
-    let mut last: Option<(u32, Time, String)> = None;
-    let mut saw_idle = false;
-    let mut period = 0.0f64;
-    for (i, m) in reader.messages()?.enumerate() {
-        let m = m?;
-        let topic = &m.topic.name;
-        let bad = |e: &dyn std::fmt::Display| {
-            anyhow::anyhow!("{}: {topic}, message {i}: {e}", path.display())
-        };
-        match (base(topic).as_str(), m.topic.type_name.as_str()) {
-            (topics::SAMPLES, RigSample::TYPE_NAME) => {
-                let s = RigSample::from_cdr(&m.data).map_err(|e| bad(&e))?;
-                if let Some((_, t, _)) = &last {
-                    let dt = s.header.stamp.secs_since(*t);
-                    if dt > 0.0 {
-                        period = dt;
-                    }
-                }
-                last = Some((s.step, s.header.stamp, s.header.frame_id.clone()));
-                out.push(RigMessage::Sample(s));
-            }
-            (topics::EXCITATION, ExcitationState::TYPE_NAME) => {
-                let s = ExcitationState::from_cdr(&m.data).map_err(|e| bad(&e))?;
-                saw_idle |= s.is_idle();
-                out.push(RigMessage::Excitation(s));
-            }
-            (topics::PARAMETERS, DiagnosticStatus::TYPE_NAME) => {
-                out.push(RigMessage::Parameters(
-                    DiagnosticStatus::from_cdr(&m.data).map_err(|e| bad(&e))?,
-                ));
-            }
-            _ => {}
-        }
-    }
-    let Some((step, t, frame)) = last else {
-        bail!(
-            "{}: no forcemap_msgs/msg/RigSample messages on a '.../{}' topic",
-            path.display(),
-            topics::SAMPLES
-        );
-    };
-    if !saw_idle {
-        let end = t.add_secs_f64(period);
-        out.push(RigMessage::Excitation(ExcitationState::idle(
-            Header::new(end, &frame),
-            step as usize + 1,
-            end,
-            Channel::BaseDisplacementM,
-        )));
-    }
-    Ok(out)
 }
 
 #[cfg(test)]

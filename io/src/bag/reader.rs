@@ -393,7 +393,8 @@ impl BagReader {
         self.make_messages(None)
     }
 
-    /// The messages of some topics in log-time order; an unknown topic is an error.
+    /// The messages of some topics in log-time order; an unknown topic is an error. No topics
+    /// give no messages.
     pub fn messages_on(&self, topics: &[&str]) -> Result<Messages<'_>, BagError> {
         for t in topics {
             self.topic(t)?;
@@ -422,9 +423,10 @@ impl BagReader {
         };
         Ok(Messages {
             bag: self,
+            // The mcap reader would take an empty topic list as "every topic".
+            done: only.as_ref().is_some_and(BTreeSet::is_empty),
             only,
             inner,
-            done: false,
         })
     }
 }

@@ -32,8 +32,9 @@ use forcemap_msgs::msg::{ExcitationState, RigSample};
 use crate::log_line;
 use crate::ros::{NodeSetup, RosNode, publish_blocking, qos};
 use forcemap_io::params::Params;
+use forcemap_io::rig_bag::read_rig_messages;
 use forcemap_io::rig_messages::{
-    RigMessage, SIMULATED_CONSTANTS_MESSAGE, constants_status, read_rig_messages, rig_messages,
+    RigMessage, SIMULATED_CONSTANTS_MESSAGE, constants_status, rig_messages,
 };
 use forcemap_io::topics;
 

@@ -1,5 +1,5 @@
 //! A rig run as a rosbag2 bag: the sensor node's topics, written from records and read back
-//! into records.
+//! into records ([`read`]: one reader of the rig topics, for the analysis and for playback).
 //!
 //! Topics (under the rig's namespace, `/rig` by default):
 //! - `/rig/samples` (`forcemap_msgs/msg/RigSample`): one message per sample, stamped with the
@@ -10,7 +10,6 @@
 //!   rig constants (e.g. `mass_kg`) as key/value pairs, so that a bag carries what its analysis
 //!   needs.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use forcemap_math::record::{Channel, Record};
@@ -21,8 +20,10 @@ use forcemap_msgs::msg::{ExcitationState, RigSample};
 
 use crate::bag::{BagError, BagReader, BagWriter, QosProfile, TopicSpec};
 use crate::rig_messages::{RigMessage, constants_status, rig_messages};
-use crate::steps::{StepAssembler, StepError, StepPlan};
 use crate::topics::{RIG_EXCITATION, RIG_PARAMETERS, RIG_SAMPLES};
+
+mod read;
+pub use read::{RigBag, RigBagReader, RigTopic, read_rig_bag, read_rig_messages};
 
 /// Name of the parameters status message.
 pub const PARAMETERS_NAME: &str = "rig parameters";
@@ -66,6 +67,12 @@ pub enum RigBagError {
         step: usize,
         problem: String,
     },
+    #[error("{path}: {topics} are all {kind} topics of a rig: which one to read is ambiguous")]
+    Ambiguous {
+        path: String,
+        kind: String,
+        topics: String,
+    },
     #[error("{path}: no samples on {topic}")]
     Empty { path: String, topic: String },
 }
@@ -84,7 +91,7 @@ fn schema_fields(schema: &str) -> Vec<String> {
         .collect()
 }
 
-fn check_topic<M: RosMessage>(
+pub(crate) fn check_topic<M: RosMessage>(
     reader: &BagReader,
     path: &str,
     topic: &str,
@@ -183,100 +190,6 @@ pub fn write_rig_bag(
         }
     }
     Ok(w.finish()?)
-}
-
-/// A rig run read from a bag.
-#[derive(Debug, Clone)]
-pub struct RigBag {
-    pub records: Vec<Record>,
-    /// Rig constants found on `/rig/parameters` (numeric values only).
-    pub parameters: BTreeMap<String, f64>,
-    /// Why a last, unfinished step was left out (a recording stopped in the middle of it).
-    pub left_out: Option<String>,
-}
-
-/// Reads the records of a rig run from a bag directory or a bare .mcap.
-pub fn read_rig_bag(path: &Path) -> Result<RigBag, RigBagError> {
-    let p = path.display().to_string();
-    let reader = BagReader::open(path)?;
-    check_topic::<RigSample>(&reader, &p, RIG_SAMPLES)?;
-    check_topic::<ExcitationState>(&reader, &p, RIG_EXCITATION)?;
-    let decode_err = |topic: &str, index: usize, e: &dyn std::fmt::Display| RigBagError::Message {
-        path: p.clone(),
-        topic: topic.into(),
-        index,
-        problem: e.to_string(),
-    };
-
-    let mut parameters = BTreeMap::new();
-    if reader.topic(RIG_PARAMETERS).is_ok() {
-        check_topic::<DiagnosticStatus>(&reader, &p, RIG_PARAMETERS)?;
-        for (i, m) in reader.messages_on(&[RIG_PARAMETERS])?.enumerate() {
-            let m = m?;
-            let s = DiagnosticStatus::from_cdr(&m.data)
-                .map_err(|e| decode_err(RIG_PARAMETERS, i, &e))?;
-            for kv in s.values {
-                if let Ok(v) = kv.value.parse::<f64>() {
-                    parameters.insert(kv.key, v);
-                }
-            }
-        }
-    }
-
-    let mut plans: BTreeMap<u32, StepPlan> = BTreeMap::new();
-    let mut run_start: Option<Time> = None;
-    for (i, m) in reader.messages_on(&[RIG_EXCITATION])?.enumerate() {
-        let m = m?;
-        let s =
-            ExcitationState::from_cdr(&m.data).map_err(|e| decode_err(RIG_EXCITATION, i, &e))?;
-        // IDLE (the run ended) starts no step but its time is not the run's start either.
-        if let Some(plan) =
-            StepPlan::from_state(&s).map_err(|e| decode_err(RIG_EXCITATION, i, &e))?
-        {
-            run_start = Some(run_start.map_or(s.start_time, |t: Time| t.min(s.start_time)));
-            plans.insert(s.step, plan);
-        }
-    }
-
-    // Samples, grouped by step in time order.
-    let mut assembler = StepAssembler::new();
-    if let Some(t) = run_start {
-        assembler.set_origin(t);
-    }
-    let mut records: Vec<Record> = Vec::new();
-    let step_err = |e: StepError| RigBagError::Step {
-        path: p.clone(),
-        step: e.step,
-        problem: e.problem,
-    };
-    for (i, m) in reader.messages_on(&[RIG_SAMPLES])?.enumerate() {
-        let m = m?;
-        let s = RigSample::from_cdr(&m.data).map_err(|e| decode_err(RIG_SAMPLES, i, &e))?;
-        for done in assembler.push(&s, plans.get(&s.step)) {
-            records.push(done.map_err(step_err)?);
-        }
-    }
-    let mut left_out = None;
-    match assembler.finish() {
-        Some(Ok(r)) => records.push(r),
-        // The recording stopped in the middle of the last step: keep the complete ones.
-        Some(Err(e)) if e.truncated && !records.is_empty() => {
-            left_out = Some(format!("step {} left out: {}", e.step, e.problem));
-        }
-        Some(Err(e)) => return Err(step_err(e)),
-        None => {}
-    }
-    if records.is_empty() {
-        return Err(RigBagError::Empty {
-            path: p,
-            topic: RIG_SAMPLES.into(),
-        });
-    }
-    Ok(RigBag {
-        records,
-        parameters,
-        left_out,
-    })
 }
 
 #[cfg(test)]
