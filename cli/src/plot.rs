@@ -413,6 +413,89 @@ pub fn heatmap_panels_svg(
     Ok(svg)
 }
 
+/// One series of a [`SeriesPanel`]: points, marked, and joined in order when `line`.
+pub struct Series {
+    pub label: String,
+    pub points: Vec<(f64, f64)>,
+    pub color: RGBColor,
+    pub line: bool,
+}
+
+/// One panel of [`series_panels_svg`].
+pub struct SeriesPanel {
+    pub caption: String,
+    pub x_desc: String,
+    pub y_desc: String,
+    pub series: Vec<Series>,
+}
+
+/// Side-by-side panels of marked lines, each with its own axes and legend (e.g. storage and
+/// loss stiffness against frequency, one line per amplitude), as SVG text.
+pub fn series_panels_svg(title: &str, panels: &[SeriesPanel]) -> anyhow::Result<String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1200, 480)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let root = root.titled(title, ("sans-serif", 18)).map_err(draw_err)?;
+        for (area, p) in root
+            .split_evenly((1, panels.len().max(1)))
+            .iter()
+            .zip(panels)
+        {
+            let points = || p.series.iter().flat_map(|s| s.points.iter());
+            let mut chart = ChartBuilder::on(area)
+                .caption(&p.caption, ("sans-serif", 15))
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(70)
+                .build_cartesian_2d(span(points().map(|q| q.0)), span(points().map(|q| q.1)))
+                .map_err(draw_err)?;
+            chart
+                .configure_mesh()
+                .x_desc(&p.x_desc)
+                .y_desc(&p.y_desc)
+                .draw()
+                .map_err(draw_err)?;
+            for s in &p.series {
+                let color = s.color;
+                let finite: Vec<(f64, f64)> = s
+                    .points
+                    .iter()
+                    .copied()
+                    .filter(|(x, y)| x.is_finite() && y.is_finite())
+                    .collect();
+                let marks = chart
+                    .draw_series(finite.iter().map(|q| Circle::new(*q, 3, color.filled())))
+                    .map_err(draw_err)?;
+                if s.line {
+                    chart
+                        .draw_series(LineSeries::new(finite, color.stroke_width(2)))
+                        .map_err(draw_err)?
+                        .label(s.label.clone())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+                } else {
+                    marks
+                        .label(s.label.clone())
+                        .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+                }
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
+/// The colour of series `i` (the "tab10" palette, repeating).
+pub fn series_color(i: usize) -> RGBColor {
+    COLORS[i % COLORS.len()]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -13,6 +13,7 @@
 
 pub mod basis;
 pub mod diagnose;
+pub mod dynamic_stiffness;
 pub mod element;
 pub mod frf;
 pub mod identify;

@@ -12,6 +12,7 @@ use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind};
 use forcemap_math::record::Excitation;
 use serde_json::json;
 
+use super::element_outputs;
 use crate::cli::IdentifyArgs;
 use crate::plot::{self, ForceStateStep};
 use forcemap_io::params::{Params, read_params};
@@ -106,29 +107,47 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
             );
         }
     }
+    // The element force with the parameters the setup added (an identified moving mass).
+    let theta = id.theta();
+    let element_setup = setup.with_extra_values(theta.get(model.terms.len()..).unwrap_or(&[]));
+    let element_steps = if setup.kind() == SetupKind::Element {
+        element_outputs::element_steps(&element_setup, &model, &theta, &analyses, &import.records)
+            .with_context(|| format!("{file}: the dynamic stiffness table"))?
+    } else {
+        Vec::new()
+    };
     if let Some(dir) = &args.plot {
         write_plots(
             dir,
-            &setup,
+            &element_setup,
             &model,
             &id,
             &analyses,
             &import.records,
             &validations,
         )?;
+        if !element_steps.is_empty() {
+            element_outputs::write_plots(dir, &element_steps, &model.name)?;
+        }
     }
     if args.json {
-        println!(
-            "{}",
-            identification_json(&recipe, &id, &validations, &import.ignored_columns)
-        );
+        let mut json = identification_json(&recipe, &id, &validations, &import.ignored_columns);
+        if !element_steps.is_empty() {
+            json["dynamic_stiffness"] =
+                serde_json::to_value(element_steps.iter().map(|s| &s.point).collect::<Vec<_>>())?;
+        }
+        println!("{json}");
     } else {
         print_identification(&file, &id, &validations);
+        if !element_steps.is_empty() {
+            element_outputs::print_table(&element_steps);
+        }
     }
     Ok(())
 }
 
-/// Force-state map of the fit and, for the rig, the validation time traces.
+/// Force-state map of the fit (the element force of `setup`, whose identified extra
+/// parameters are set) and, for the rig, the validation time traces.
 fn write_plots(
     dir: &std::path::Path,
     setup: &Setup,

@@ -5,6 +5,7 @@ pub mod bench;
 pub mod bench_identify;
 pub mod diagnose;
 pub mod diagnose_eval;
+pub mod element_outputs;
 pub mod identify;
 pub mod import;
 pub mod reproduce;

@@ -308,6 +308,24 @@ impl Setup {
         }
     }
 
+    /// The setup with the parameters it added ([`Setup::extra_parameters`], in that order) set
+    /// to `values`: an element test whose moving mass was identified becomes one whose mass
+    /// is known, so that its element force is the measured force less the identified inertia.
+    /// Values beyond the setup's extra parameters are ignored.
+    pub fn with_extra_values(&self, values: &[f64]) -> Setup {
+        match (self, values.first()) {
+            (
+                Setup::Element {
+                    moving_mass_kg: None,
+                },
+                Some(m),
+            ) => Setup::Element {
+                moving_mass_kg: Some(*m),
+            },
+            _ => self.clone(),
+        }
+    }
+
     /// The rig's mass, for what only a base-excited rig has (its gap diagnosis).
     pub fn rig_mass_kg(&self) -> Option<f64> {
         match self {
