@@ -87,3 +87,24 @@ fn three_dof_case_i_replayed_live_gives_the_offline_theta_and_the_truth() {
         assert!(err < 0.01, "{n} = {v}, truth {t}: {:.2} %", 100.0 * err);
     }
 }
+
+#[test]
+fn damper_dyno_bag_replayed_live_gives_the_offline_theta_and_the_truth() {
+    // An element test: the bag carries the 0.8 kg fixture mass; the identifier takes the
+    // element setup from the channels the phasors hold.
+    let (live, offline) = replay(
+        "bags/damper_dyno_40db",
+        domain(10),
+        &["model:=damper".into()],
+        &["--model", "damper"],
+    );
+    assert_same_theta(&live, &offline, 1e-9);
+    for ((n, v), (name, truth)) in live
+        .iter()
+        .zip(forcemap_math::sim::RunSpec::DAMPER_DYNO_THETA)
+    {
+        assert_eq!(n, name);
+        let err = (v - truth).abs() / truth;
+        assert!(err < 0.01, "{n} = {v}, truth {truth}: {:.2} %", 100.0 * err);
+    }
+}

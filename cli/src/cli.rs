@@ -208,6 +208,12 @@ pub enum SystemArg {
     Rig,
     /// The 3-DOF example (METHOD.md section 3).
     ThreeDof,
+    /// A twin-tube damper on a displacement-driven dyno (element test; docs/method.md):
+    /// preload, gas spring, rebound/compression damping, seal friction, 0.8 kg fixture.
+    DamperDyno,
+    /// A 2 kg single-DOF system with cubic stiffness on a shaker (force-driven element test);
+    /// its bag carries no mass_kg, so the mass is identified.
+    ShakerSdof,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -17,7 +17,12 @@ use forcemap_msgs::RosMessage;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
 
-const BAGS: [&str; 3] = ["rig_40db", "three_dof_case_i", "three_dof_case_ii"];
+const BAGS: [&str; 4] = [
+    "rig_40db",
+    "three_dof_case_i",
+    "three_dof_case_ii",
+    "damper_dyno_40db",
+];
 
 fn bags_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../bags")
@@ -114,6 +119,14 @@ fn identification_on_the_committed_bags_finds_their_truth() {
         for (v, t) in theta.iter().zip([8000.0, 20.0, 5.0, 3e8]) {
             assert!((v / t - 1.0).abs() < tol, "{bag}: {theta:?}");
         }
+    }
+    // The dyno bag carries its fixture mass: an element test identified as it is.
+    let theta =
+        common::identified_values(&bags_dir().join("damper_dyno_40db"), &["--model", "damper"]);
+    let truth = forcemap_math::sim::RunSpec::DAMPER_DYNO_THETA;
+    assert_eq!(theta.len(), truth.len());
+    for (v, (name, t)) in theta.iter().zip(truth) {
+        assert!((v / t - 1.0).abs() < 0.01, "dyno {name}: {theta:?}");
     }
 }
 

@@ -2,85 +2,13 @@
 //! dyno (moving mass known) and a force-driven single-DOF system with cubic stiffness (moving
 //! mass identified), each on a stepped-sine grid of frequencies and amplitudes.
 
-use forcemap_math::element::Friction;
 use forcemap_math::identify::{FdMultiOptions, Method};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::identify_records;
 use forcemap_math::recipe::{SetupConstants, SetupKind, SetupSpec};
 use forcemap_math::record::Channel;
-use forcemap_math::sim::{AsymmetricDamping, ElementDrive, RunSpec, StepSpec, TruthElement};
-
-fn grid(frequencies_hz: &[f64], amplitudes: &[f64]) -> Vec<StepSpec> {
-    let mut steps = Vec::new();
-    for &a in amplitudes {
-        for &f in frequencies_hz {
-            steps.push(StepSpec::Sine {
-                frequency_hz: f,
-                amplitude: a,
-            });
-        }
-    }
-    steps
-}
-
-/// A twin-tube damper: gas preload and gas spring, rebound 2500 and compression 1000 N s/m,
-/// 40 N of seal friction; on a dyno with 0.8 kg between load cell and damper.
-fn damper_run(snr_db: Option<f64>, seed: u64) -> RunSpec {
-    let element = TruthElement {
-        preload_n: 150.0,
-        friction: Some(Friction::coulomb(40.0)),
-        asymmetric_damping: Some(AsymmetricDamping {
-            rebound_n_s_per_m: 2500.0,
-            compression_n_s_per_m: 1000.0,
-        }),
-        ..TruthElement::linear(2000.0, 0.0)
-    };
-    RunSpec {
-        snr_db,
-        seed,
-        ..RunSpec::element_test(
-            ElementDrive::Displacement,
-            0.8,
-            element,
-            grid(&[1.0, 2.0, 4.0, 8.0], &[0.005, 0.01, 0.02]),
-            1000.0,
-            4000,
-        )
-    }
-}
-
-/// k x + c x' + ca |x'| + fd sgn(x') + offset from the truth: c, ca from rebound/compression.
-fn damper_truth() -> [(&'static str, f64); 5] {
-    [
-        ("offset", 150.0),
-        ("k", 2000.0),
-        ("c", 1750.0),
-        ("ca", 750.0),
-        ("fd", 40.0),
-    ]
-}
-
-/// A force-driven single-DOF system: 2 kg on a spring with cubic stiffness and a damper,
-/// resonant near 16 Hz, stepped through it at two force levels.
-fn sdof_run(snr_db: Option<f64>, seed: u64) -> RunSpec {
-    let element = TruthElement {
-        cubic_stiffness_n_per_m3: 5.0e7,
-        ..TruthElement::linear(2.0e4, 60.0)
-    };
-    RunSpec {
-        snr_db,
-        seed,
-        ..RunSpec::element_test(
-            ElementDrive::Force,
-            2.0,
-            element,
-            grid(&[8.0, 12.0, 15.0, 17.0, 20.0, 25.0], &[20.0, 40.0]),
-            2000.0,
-            4000,
-        )
-    }
-}
+use forcemap_math::sim::RunSpec;
 
 fn identify(run: &RunSpec, model: &str, constants: &SetupConstants) -> Vec<(String, f64, f64)> {
     let records = run.simulate().expect("simulates");
@@ -127,37 +55,41 @@ fn assert_within(found: &[(String, f64, f64)], truth: &[(&str, f64)], rel: f64) 
 #[test]
 fn a_damper_on_a_dyno_is_identified_exactly_without_noise() {
     let found = identify(
-        &damper_run(None, 0),
+        &RunSpec::damper_dyno(None, 0),
         "damper",
         &SetupConstants {
             mass_kg: Some(0.8),
             ..SetupConstants::default()
         },
     );
-    assert_within(&found, &damper_truth(), 1e-3);
+    assert_within(&found, &RunSpec::DAMPER_DYNO_THETA, 1e-3);
 }
 
 #[test]
 fn a_damper_on_a_dyno_at_30_db_is_within_one_percent() {
     let found = identify(
-        &damper_run(Some(30.0), 1),
+        &RunSpec::damper_dyno(Some(30.0), 1),
         "damper",
         &SetupConstants {
             mass_kg: Some(0.8),
             ..SetupConstants::default()
         },
     );
-    assert_within(&found, &damper_truth(), 0.01);
+    assert_within(&found, &RunSpec::DAMPER_DYNO_THETA, 0.01);
 }
 
 #[test]
 fn a_force_driven_sdof_with_its_mass_identified() {
     let truth = [("k", 2.0e4), ("c", 60.0), ("s", 5.0e7), ("m", 2.0)];
     // No mass given: it is identified, after the model's parameters.
-    let clean = identify(&sdof_run(None, 0), "cubic", &SetupConstants::default());
+    let clean = identify(
+        &RunSpec::shaker_sdof(None, 0),
+        "cubic",
+        &SetupConstants::default(),
+    );
     assert_within(&clean, &truth, 1e-4);
     let noisy = identify(
-        &sdof_run(Some(30.0), 2),
+        &RunSpec::shaker_sdof(Some(30.0), 2),
         "cubic",
         &SetupConstants::default(),
     );
@@ -169,7 +101,7 @@ fn a_force_driven_sdof_with_its_mass_identified() {
 #[test]
 fn a_wrong_moving_mass_shows_in_the_stiffness() {
     let found = identify(
-        &damper_run(None, 0),
+        &RunSpec::damper_dyno(None, 0),
         "damper",
         &SetupConstants {
             mass_kg: Some(0.0),
@@ -185,7 +117,7 @@ fn a_wrong_moving_mass_shows_in_the_stiffness() {
 
 #[test]
 fn the_element_setup_is_recognised_from_its_channels_and_resolved() {
-    let run = damper_run(None, 0);
+    let run = RunSpec::damper_dyno(None, 0);
     assert_eq!(run.setup_kind(), SetupKind::Element);
     let records = run.simulate().expect("simulates");
     assert!(records[0].channel(Channel::ForceN).is_some());

@@ -46,9 +46,16 @@ fn planted_element(mut element: TruthElement, e: &EffectArgs) -> anyhow::Result<
         f.breakaway_n = f.kinetic_n + extra;
         f.stribeck_velocity_mps = e.stribeck_velocity_mps;
     }
-    element.asymmetric_damping = asymmetric_damping(element.damping_n_s_per_m, e)?;
-    element.free_play = free_play(e)?;
-    element.bouc_wen = bouc_wen(e)?;
+    // Planted on top of what the element has (the dyno's damper is asymmetric already).
+    if let Some(a) = asymmetric_damping(element.damping_n_s_per_m, e)? {
+        element.asymmetric_damping = Some(a);
+    }
+    if let Some(f) = free_play(e)? {
+        element.free_play = Some(f);
+    }
+    if let Some(b) = bouc_wen(e)? {
+        element.bouc_wen = Some(b);
+    }
     Ok(element)
 }
 
@@ -237,7 +244,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
             spec.with_element(element)
                 .with_effects(planted_rig_effects(&args.effects)?)
         }
-        SystemArg::ThreeDof => {
+        system => {
             let e = &args.effects;
             if e.exciter_delay_s.is_some()
                 || e.sensor_lowpass_hz.is_some()
@@ -247,14 +254,25 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
                     "--exciter-delay-s, --sensor-lowpass-hz and --mass-factor apply to the rig (--system rig) only"
                 );
             }
-            let case = match args.case {
-                CaseArg::I => ThreeDofCase::I,
-                CaseArg::Ii => ThreeDofCase::Ii,
+            let spec = match system {
+                SystemArg::DamperDyno => RunSpec::damper_dyno(args.snr_db, args.seed),
+                SystemArg::ShakerSdof => RunSpec::shaker_sdof(args.snr_db, args.seed),
+                _ => {
+                    let case = match args.case {
+                        CaseArg::I => ThreeDofCase::I,
+                        CaseArg::Ii => ThreeDofCase::Ii,
+                    };
+                    RunSpec::three_dof(case, args.snr_db, args.seed)
+                }
             };
-            let spec = RunSpec::three_dof(case, args.snr_db, args.seed);
             let element = planted_element(spec.element.clone(), e)?;
             spec.with_element(element)
         }
+    };
+    // The shaker's mass is what its run is for identifying: its bag does not give it.
+    let carried_mass_kg = match args.system {
+        SystemArg::ShakerSdof => None,
+        _ => spec.mass_kg(),
     };
     let profile = spec.setup_kind();
     let records = spec.simulate()?;
@@ -269,8 +287,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         eprintln!("wrote {} ({what})", csv.display());
     }
     if let Some(bag) = &args.bag {
-        let mut parameters: Vec<(String, f64)> = spec
-            .mass_kg()
+        let mut parameters: Vec<(String, f64)> = carried_mass_kg
             .map(|m| ("mass_kg".to_string(), m))
             .into_iter()
             .collect();

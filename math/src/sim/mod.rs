@@ -6,6 +6,7 @@
 //! split by system. Every run is reproducible from its seed (multisine phases and noise come
 //! from seeded ChaCha streams).
 
+pub mod bench_runs;
 pub mod element;
 pub mod excitation;
 mod hybrid;
