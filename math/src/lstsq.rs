@@ -88,6 +88,10 @@ pub struct QrAccumulator {
     /// Sum of squares of the other components of Q^T b.
     rss_outside: f64,
     rows: usize,
+    /// Rows' worth of weight taken away by [`QrAccumulator::forget`]: the effective number of
+    /// equations is `rows - forgotten` (0 without forgetting, and in states saved before it).
+    #[serde(default)]
+    forgotten: f64,
 }
 
 impl QrAccumulator {
@@ -99,7 +103,25 @@ impl QrAccumulator {
             qtb: Vec::new(),
             rss_outside: 0.0,
             rows: 0,
+            forgotten: 0.0,
         }
+    }
+
+    /// Weights every equation so far by `factor` (0 < factor <= 1) against those added later:
+    /// exponential forgetting, so that the solution follows parameters that drift. R and Q^T b
+    /// scale by sqrt(factor), the residual outside the factor by factor.
+    pub fn forget(&mut self, factor: f64) {
+        debug_assert!(factor > 0.0 && factor <= 1.0, "forgetting factor {factor}");
+        let root = factor.sqrt();
+        self.r.iter_mut().for_each(|v| *v *= root);
+        self.qtb.iter_mut().for_each(|v| *v *= root);
+        self.rss_outside *= factor;
+        self.forgotten += (1.0 - factor) * self.effective_rows();
+    }
+
+    /// The equations' total weight (the row count without forgetting).
+    pub fn effective_rows(&self) -> f64 {
+        self.rows as f64 - self.forgotten
     }
 
     pub fn cols(&self) -> usize {
@@ -216,7 +238,7 @@ impl QrAccumulator {
 
         let rss =
             self.rss_outside + (&r * DVector::from_column_slice(&theta) - &qtb).norm_squared();
-        let dof = rows.saturating_sub(cols).max(1) as f64;
+        let dof = (self.effective_rows() - cols as f64).max(1.0);
         let s2 = rss / dof * variance_scale;
         // (A^T A)^-1 = D^-1 V diag(1/s^2) V^T D^-1
         let mut cov = DMatrix::zeros(cols, cols);
@@ -241,7 +263,7 @@ impl QrAccumulator {
             covariance: cov,
             condition_number: condition,
             equations: rows,
-            residual_rms: (rss / rows as f64).sqrt(),
+            residual_rms: (rss / self.effective_rows()).sqrt(),
             warnings,
         })
     }
@@ -415,5 +437,33 @@ mod tests {
             back.solve(&names, 1.0).unwrap().theta,
             acc.solve(&names, 1.0).unwrap().theta
         );
+    }
+
+    #[test]
+    fn forgetting_weighs_the_earlier_rows_by_the_factor() {
+        let names = vec!["a".to_string(), "b".to_string()];
+        let a1 = DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 1.0, 1.0, 0.0, 2.0]);
+        let b1 = DVector::from_column_slice(&[1.0, 2.5, 3.0]);
+        let a2 = DMatrix::from_row_slice(2, 2, &[2.0, 1.0, 1.0, -1.0]);
+        let b2 = DVector::from_column_slice(&[4.0, 0.2]);
+        let factor: f64 = 0.6;
+        let mut acc = QrAccumulator::new(2);
+        acc.add_rows(&a1, &b1).unwrap();
+        acc.forget(factor);
+        acc.add_rows(&a2, &b2).unwrap();
+        let got = acc.solve(&names, 1.0).unwrap();
+        // The same least squares with the first rows scaled by sqrt(factor).
+        let mut a = DMatrix::zeros(5, 2);
+        let mut b = DVector::zeros(5);
+        a.rows_mut(0, 3).copy_from(&(a1 * factor.sqrt()));
+        b.rows_mut(0, 3).copy_from(&(b1 * factor.sqrt()));
+        a.rows_mut(3, 2).copy_from(&a2);
+        b.rows_mut(3, 2).copy_from(&b2);
+        let want = solve(&a, &b, &names, 1.0).unwrap();
+        for (g, w) in got.theta.iter().zip(&want.theta) {
+            assert!((g - w).abs() < 1e-12, "{g} vs {w}");
+        }
+        // 2 rows plus 3 weighed 0.6: 3.8 rows' weight.
+        assert!((acc.effective_rows() - 3.8).abs() < 1e-12);
     }
 }

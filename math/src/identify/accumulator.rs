@@ -29,6 +29,10 @@ pub struct EquationAccumulator {
     steps_used: Vec<usize>,
     notes: Vec<String>,
     notes_dropped: usize,
+    /// Steps' worth of weight taken away by [`EquationAccumulator::forget`] (0 in the
+    /// converged mode, and in states saved before tracking existed).
+    #[serde(default)]
+    forgotten_blocks: f64,
 }
 
 impl EquationAccumulator {
@@ -49,7 +53,23 @@ impl EquationAccumulator {
             steps_used: Vec::new(),
             notes: Vec::new(),
             notes_dropped: 0,
+            forgotten_blocks: 0.0,
         }
+    }
+
+    /// Weights every step so far by `factor` (0 < factor <= 1) against the steps added later:
+    /// exponential forgetting, for tracking parameters that drift (a damper that heats up).
+    /// Called before each [`add`](Self::add), the equations of the step `a` steps back weigh
+    /// factor^a; the window's mean age is factor / (1 - factor) steps, the lag of a linear
+    /// drift's estimate. A factor of 1 keeps the converged behaviour.
+    pub fn forget(&mut self, factor: f64) {
+        if factor >= 1.0 {
+            return;
+        }
+        self.qr.forget(factor);
+        self.term_ms_sum.iter_mut().for_each(|s| *s *= factor);
+        self.independent_equations *= factor;
+        self.forgotten_blocks += (1.0 - factor) * (self.blocks as f64 - self.forgotten_blocks);
     }
 
     /// Whether this state holds equations of `model` by `method` (the model's parameters
@@ -109,11 +129,11 @@ impl EquationAccumulator {
             return Err(IdentifyError::NoSteps);
         }
         let p = self.parameter_names.len();
-        let rows = self.qr.rows();
         let independent = self.independent_equations;
         let names = &self.parameter_names;
+        let rows_weight = self.qr.effective_rows();
         let variance_scale = if independent > p as f64 {
-            ((rows.saturating_sub(p)) as f64 / (independent - p as f64)).max(1.0)
+            ((rows_weight - p as f64).max(0.0) / (independent - p as f64)).max(1.0)
         } else {
             1.0
         };
@@ -121,7 +141,10 @@ impl EquationAccumulator {
         let std = sol.std();
         // r: each term's share of the RMS transmitted force over the fitting data.
         let contrib: Vec<f64> = (0..p)
-            .map(|i| (sol.theta[i] * (self.term_ms_sum[i] / self.blocks as f64).sqrt()).abs())
+            .map(|i| {
+                let blocks = self.blocks as f64 - self.forgotten_blocks;
+                (sol.theta[i] * (self.term_ms_sum[i] / blocks).sqrt()).abs()
+            })
             .collect();
         let total: f64 = contrib.iter().sum();
         let mut warnings = self.notes.clone();
