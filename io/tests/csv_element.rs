@@ -118,18 +118,19 @@ fn an_unlabelled_dyno_export_gives_the_labelled_theta() {
     let import = read_csv(&unlabelled).expect("reads");
     assert_eq!(import.kind, SetupKind::Element);
     let labelled_import = read_csv(&labelled).expect("reads");
-    // A boundary where the drive changes frequency phase-continuously at a zero crossing is
-    // found 2 samples early here (7.998 s for 8 s; a defect of the step finder, noted in the
-    // issue), so the records differ in their unsettled first samples and in the settled periods
-    // the analysis takes: theta agrees within one standard deviation (fd by 0.53 of it), not to
-    // round-off as on the rig's steps.
-    let (u, l) = (
-        std_theta(&import.records),
-        std_theta(&labelled_import.records),
-    );
-    for ((uv, _), (lv, ls)) in u.iter().zip(&l) {
-        assert!((uv - lv).abs() < *ls, "{uv} vs {lv} (std {ls})");
+    // The drive changes amplitude and frequency phase-continuously at zero crossings (every
+    // step is whole periods): the steps are found at the labelled samples and frequencies,
+    // so the records and the theta are the labelled ones.
+    assert_eq!(import.records.len(), labelled_import.records.len());
+    for (u, l) in import.records.iter().zip(&labelled_import.records) {
+        assert_eq!((u.len(), u.start_time_s), (l.len(), l.start_time_s));
+        assert_eq!(u.excitation.frequency_hz(), l.excitation.frequency_hz());
     }
+    assert_close(
+        &theta(&import.records),
+        &theta(&labelled_import.records),
+        1e-6,
+    );
 }
 
 #[test]

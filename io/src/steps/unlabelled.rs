@@ -46,41 +46,62 @@ pub fn split_run(
     times_s: &[f64],
     options: &SegmentOptions,
 ) -> Result<Vec<StepWithFrequency>, UnlabelledError> {
-    let channel = driven.name();
-    let x = run
-        .channel(driven)
-        .ok_or(UnlabelledError::NoDrivenChannel { channel })?;
-    let seg = detect_steps(x, run.sample_rate_hz, run.start_time_s, options)
-        .map_err(|source| UnlabelledError::Segment { channel, source })?;
+    let seg = segment_run(run, driven, options)?;
     if !seg.steps.iter().any(|s| frequency(s).is_some()) {
         return Err(UnlabelledError::NoSineSteps {
-            channel,
+            channel: driven.name(),
             found: describe(&seg, run),
         });
     }
     let out = seg
         .steps
         .iter()
-        .filter(|s| {
-            !matches!(s.kind, DetectedKind::Rest { .. }) && s.end - s.start >= MIN_STEP_SAMPLES
-        })
+        .filter(|s| is_record(s))
         .enumerate()
-        .map(|(k, s)| {
-            let record = Record {
-                step: run.step + k,
-                excitation: run.excitation.clone(),
-                sample_rate_hz: run.sample_rate_hz,
-                start_time_s: times_s.get(s.start).copied().unwrap_or(run.time_s(s.start)),
-                channels: run
-                    .channels
-                    .iter()
-                    .map(|(c, v)| (*c, v[s.start..s.end].to_vec()))
-                    .collect(),
-            };
-            (record, frequency(s))
-        })
+        .map(|(k, s)| step_record(run, s, times_s, run.step + k))
         .collect();
     Ok(out)
+}
+
+/// The steps the `driven` channel of `run` shows ([`detect_steps`] on it).
+pub fn segment_run(
+    run: &Record,
+    driven: Channel,
+    options: &SegmentOptions,
+) -> Result<Segmentation, UnlabelledError> {
+    let channel = driven.name();
+    let x = run
+        .channel(driven)
+        .ok_or(UnlabelledError::NoDrivenChannel { channel })?;
+    detect_steps(x, run.sample_rate_hz, run.start_time_s, options)
+        .map_err(|source| UnlabelledError::Segment { channel, source })
+}
+
+/// A found step becomes a record: it is not at rest and is long enough for a step.
+pub fn is_record(s: &DetectedStep) -> bool {
+    !matches!(s.kind, DetectedKind::Rest { .. }) && s.end - s.start >= MIN_STEP_SAMPLES
+}
+
+/// The record of found step `s` of `run`, numbered `step`, with its frequency (`None`: not a
+/// sine); `times_s` as in [`split_run`]. Its excitation is `run`'s (the caller knows better).
+pub fn step_record(
+    run: &Record,
+    s: &DetectedStep,
+    times_s: &[f64],
+    step: usize,
+) -> StepWithFrequency {
+    let record = Record {
+        step,
+        excitation: run.excitation.clone(),
+        sample_rate_hz: run.sample_rate_hz,
+        start_time_s: times_s.get(s.start).copied().unwrap_or(run.time_s(s.start)),
+        channels: run
+            .channels
+            .iter()
+            .map(|(c, v)| (*c, v[s.start..s.end].to_vec()))
+            .collect(),
+    };
+    (record, frequency(s))
 }
 
 fn frequency(s: &DetectedStep) -> Option<f64> {

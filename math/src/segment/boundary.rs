@@ -4,7 +4,7 @@
 use std::f64::consts::PI;
 
 use super::sine_fit::{SineFit, fit_from};
-use super::windows::{Analysis, Class, Run, middle, run_omega};
+use super::windows::{Analysis, Class, ROUNDING_REL, Run, middle, run_omega, windows_agree};
 use super::{DetectedKind, DetectedStep, SegmentOptions, decimals, roundest_in};
 
 /// Gauss-Newton iterations of the model fits and the final frequency fits.
@@ -53,6 +53,9 @@ struct Boundary {
     at: usize,
     lo: usize,
     hi: usize,
+    /// Both sides are sines and, changing at `at`, they leave no more than noise over the
+    /// stretch searched (see [`Ctx::explains`]).
+    explained: bool,
 }
 
 struct Ctx<'a> {
@@ -145,11 +148,62 @@ impl Ctx<'_> {
         } else {
             best
         };
+        let at = lo + at;
         Boundary {
-            at: lo + at,
+            at,
             lo: lo + first,
             hi: lo + last,
+            explained: self.explains(&ma, &mb, lo, at, hi),
         }
+    }
+
+    /// Two sines changing at `at` explain `lo..hi`: their residual RMS there is within the
+    /// cleanness factor of the noise (their pooled residual, or a rounding floor).
+    fn explains(&self, a: &Model, b: &Model, lo: usize, at: usize, hi: usize) -> bool {
+        let (Model::Sine { fit: fa, var }, Model::Sine { fit: fb, .. }) = (a, b) else {
+            return false;
+        };
+        if hi <= lo {
+            return true;
+        }
+        let ss: f64 = (lo..at)
+            .map(|i| (self.x[i] - fa.eval(i as f64)).powi(2))
+            .chain((at..hi).map(|i| (self.x[i] - fb.eval(i as f64)).powi(2)))
+            .sum();
+        let rms = (ss / (hi - lo) as f64).sqrt();
+        let floor = ROUNDING_REL * fa.amplitude().max(fb.amplitude());
+        rms <= (self.options.clean_residual_factor * var.sqrt()).max(floor)
+    }
+
+    /// `runs` less the broadband runs that only straddle a change between two sines: windows
+    /// across a large change of amplitude or frequency leave most of their variance to one
+    /// sine and are classed broadband, and three of them make a run. Such a run is dropped
+    /// when the sines either side, changing at one sample, explain the stretch between them;
+    /// sines that then agree are one step.
+    fn drop_straddles(&self, mut runs: Vec<Run>) -> Vec<Run> {
+        let mut i = 1;
+        while i + 1 < runs.len() {
+            let (a, m, b) = (runs[i - 1], runs[i], runs[i + 1]);
+            let straddle = a.class == Class::Sine
+                && m.class == Class::Broadband
+                && b.class == Class::Sine
+                && self.boundary(&a, &b, i == 1, i + 2 == runs.len()).explained;
+            if !straddle {
+                i += 1;
+                continue;
+            }
+            runs.remove(i);
+            if windows_agree(
+                self.analysis,
+                middle(&a),
+                middle(&b),
+                self.options.consistency_sigmas,
+            ) {
+                runs[i - 1].last = b.last;
+                runs.remove(i);
+            }
+        }
+        runs
     }
 
     fn time(&self, i: usize) -> f64 {
@@ -268,12 +322,21 @@ pub(super) fn steps(
         };
         return vec![ctx.step(&whole, 0, x.len(), (0, 0), (0, 0))];
     }
+    let runs = ctx.drop_straddles(runs.to_vec());
     let last = runs.len() - 1;
-    let bounds: Vec<Boundary> = runs
+    let mut bounds: Vec<Boundary> = runs
         .windows(2)
         .enumerate()
         .map(|(i, p)| ctx.boundary(&p[0], &p[1], i == 0, i + 1 == last))
         .collect();
+    // Steps do not overlap: a boundary is never before the previous one.
+    for i in 1..bounds.len() {
+        let prev = bounds[i - 1].at;
+        let b = &mut bounds[i];
+        b.at = b.at.max(prev);
+        b.lo = b.lo.max(prev);
+        b.hi = b.hi.max(b.at);
+    }
     runs.iter()
         .enumerate()
         .map(|(i, r)| {

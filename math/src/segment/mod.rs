@@ -23,6 +23,9 @@
 //!    the boundary is the sample in that interval whose time is roundest (fewest decimals),
 //!    since programs switch at programmed times, as the sample-rate estimate of the CSV
 //!    reader snaps to whole hertz.
+//!    A broadband run between two sine runs is dropped when the two sines, changing at one
+//!    sample, explain the stretch between them (within `clean_residual_factor` of the noise):
+//!    windows across a large change are classed broadband, and three make a spurious run.
 //! 4. **Frequency**: each sine step is fitted by nonlinear least squares over the step less
 //!    its boundaries' intervals; the standard deviation is the fit's (at the Cramer-Rao bound
 //!    for white noise). With `snap` on, the reported frequency is the roundest decimal within

@@ -16,7 +16,7 @@ pub(super) const MIN_RUN_WINDOWS: usize = 3;
 /// A strong line of the whole series' spectrum has at least this fraction of the peak power.
 const STRONG_LINE_FRACTION: f64 = 0.1;
 /// Rounding floor of the agreement and cleanness tests (relative): noise-free data.
-const ROUNDING_REL: f64 = 1e-9;
+pub(super) const ROUNDING_REL: f64 = 1e-9;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Class {
@@ -145,7 +145,7 @@ pub(super) fn agree(a: &SineFit, b: &SineFit, sigmas: f64) -> bool {
     (a.omega - b.omega).abs() <= w_tol && (aa - ab).abs() <= a_tol
 }
 
-fn windows_agree(analysis: &Analysis, i: usize, j: usize, sigmas: f64) -> bool {
+pub(super) fn windows_agree(analysis: &Analysis, i: usize, j: usize, sigmas: f64) -> bool {
     match (&analysis.windows[i].fit, &analysis.windows[j].fit) {
         (Some(a), Some(b)) => agree(a, b, sigmas),
         _ => false,

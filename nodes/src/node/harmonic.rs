@@ -13,8 +13,12 @@
 //! anything else of the record differs from what was streamed, the record is analysed in batch
 //! ([`analyse_record`](forcemap_math::phasor::analyse_record)), which gives what the stream would have given at that rate.
 //!
+//! Without `ExcitationState` (parameter `find_steps: true`), the steps are found in the driven
+//! channel of the buffered samples ([`find_steps`]: the segmentation of an unlabelled export),
+//! each analysed in batch once the next step has begun; excitation states are then ignored.
+//!
 //! Parameters: `max_harmonic` (100, as `forcemap identify`), `min_periods` (the phasor
-//! analysis' minimum of settled periods), `frame_id`.
+//! analysis' minimum of settled periods), `find_steps` (false), `frame_id`.
 
 use std::collections::{BTreeMap, VecDeque};
 use std::time::{Duration, Instant};
@@ -27,8 +31,11 @@ use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, RigSample};
 use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
+pub mod find_steps;
 mod stream;
 
+use find_steps::StepFinder;
+use forcemap_math::segment::SegmentOptions;
 pub use stream::Analysis;
 use stream::StepStream;
 
@@ -70,6 +77,10 @@ pub struct HarmonicState {
     /// When the exciter went idle. The step in progress is closed only `PLAN_WAIT` later: the
     /// idle state travels on another topic and may overtake the step's last samples.
     idle_since: Option<Instant>,
+    /// Steps found in the samples instead of told by excitation states.
+    finder: Option<StepFinder>,
+    /// When the last sample came (finding steps: the run ends `PLAN_WAIT` after it).
+    last_sample_at: Option<Instant>,
 }
 
 impl Default for HarmonicState {
@@ -93,10 +104,50 @@ impl HarmonicState {
             plans: BTreeMap::new(),
             pending: VecDeque::new(),
             idle_since: None,
+            finder: None,
+            last_sample_at: None,
         }
     }
 
+    /// The same state finding the steps in the samples ([`find_steps`]); excitation states
+    /// are then ignored. At most `MAX_PENDING` samples are buffered.
+    pub fn finding_steps(self) -> HarmonicState {
+        HarmonicState {
+            finder: Some(StepFinder::new(SegmentOptions::default(), MAX_PENDING)),
+            ..self
+        }
+    }
+
+    /// Samples the step finder holds (`None` when not finding steps).
+    pub fn buffered_samples(&self) -> Option<usize> {
+        self.finder.as_ref().map(StepFinder::buffered)
+    }
+
+    /// Without excitation states: samples go to the finder, and the run ends (every step left
+    /// is complete) when no sample has come for `PLAN_WAIT`.
+    fn handle_found(&mut self, input: Input, now: Instant) -> Vec<Outcome> {
+        let results = match (&mut self.finder, input) {
+            (Some(f), Input::Sample(s)) => {
+                self.last_sample_at = Some(now);
+                f.push(&s)
+            }
+            (Some(f), Input::Tick)
+                if self
+                    .last_sample_at
+                    .is_some_and(|t| now.duration_since(t) > PLAN_WAIT) =>
+            {
+                self.last_sample_at = None;
+                f.finish()
+            }
+            _ => Vec::new(),
+        };
+        results.into_iter().map(|r| self.outcome(r, None)).collect()
+    }
+
     pub fn handle(&mut self, input: Input, now: Instant) -> Vec<Outcome> {
+        if self.finder.is_some() {
+            return self.handle_found(input, now);
+        }
         let mut done = Vec::new();
         match input {
             Input::Excitation(e) => {
@@ -197,7 +248,11 @@ impl HarmonicState {
                         Some(s) => Analysis::Streamed(Box::new(s)),
                         None => Analysis::Batch(rec),
                     };
-                    Outcome::Analyse(analysis, self.assembler.origin().unwrap_or(Time::ZERO))
+                    let origin = match &self.finder {
+                        Some(f) => f.origin(),
+                        None => self.assembler.origin(),
+                    };
+                    Outcome::Analyse(analysis, origin.unwrap_or(Time::ZERO))
                 }
                 Excitation::Random { .. } => Outcome::Skipped(
                     rec.step,
@@ -223,6 +278,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     if let Some(m) = p.opt_usize("min_periods")? {
         options.min_periods = m;
     }
+    let find_steps = p.opt_bool("find_steps")?.unwrap_or(false);
     let frame = p.opt_str("frame_id")?.unwrap_or("rig").to_string();
     let fq = setup.fully_qualified_name();
 
@@ -319,6 +375,10 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     });
 
     let mut state = HarmonicState::with_options(options.clone());
+    if find_steps {
+        state = state.finding_steps();
+        log_line!("finding the steps in the samples (find_steps): excitation states are ignored");
+    }
     let mut dropped = 0usize;
     log_line!(
         "waiting for samples on {} (max_harmonic {})",
