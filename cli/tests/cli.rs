@@ -472,3 +472,23 @@ fn planted_cubic_stiffness_is_recovered_and_rig_effects_are_refused_on_the_three
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("--mass-factor"), "{}", stderr(&o));
 }
+
+#[test]
+fn a_closed_output_pipe_ends_the_command_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_forcemap"))
+        .arg("identify")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../bags/damper_dyno_40db"))
+        .args(["--model", "damper"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader is gone before anything is written
+    let o = child.wait_with_output().unwrap();
+    let e = stderr(&o);
+    assert!(!e.contains("panicked"), "{e}");
+    // Killed by SIGPIPE, as `head` leaves any filter.
+    assert_eq!(o.status.signal(), Some(13), "{:?}: {e}", o.status);
+}
