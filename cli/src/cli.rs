@@ -174,6 +174,11 @@ pub struct IdentifyArgs {
     /// uniform.
     #[arg(long, default_value = "noise")]
     pub weighting: Weighting,
+    /// Track drifting parameters: weigh the steps so far by this factor each time a step is
+    /// added (0 < F < 1; 0.8 is a window of about 4 steps); prints theta after every step.
+    /// 1 (the default) converges over the whole run.
+    #[arg(long, default_value_t = 1.0)]
+    pub forgetting_per_step: f64,
     /// Mass of the rig [kg] (overrides the params file).
     #[arg(long)]
     pub mass_kg: Option<f64>,

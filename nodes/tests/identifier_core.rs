@@ -311,3 +311,72 @@ fn an_element_test_is_identified_live_as_offline() {
         );
     }
 }
+
+#[test]
+fn a_tracking_identifier_gives_the_offline_track_step_by_step() {
+    let mut c = core(&params(&[
+        ("model", ParamValue::String("coulomb".into())),
+        ("mass_kg", ParamValue::Double(36.0)),
+        ("forgetting_per_step", ParamValue::Double(0.7)),
+    ]));
+    let mut live = Vec::new();
+    for ph in phasor_messages() {
+        let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
+        live.extend(thetas(&o).into_iter().cloned());
+    }
+    assert_eq!(
+        c.recipe().unwrap().tracking.factor_per_step(),
+        0.7,
+        "the recipe says it tracks"
+    );
+    let bag = read_rig_bag(&rig_bag()).unwrap();
+    let model = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
+    let analyses: Vec<_> = bag
+        .records
+        .iter()
+        .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
+        .map(|r| analyse_record(r, &PhasorOptions::for_identification()).unwrap())
+        .collect();
+    let setup = Setup::BaseExcited { mass_kg: 36.0 };
+    let track = forcemap_math::identify::track_steps(
+        &model,
+        &setup,
+        Method::FdMulti,
+        &analyses,
+        &FdMultiOptions::default(),
+        0.7,
+    )
+    .unwrap();
+    assert_eq!(live.len(), track.len());
+    for (l, t) in live.iter().zip(&track) {
+        for (a, b) in l.values.iter().zip(&t.parameters) {
+            assert!(
+                (a - b.value).abs() <= 1e-9 * b.value.abs(),
+                "{a} vs {}",
+                b.value
+            );
+        }
+    }
+    // Forgetting changes theta from the converged one: the last steps weigh more.
+    let converged = forcemap_math::identify::track_steps(
+        &model,
+        &setup,
+        Method::FdMulti,
+        &analyses,
+        &FdMultiOptions::default(),
+        1.0,
+    )
+    .unwrap();
+    let (a, b) = (
+        &track.last().unwrap().parameters,
+        &converged.last().unwrap().parameters,
+    );
+    assert!(a.iter().zip(b).any(|(x, y)| x.value != y.value));
+}
+
+#[test]
+fn a_forgetting_factor_outside_zero_to_one_is_refused() {
+    let p = params(&[("forgetting_per_step", ParamValue::Double(1.5))]);
+    let e = RecipeParameters::from_params(&p).unwrap_err().to_string();
+    assert!(e.contains("forgetting_per_step = 1.5"), "{e}");
+}

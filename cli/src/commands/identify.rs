@@ -3,12 +3,12 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Context, anyhow};
-use forcemap_math::identify::{Identification, Method, rebuilt_cycle};
+use forcemap_math::identify::{Identification, Method, rebuilt_cycle, track_steps};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::{IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
 use forcemap_math::recipe::Setup;
-use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind};
+use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind, Tracking};
 use forcemap_math::record::Excitation;
 use serde_json::json;
 
@@ -60,6 +60,7 @@ pub fn recipe(
             max_harmonic: args.max_harmonic.unwrap_or(IDENTIFICATION_MAX_HARMONIC),
             ..PhasorOptions::for_identification()
         },
+        tracking: Tracking::from_factor(args.forgetting_per_step)?,
     })
 }
 
@@ -76,7 +77,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     let setup = recipe.setup.setup()?;
     let model = recipe.model.build()?;
     let method = recipe.method;
-    let (id, analyses) = pipeline::identify_records_with_analyses(
+    let (converged, analyses) = pipeline::identify_records_with_analyses(
         &model,
         &setup,
         method,
@@ -91,6 +92,21 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
             method.name()
         )
     })?;
+    // Tracking: theta after every step, as the live identifier publishes it; the last is the
+    // current one.
+    let track = match recipe.tracking {
+        Tracking::Converged => Vec::new(),
+        Tracking::Forgetting { factor_per_step } => track_steps(
+            &model,
+            &setup,
+            method,
+            &analyses,
+            &recipe.fd_options(),
+            factor_per_step,
+        )
+        .with_context(|| format!("{file}: tracking"))?,
+    };
+    let id = track.last().cloned().unwrap_or(converged);
 
     // Validation on the random records (rig only: the model is simulated on the measured base).
     let mut validations = Vec::new();
@@ -132,6 +148,17 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     }
     if args.json {
         let mut json = identification_json(&recipe, &id, &validations, &import.ignored_columns);
+        if !track.is_empty() {
+            json["track"] = track
+                .iter()
+                .map(|t| {
+                    json!({
+                        "steps_used": t.steps_used,
+                        "parameters": t.parameters.iter().map(|p| json!({"name": p.name, "value": p.value, "std": p.std})).collect::<Vec<_>>(),
+                    })
+                })
+                .collect();
+        }
         if !element_steps.is_empty() {
             json["dynamic_stiffness"] =
                 serde_json::to_value(element_steps.iter().map(|s| &s.point).collect::<Vec<_>>())?;
@@ -139,6 +166,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         println!("{json}");
     } else {
         print_identification(&file, &id, &validations);
+        print_track(&track);
         if !element_steps.is_empty() {
             element_outputs::print_table(&element_steps);
         }
@@ -231,6 +259,30 @@ pub fn identification_json(
         "warnings": id.warnings,
         "ignored_columns": ignored,
     })
+}
+
+/// Theta after every step of a tracking identification, one row per step.
+fn print_track(track: &[Identification]) {
+    let Some(first) = track.first() else {
+        return;
+    };
+    println!("tracked theta after each step (the table above is the last row):");
+    let names: Vec<&str> = first.parameters.iter().map(|p| p.name.as_str()).collect();
+    println!(
+        "{:>6} {}",
+        "step",
+        names.iter().map(|n| format!("{n:>14}")).collect::<String>()
+    );
+    for t in track {
+        println!(
+            "{:>6} {}",
+            t.steps_used.last().copied().unwrap_or(0),
+            t.parameters
+                .iter()
+                .map(|p| format!("{:>14.6e}", p.value))
+                .collect::<String>()
+        );
+    }
 }
 
 fn print_identification(file: &str, id: &Identification, validations: &[Validation]) {

@@ -226,6 +226,10 @@ pub enum IdentifyError {
     NoSteps,
     #[error(transparent)]
     Lstsq(#[from] LstsqError),
+    #[error(
+        "tracking is step by step: method {0} does not give equations per step (use fd or fd-multi)"
+    )]
+    NotPerStep(String),
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -305,6 +309,38 @@ pub fn solve_blocks(
         acc.add(blk)?;
     }
     acc.solve()
+}
+
+/// Theta after each step, the steps before it weighed by `factor_per_step` each time a step is
+/// added (exponential forgetting; 1 gives the converged theta after each step): what the live
+/// identifier publishes step by step when it tracks. Per-step methods only (fd, fd-multi);
+/// steps before the equations determine theta give none.
+pub fn track_steps(
+    model: &Model,
+    setup: &Setup,
+    method: Method,
+    analyses: &[HarmonicAnalysis],
+    options: &FdMultiOptions,
+    factor_per_step: f64,
+) -> Result<Vec<Identification>, IdentifyError> {
+    if !matches!(method, Method::Fd | Method::FdMulti) {
+        return Err(IdentifyError::NotPerStep(method.name()));
+    }
+    let mut acc = EquationAccumulator::new(model, setup, method);
+    let mut out = Vec::new();
+    for an in analyses {
+        let blk = step_equations(model, setup, method, an, options)?;
+        acc.forget(factor_per_step);
+        acc.add(&blk)?;
+        match acc.solve() {
+            Ok(id) => out.push(id),
+            Err(IdentifyError::Lstsq(
+                LstsqError::Underdetermined { .. } | LstsqError::IllConditioned { .. },
+            )) => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(out)
 }
 
 /// Identifies `model` from stepped-sine steps. FD methods use the harmonic analyses; TD uses the

@@ -54,6 +54,10 @@ pub enum RecipeError {
     #[error("weighting '{0}': expected noise or uniform")]
     UnknownWeighting(String),
     #[error(
+        "forgetting_per_step = {0}: expected a factor in (0, 1] (1: converged; 0.8: a window of about 4 steps)"
+    )]
+    BadForgetting(f64),
+    #[error(
         "method {0}: {reason}",
         reason = live_refusal(*.0).unwrap_or("")
     )]
@@ -144,6 +148,43 @@ pub struct Recipe {
     pub method: Method,
     pub weighting: Weighting,
     pub phasor: PhasorOptions,
+    /// Whether theta converges over the run or follows drifting parameters.
+    #[serde(default)]
+    pub tracking: Tracking,
+}
+
+/// Converged (every step weighs the same) or tracking (exponential forgetting per step,
+/// `EquationAccumulator::forget`): the theta of a damper that heats up follows its damping,
+/// with a lag of factor / (1 - factor) steps.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Tracking {
+    #[default]
+    Converged,
+    Forgetting {
+        factor_per_step: f64,
+    },
+}
+
+impl Tracking {
+    /// From a forgetting factor per step: 1 is converged; (0, 1) tracks.
+    pub fn from_factor(factor_per_step: f64) -> Result<Tracking, RecipeError> {
+        if factor_per_step == 1.0 {
+            Ok(Tracking::Converged)
+        } else if factor_per_step > 0.0 && factor_per_step < 1.0 {
+            Ok(Tracking::Forgetting { factor_per_step })
+        } else {
+            Err(RecipeError::BadForgetting(factor_per_step))
+        }
+    }
+
+    /// The weight of the steps so far against the next one (1 when converged).
+    pub fn factor_per_step(self) -> f64 {
+        match self {
+            Tracking::Converged => 1.0,
+            Tracking::Forgetting { factor_per_step } => factor_per_step,
+        }
+    }
 }
 
 impl Recipe {
@@ -290,6 +331,7 @@ mod tests {
             method,
             weighting: Weighting::Noise,
             phasor: PhasorOptions::default(),
+            tracking: Tracking::Converged,
         };
         assert!(recipe(Method::Fd).check_live().is_ok());
         assert!(recipe(Method::FdMulti).check_live().is_ok());
@@ -322,10 +364,28 @@ mod tests {
             },
             weighting: Weighting::Uniform,
             phasor: PhasorOptions::default(),
+            tracking: Tracking::Forgetting {
+                factor_per_step: 0.8,
+            },
         };
         let text = serde_json::to_string(&r).unwrap();
         assert!(text.contains(r#""kind":"drive-point""#), "{text}");
         let back: Recipe = serde_json::from_str(&text).unwrap();
         assert_eq!(back, r);
+        // A recipe written before tracking existed is a converged one.
+        let old = text.replace(r#","tracking":{"forgetting":{"factor_per_step":0.8}}"#, "");
+        assert_ne!(old, text);
+        let back: Recipe = serde_json::from_str(&old).unwrap();
+        assert_eq!(back.tracking, Tracking::Converged);
+    }
+
+    #[test]
+    fn a_forgetting_factor_is_in_zero_to_one() {
+        assert_eq!(Tracking::from_factor(1.0).unwrap(), Tracking::Converged);
+        assert_eq!(Tracking::from_factor(0.8).unwrap().factor_per_step(), 0.8);
+        for bad in [0.0, -0.5, 1.2, f64::NAN] {
+            let e = Tracking::from_factor(bad).unwrap_err().to_string();
+            assert!(e.contains("forgetting_per_step"), "{e}");
+        }
     }
 }

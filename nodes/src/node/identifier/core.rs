@@ -8,7 +8,7 @@ use forcemap_math::lstsq::LstsqError;
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::recipe::{
-    ModelSpec, Recipe, SetupConstants, SetupSpec, check_mass_kg, live_refusal,
+    ModelSpec, Recipe, SetupConstants, SetupSpec, Tracking, check_mass_kg, live_refusal,
 };
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
@@ -28,13 +28,15 @@ pub struct RecipeParameters {
     pub model: ModelSpec,
     pub method: Method,
     pub weighting: Weighting,
+    pub tracking: Tracking,
     pub constants: SetupConstants,
 }
 
 impl RecipeParameters {
-    /// Reads `model` (`coulomb`), `method` (`fd-multi`), `weighting` (`noise`), `atan_m`,
-    /// `poly_order` (`[P, Q]`), `mass_kg` and `substructure...`; refuses a method the live
-    /// identifier cannot run.
+    /// Reads `model` (`coulomb`), `method` (`fd-multi`), `weighting` (`noise`),
+    /// `forgetting_per_step` (1: converged; below 1 theta tracks drifting parameters),
+    /// `atan_m`, `poly_order` (`[P, Q]`), `mass_kg` and `substructure...`; refuses a method the
+    /// live identifier cannot run.
     pub fn from_params(p: &Params) -> anyhow::Result<RecipeParameters> {
         let poly = match p.opt_i64_array("poly_order")? {
             None => None,
@@ -58,6 +60,7 @@ impl RecipeParameters {
             bail!("method = {method}: {why}");
         }
         let weighting: Weighting = p.opt_str("weighting")?.unwrap_or("noise").parse()?;
+        let tracking = Tracking::from_factor(p.opt_f64("forgetting_per_step")?.unwrap_or(1.0))?;
         let constants = rig_constants::from_params(p)?;
         // Refused at once where no setup takes it; zero is an element test's load cell at the
         // fixed end (a rig refuses it when its first step resolves the setup).
@@ -68,6 +71,7 @@ impl RecipeParameters {
             model,
             method,
             weighting,
+            tracking,
             constants,
         })
     }
@@ -80,6 +84,7 @@ impl RecipeParameters {
             method: self.method,
             weighting: self.weighting,
             phasor: PhasorOptions::for_identification(),
+            tracking: self.tracking,
         }
     }
 }
@@ -241,9 +246,14 @@ impl IdentifierCore {
             }
             Admit::Add => {}
         }
+        let forgetting = self.parameters.tracking.factor_per_step();
         let added = step_equations(model, &step_setup, method, &analysis, &options)
             .map_err(|e| e.to_string())
-            .and_then(|blk| st.accumulator.add(&blk).map_err(|e| e.to_string()));
+            .and_then(|blk| {
+                // The steps so far weigh less only once the new one has equations.
+                st.accumulator.forget(forgetting);
+                st.accumulator.add(&blk).map_err(|e| e.to_string())
+            });
         if let Err(e) = added {
             out.push(Output::Log(format!("step {step}: no equations: {e}")));
             out.push(self.status(
