@@ -6,10 +6,11 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 
 use crate::basis::{
-    AbsVelocity, Cubic, DeadZone, SignVelocity, SignedSquareDisplacement, SignedSquareVelocity,
-    SquareDisplacement, StribeckVelocity, Term,
+    AbsVelocity, Constant, Cubic, DeadZone, SignVelocity, SignedSquareDisplacement,
+    SignedSquareVelocity, SquareDisplacement, StribeckVelocity, Term,
 };
 use crate::model::Model;
+use crate::recipe::SetupKind;
 
 /// A candidate unmodelled effect, named as the issue names them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -26,10 +27,11 @@ pub enum Effect {
     ExciterDelay,
     SensorLowpass,
     MassError,
+    Preload,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 11] = [
+    pub const ALL: [Effect; 12] = [
         Effect::CoulombFriction,
         Effect::StribeckFriction,
         Effect::QuadraticDamping,
@@ -41,7 +43,19 @@ impl Effect {
         Effect::ExciterDelay,
         Effect::SensorLowpass,
         Effect::MassError,
+        Effect::Preload,
     ];
+
+    /// Whether the effect can show in data of a `kind` setup: a constant force (preload) only
+    /// moves the base-excited rig's equilibrium, never its motion; an exciter delay and a mass
+    /// error are the rig's (its base motion and its mass).
+    pub fn applies_to(self, kind: SetupKind) -> bool {
+        match self {
+            Effect::Preload => kind != SetupKind::BaseExcited,
+            Effect::ExciterDelay | Effect::MassError => kind == SetupKind::BaseExcited,
+            _ => true,
+        }
+    }
 
     pub fn name(self) -> &'static str {
         match self {
@@ -56,6 +70,7 @@ impl Effect {
             Effect::ExciterDelay => "exciter_delay",
             Effect::SensorLowpass => "sensor_lowpass",
             Effect::MassError => "mass_error",
+            Effect::Preload => "preload",
         }
     }
 
@@ -85,6 +100,7 @@ impl Effect {
                 "every measured channel passed a first-order low-pass of cutoff fc, searched"
             }
             Effect::MassError => "the true mass is the nominal one times f, searched",
+            Effect::Preload => "f0, a constant force",
         }
     }
 
@@ -123,6 +139,9 @@ impl Effect {
             }
             Effect::MassError => {
                 "with every element parameter fitted, a mass error scales the fitted force law and the prediction is unchanged (only theta / m is identifiable); it can only show when parameters are held fixed"
+            }
+            Effect::Preload => {
+                "a force that depends on neither displacement nor velocity (a damper's gas force, a mount's static load): the DC of the element force alone; where the force is measured (element test, drive point)"
             }
         }
     }
@@ -251,6 +270,7 @@ pub fn baseline_has(baseline: &Model, effect: Effect) -> bool {
         Effect::QuadraticStiffness => has("k2"),
         Effect::AsymmetricDamping => has("ca"),
         Effect::FreePlay => has("kfp"),
+        Effect::Preload => has("offset"),
         _ => false,
     }
 }
@@ -355,6 +375,7 @@ pub fn structures_on(
                 ..Structure::default()
             })
             .collect(),
+        Effect::Preload => vec![one(effect, vec![Arc::new(Constant)])],
         Effect::ExciterDelay => Vec::new(),
     }
 }

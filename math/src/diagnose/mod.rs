@@ -343,7 +343,13 @@ pub fn diagnose(
         .iter()
         .map(|r| analyse_record(r, &popts))
         .collect::<Result<_, _>>()?;
-    let search = search::search(setup, baseline, &analyses, &options.effects)?;
+    let effects: Vec<Effect> = options
+        .effects
+        .iter()
+        .copied()
+        .filter(|e| e.applies_to(setup.kind()))
+        .collect();
+    let search = search::search(setup, baseline, &analyses, &effects)?;
     let floor = noise_floor_percent(&analyses, &heldout);
     let n_eff = effective_samples(&heldout);
     let baseline_heldout = heldout_all(&search.baseline, mass_kg, &heldout)?;

@@ -79,15 +79,16 @@ pub struct PhasorDiagnosis {
 
 impl PhasorDiagnosis {
     pub fn new(setup: Setup, baseline: Model) -> PhasorDiagnosis {
+        // Mass error cannot show without held-out prediction (see its signature).
+        let effects = Effect::ALL
+            .into_iter()
+            .filter(|e| *e != Effect::MassError && e.applies_to(setup.kind()))
+            .collect();
         PhasorDiagnosis {
             setup,
             baseline,
             analyses: Vec::new(),
-            // Mass error cannot show without held-out prediction (see its signature).
-            effects: Effect::ALL
-                .into_iter()
-                .filter(|e| *e != Effect::MassError)
-                .collect(),
+            effects,
         }
     }
 

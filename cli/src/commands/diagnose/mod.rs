@@ -10,6 +10,7 @@ use forcemap_math::recipe::Setup;
 use forcemap_math::record::Record;
 use forcemap_math::sim::{self, RunSpec};
 
+mod phasor_only;
 mod plots;
 mod time_domain;
 
@@ -37,12 +38,6 @@ struct Data {
 
 fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data> {
     let file = path.display().to_string();
-    if import.kind != SetupKind::BaseExcited {
-        bail!(
-            "{file}: the diagnosis needs the base-excited rig channels (base and relative displacement, mass acceleration); this is a {} export",
-            import.kind
-        );
-    }
     let params = match &args.params {
         Some(p) => read_params(p, None)?,
         None => Params::new(),
@@ -57,6 +52,11 @@ fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data
     )?
     .setup()?;
     let validation = match &args.validate {
+        Some(v) if import.kind != SetupKind::BaseExcited => bail!(
+            "{}: held-out validation data are simulated on the base-excited rig; a {} setup is diagnosed on its sine steps alone",
+            v.display(),
+            import.kind
+        ),
         Some(v) => {
             let vi = forcemap_io::input::load_mapped(v, args.channels.as_deref())?;
             if vi.kind != SetupKind::BaseExcited {
@@ -135,6 +135,16 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
             polynomial_order: None,
         },
     )?;
+    // Without a rig to simulate held-out records on, the steps are the evidence.
+    if data.setup.kind() != SetupKind::BaseExcited {
+        if !args.holdout_steps.is_empty() {
+            bail!(
+                "{}: --holdout-steps needs the base-excited rig (held-out steps are simulated)",
+                data.source
+            );
+        }
+        return phasor_only::run(args, &data.source, &data.setup, &baseline, &data.records);
+    }
     let pb = super::progress_spinner();
     pb.set_message(format!("diagnosing {} against {}", model_name, data.source));
     let options = DiagnoseOptions {

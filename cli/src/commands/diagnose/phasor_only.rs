@@ -1,0 +1,156 @@
+//! The diagnosis of stepped-sine data that hold no record to simulate the baseline on (an
+//! element test, a drive point): the phasor diagnosis the live diagnoser runs
+//! (`forcemap_math::diagnose::PhasorDiagnosis`), its evidence the element-force error
+//! cross-validated by leaving each step out.
+
+use anyhow::Context as _;
+use forcemap_math::diagnose::{PhasorDiagnosis, PhasorFindings};
+use forcemap_math::identify::{FdMultiOptions, Method};
+use forcemap_math::model::Model;
+use forcemap_math::phasor::{PhasorOptions, analyse_record};
+use forcemap_math::pipeline::identify_records;
+use forcemap_math::recipe::Setup;
+use forcemap_math::record::{Excitation, Record};
+
+use crate::cli::DiagnoseArgs;
+use crate::report::{HtmlReport, parameters_text};
+use forcemap_io::atomic::{write_atomically, write_dir_atomically};
+
+/// The setup with what it adds (an element test's moving mass) identified with the baseline
+/// first: the candidates then refit the element force alone. Returns the note saying so.
+fn with_known_extras(
+    setup: &Setup,
+    baseline: &Model,
+    records: &[Record],
+) -> anyhow::Result<(Setup, Option<String>)> {
+    if setup.extra_parameters().is_empty() {
+        return Ok((setup.clone(), None));
+    }
+    let id = identify_records(
+        baseline,
+        setup,
+        Method::FdMulti,
+        records,
+        &PhasorOptions::for_identification(),
+        &FdMultiOptions::default(),
+    )
+    .context("identifying the moving mass with the baseline")?;
+    let theta = id.theta();
+    let extras = theta.get(baseline.terms.len()..).unwrap_or(&[]);
+    let note = setup
+        .extra_parameters()
+        .iter()
+        .zip(extras)
+        .map(|(n, v)| format!("{n} = {v:.4} identified with the baseline, then held"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    Ok((setup.with_extra_values(extras), Some(note)))
+}
+
+pub fn run(
+    args: &DiagnoseArgs,
+    source: &str,
+    setup: &Setup,
+    baseline: &Model,
+    records: &[Record],
+) -> anyhow::Result<()> {
+    let (setup, note) = with_known_extras(setup, baseline, records)?;
+    let mut live = PhasorDiagnosis::new(setup.clone(), baseline.clone());
+    for r in records
+        .iter()
+        .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
+    {
+        live.push(
+            analyse_record(r, &PhasorOptions::for_identification())
+                .with_context(|| format!("{source}: step {}", r.step))?,
+        );
+    }
+    let f = live
+        .findings()
+        .with_context(|| format!("{source}: diagnosing a {} setup", setup.kind()))?;
+    if args.json {
+        let mut v = serde_json::to_value(&f)?;
+        v["baseline_model"] = baseline.name.clone().into();
+        v["setup"] = setup.kind().to_string().into();
+        v["notes"] = note.iter().cloned().collect::<Vec<_>>().into();
+        println!("{v}");
+    } else {
+        print_summary(source, &setup, baseline, &f, note.as_deref());
+    }
+    if let Some(dir) = &args.report {
+        write_report(dir, source, baseline, &f)?;
+        eprintln!("wrote {}", dir.join("index.html").display());
+    }
+    Ok(())
+}
+
+fn print_summary(
+    source: &str,
+    setup: &Setup,
+    baseline: &Model,
+    f: &PhasorFindings,
+    note: Option<&str>,
+) {
+    println!(
+        "{source}: baseline {} on {} sine steps of a {} setup; no records to simulate on, so the evidence is the {}",
+        baseline.name,
+        f.steps,
+        setup.kind(),
+        f.findings.evidence.measure()
+    );
+    if let Some(n) = note {
+        println!("note: {n}");
+    }
+    println!(
+        "  {:<20} {:>9} {:>9} {:>4}  added parameters",
+        "effect", "CV %", "score %", "sig"
+    );
+    for r in &f.ranked_effects {
+        println!(
+            "  {:<20} {:>9.3} {:>9.3} {:>4}  {}",
+            r.effect.name(),
+            r.cv_percent,
+            r.score_percent,
+            if r.significant { "yes" } else { "no" },
+            parameters_text(&r.added_parameters)
+        );
+    }
+    for s in &f.located.summary {
+        println!("where: {s}");
+    }
+    println!("verdict: {}", f.findings.headline());
+    println!("rule: {}", f.findings.rule);
+}
+
+fn write_report(
+    dir: &std::path::Path,
+    source: &str,
+    baseline: &Model,
+    f: &PhasorFindings,
+) -> anyhow::Result<()> {
+    write_dir_atomically(dir, |tmp| {
+        let mut page = HtmlReport::new(&format!("Gap diagnosis: baseline {}", baseline.name));
+        page.paragraph(source);
+        page.verdict(&f.findings);
+        page.list("Where", &f.located.summary);
+        let rows: Vec<Vec<String>> = f
+            .ranked_effects
+            .iter()
+            .map(|r| {
+                vec![
+                    r.effect.name().to_string(),
+                    format!("{:.3}", r.cv_percent),
+                    format!("{:.3}", r.score_percent),
+                    if r.significant { "yes" } else { "no" }.into(),
+                    parameters_text(&r.added_parameters),
+                ]
+            })
+            .collect();
+        page.table(
+            "Candidates",
+            &["effect", "CV [%]", "score [%]", "significant", "added"],
+            &rows,
+        );
+        write_atomically(&tmp.join("index.html"), &page.finish(&f.findings.rule))
+    })
+}
