@@ -21,8 +21,9 @@ use super::error::{CsvError, csv_error};
 /// Everything is checked before the file system is touched (all records with the same
 /// channels, the profile's channels present, at least 3 finite samples per channel, the same
 /// positive sample rate, contiguous steps, increasing time, sine frequencies finite and
-/// positive; no periodic multisine record, which the contract cannot describe yet). The data go to a temporary file in the target directory which is renamed over
-/// `path` at the end; on any error the temporary file is removed and `path` is untouched.
+/// positive; no periodic multisine record, which the contract cannot describe yet). The data
+/// go to a temporary file in the target directory which is renamed over `path` at the end; on
+/// any error the temporary file is removed and `path` is untouched.
 pub fn write_csv(
     path: impl AsRef<Path>,
     records: &[Record],

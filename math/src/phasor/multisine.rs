@@ -20,7 +20,9 @@
 //!    beside the noise power there: a linear system shows the noise level, a nonlinear one
 //!    rises above it (even-order terms at even bins, odd-order ones at left-out odd bins).
 //!
-//! Cost: one FFT of `N` per period and channel; measured with `benches/multisine.rs`.
+//! Cost: one FFT of `N` per period and channel. Measured (criterion, `cargo bench -p
+//! forcemap_math --bench multisine`, three channels, shared 2-core machine): 9 periods of
+//! 4000 samples in ~1.1 ms (~31 M samples/s), 10 periods of 10 000 in ~2.0 ms (~50 M samples/s).
 
 use num_complex::Complex64;
 use thiserror::Error;
