@@ -400,3 +400,60 @@ fn spread_over_seeds() {
         );
     }
 }
+
+/// The other paths of the equations: the moving mass given (m A_k on the right-hand side),
+/// equations at the excited lines only, uniform weights; noise-free, each gives the truth.
+#[test]
+fn a_known_mass_and_the_excited_lines_alone_give_the_truth_too() {
+    let records = run(cubic_sdof(), MultisineDesign::Odd, None, 5)
+        .simulate()
+        .expect("simulates");
+    let model = Model::by_name("cubic", &ModelOptions::default()).expect("model");
+    let setup = Setup::Element {
+        moving_mass_kg: Some(MASS_KG),
+    };
+    for options in [
+        FdMultiOptions {
+            multisine_distortion_lines: false,
+            ..FdMultiOptions::default()
+        },
+        FdMultiOptions {
+            weighting: forcemap_math::identify::Weighting::Uniform,
+            ..FdMultiOptions::default()
+        },
+    ] {
+        let id = identify_records(
+            &model,
+            &setup,
+            Method::FdMulti,
+            &records,
+            &PhasorOptions::for_identification(),
+            &options,
+        )
+        .expect("identifies");
+        let found: Vec<(String, f64, f64)> = id
+            .parameters
+            .iter()
+            .map(|p| (p.name.clone(), p.value, p.std))
+            .collect();
+        assert_eq!(found.len(), 3, "no m: it is given");
+        for ((name, value, _), (tn, tv)) in found.iter().zip(TRUTH) {
+            assert_eq!(name, tn);
+            assert!(
+                ((value - tv) / tv).abs() < 1e-6,
+                "{name} = {value} against {tv}"
+            );
+        }
+    }
+}
+
+/// A multisine run is a plain `RunSpec`: it round-trips through JSON and simulates the same.
+#[test]
+fn a_multisine_run_round_trips_through_json() {
+    let spec = run(cubic_sdof(), MultisineDesign::Full, Some(30.0), 1);
+    let text = serde_json::to_string(&spec).expect("serialises");
+    assert!(text.contains("\"kind\":\"multisine\""), "{text}");
+    let back: RunSpec = serde_json::from_str(&text).expect("parses");
+    assert_eq!(back, spec);
+    assert_eq!(spec.samples_per_record, PERIODS * 4000);
+}
