@@ -6,7 +6,10 @@ use thiserror::Error;
 
 use crate::identify::{self, FdMultiOptions, Identification, IdentifyError, Method};
 use crate::model::{IdentifiedModel, Model};
-use crate::phasor::{HarmonicAnalysis, PhasorError, PhasorOptions, analyse_record};
+use crate::phasor::{
+    HarmonicAnalysis, MultisineAnalysis, MultisineError, MultisineOptions, PhasorError,
+    PhasorOptions, analyse_multisine, analyse_record,
+};
 use crate::recipe::Setup;
 use crate::record::{Channel, Excitation, Record};
 use crate::sim::{ReplayOptions, RigInitial, SimError, ZeroPhaseLowpass, simulate_on_sampled_base};
@@ -15,6 +18,8 @@ use crate::sim::{ReplayOptions, RigInitial, SimError, ZeroPhaseLowpass, simulate
 pub enum PipelineError {
     #[error(transparent)]
     Phasor(#[from] PhasorError),
+    #[error(transparent)]
+    Multisine(#[from] MultisineError),
     #[error(transparent)]
     Identify(#[from] IdentifyError),
     #[error("validation of record {step}: {source}")]
@@ -46,7 +51,19 @@ pub fn analyse_sine_steps(
     Ok((out, notes))
 }
 
-/// Identifies `model` on the sine steps of `records`.
+/// Analyses of the periodic multisine records (the default transient of one period).
+pub fn analyse_multisine_records(
+    records: &[Record],
+    options: &MultisineOptions,
+) -> Result<Vec<MultisineAnalysis>, MultisineError> {
+    records
+        .iter()
+        .filter(|r| matches!(r.excitation, Excitation::Multisine { .. }))
+        .map(|r| analyse_multisine(r, options))
+        .collect()
+}
+
+/// Identifies `model` on the sine steps and the periodic multisine records of `records`.
 pub fn identify_records(
     model: &Model,
     setup: &Setup,
@@ -69,7 +86,19 @@ pub fn identify_records_with_analyses(
     fd_options: &FdMultiOptions,
 ) -> Result<(Identification, Vec<HarmonicAnalysis>), PipelineError> {
     let (analyses, notes) = analyse_sine_steps(records, phasor_options)?;
-    let mut id = identify::identify(model, setup, method, records, &analyses, fd_options)?;
+    let multisines = analyse_multisine_records(records, &MultisineOptions::default())?;
+    let mut id = if multisines.is_empty() {
+        identify::identify(model, setup, method, records, &analyses, fd_options)?
+    } else {
+        identify::identify_with_multisines(
+            model,
+            setup,
+            method,
+            &analyses,
+            &multisines,
+            fd_options,
+        )?
+    };
     id.warnings.splice(0..0, notes);
     Ok((id, analyses))
 }

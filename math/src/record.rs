@@ -62,13 +62,21 @@ pub enum Excitation {
     /// Band-limited random excitation. `band_hz` is known for simulated records and may be
     /// unknown for imported ones; `rms` is in the unit of the driven quantity.
     Random { band_hz: Option<[f64; 2]>, rms: f64 },
+    /// A periodic multisine: sines at the lines `k * base_frequency_hz` (`k` in `lines`,
+    /// ascending), repeated period after period; every period is `1 / base_frequency_hz`
+    /// long from the record's first sample. `rms` is in the unit of the driven quantity.
+    Multisine {
+        base_frequency_hz: f64,
+        lines: Vec<usize>,
+        rms: f64,
+    },
 }
 
 impl Excitation {
     pub fn frequency_hz(&self) -> Option<f64> {
         match self {
             Excitation::Sine { frequency_hz, .. } => Some(*frequency_hz),
-            Excitation::Random { .. } => None,
+            Excitation::Random { .. } | Excitation::Multisine { .. } => None,
         }
     }
 }

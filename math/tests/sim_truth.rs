@@ -305,7 +305,8 @@ fn three_dof_stick_slip() {
 fn r_amp(e: &forcemap_math::record::Excitation) -> f64 {
     match e {
         forcemap_math::record::Excitation::Sine { amplitude, .. } => *amplitude,
-        forcemap_math::record::Excitation::Random { rms, .. } => *rms,
+        forcemap_math::record::Excitation::Random { rms, .. }
+        | forcemap_math::record::Excitation::Multisine { rms, .. } => *rms,
     }
 }
 

@@ -84,6 +84,22 @@ impl ExcitationState {
             Excitation::Random { band_hz, rms } => {
                 (Self::RANDOM, 0.0, *rms, band_hz.unwrap_or([f64::NAN; 2]))
             }
+            // The message has no multisine kind yet: a periodic multisine travels as a
+            // random record over the band of its lines (kept for validation, no phasors).
+            Excitation::Multisine {
+                base_frequency_hz,
+                lines,
+                rms,
+            } => {
+                let band = match (lines.first(), lines.last()) {
+                    (Some(lo), Some(hi)) => [
+                        *lo as f64 * base_frequency_hz,
+                        *hi as f64 * base_frequency_hz,
+                    ],
+                    _ => [f64::NAN; 2],
+                };
+                (Self::RANDOM, 0.0, *rms, band)
+            }
         };
         ExcitationState {
             header,

@@ -345,3 +345,30 @@ fn identified_parameters_from_identification() {
     let with_header = IdentifiedParameters::from_identification(&id, common::header("rig"));
     assert_eq!(with_header.header.frame_id, "rig");
 }
+
+/// The message has no multisine kind: a multisine travels as a random record over the band
+/// of its lines, with its RMS.
+#[test]
+fn a_multisine_excitation_travels_as_random_over_its_lines() {
+    let ms = Excitation::Multisine {
+        base_frequency_hz: 0.5,
+        lines: vec![9, 11, 49],
+        rms: 60.0,
+    };
+    let m = ExcitationState::from_excitation(
+        Header::default(),
+        1,
+        Time::ZERO,
+        &ms,
+        Channel::ForceN,
+        18_000,
+    );
+    assert_eq!(m.kind, ExcitationState::RANDOM);
+    assert_eq!(
+        m.excitation().unwrap(),
+        Excitation::Random {
+            band_hz: Some([4.5, 24.5]),
+            rms: 60.0,
+        }
+    );
+}

@@ -21,8 +21,9 @@ use super::error::{CsvError, csv_error};
 /// Everything is checked before the file system is touched (all records with the same
 /// channels, the profile's channels present, at least 3 finite samples per channel, the same
 /// positive sample rate, contiguous steps, increasing time, sine frequencies finite and
-/// positive). The data go to a temporary file in the target directory which is renamed over
-/// `path` at the end; on any error the temporary file is removed and `path` is untouched.
+/// positive; no periodic multisine record, which the contract cannot describe yet). The data
+/// go to a temporary file in the target directory which is renamed over `path` at the end; on
+/// any error the temporary file is removed and `path` is untouched.
 pub fn write_csv(
     path: impl AsRef<Path>,
     records: &[Record],
@@ -48,7 +49,7 @@ pub fn write_csv(
             let step = r.step.to_string();
             let freq = match r.excitation {
                 Excitation::Sine { frequency_hz, .. } => fmt_f64(frequency_hz),
-                Excitation::Random { .. } => "0".to_string(),
+                Excitation::Random { .. } | Excitation::Multisine { .. } => "0".to_string(),
             };
             let samples: Vec<&[f64]> = channels
                 .iter()
@@ -185,6 +186,12 @@ fn validate_for_write(
                 }
             }
             Excitation::Random { .. } => {}
+            Excitation::Multisine { .. } => {
+                return Err(bad(format!(
+                    "{what}: a periodic multisine record cannot be written yet (the CSV \
+                     contract has no column for its lines)"
+                )));
+            }
         }
         for i in 0..n {
             let t = r.time_s(i);

@@ -210,7 +210,7 @@ fn moving_acceleration(
 }
 
 /// RMS over the cycle of the signal with one-sided harmonics `c`.
-fn harmonic_rms(c: &[Complex64]) -> f64 {
+pub(crate) fn harmonic_rms(c: &[Complex64]) -> f64 {
     c.iter()
         .enumerate()
         .map(|(n, v)| {
@@ -257,7 +257,7 @@ fn first_harmonic(h: &[f64]) -> Complex64 {
         * (2.0 / l)
 }
 
-fn rms(v: &[f64]) -> f64 {
+pub(crate) fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
 
@@ -273,7 +273,7 @@ fn significant_harmonics(c: &[Complex64], noise: &[f64]) -> usize {
 
 /// One-sided harmonics 0..=n of a real periodic signal sampled on a uniform grid over one period
 /// (the inverse of `synthesize_grid`).
-fn grid_harmonics(h: &[f64], n: usize, fft: &dyn rustfft::Fft<f64>) -> Vec<Complex64> {
+pub(crate) fn grid_harmonics(h: &[f64], n: usize, fft: &dyn rustfft::Fft<f64>) -> Vec<Complex64> {
     let l = h.len();
     let mut buf: Vec<Complex64> = h.iter().map(|v| Complex64::new(*v, 0.0)).collect();
     fft.process(&mut buf);

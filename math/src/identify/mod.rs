@@ -12,12 +12,16 @@
 //!   simulation (stick-slip included) of the 3-DOF drive-point setup; see `output_error`.
 //! - `Method::Td`: classical time-domain force-state mapping (paper section 4.3), the baseline.
 //!
+//! - A periodic multisine record gives one block of equations per record, one complex
+//!   equation per excited line (`multisine`), stacked with the sine steps' blocks.
+//!
 //! Each step gives a block of equations (`StepEquations`); blocks are stacked and solved by
 //! `lstsq::solve`. The live identifier node accumulates the same blocks.
 
 mod accumulator;
 mod cycle;
 mod fd;
+mod multisine;
 mod output_error;
 mod td;
 
@@ -25,6 +29,7 @@ pub use accumulator::EquationAccumulator;
 pub use cycle::{Cycle, rebuilt_cycle};
 
 pub use fd::{ElementHarmonics, element_harmonics, step_equations};
+pub use multisine::{identify_with_multisines, multisine_equations};
 pub use output_error::refine_output_error;
 pub use td::td_step_equations;
 
@@ -186,6 +191,11 @@ pub struct FdMultiOptions {
     /// noise-free data are not weighted by round-off.
     pub noise_floor: f64,
     pub weighting: Weighting,
+    /// A periodic multisine record also gives equations at the bins it does not excite where
+    /// the displacement stands out of its noise (its nonlinear distortion; the force there is
+    /// only what the element's nonlinearity makes, which ties the nonlinear terms), not only
+    /// at the excited lines.
+    pub multisine_distortion_lines: bool,
 }
 
 impl Default for FdMultiOptions {
@@ -199,6 +209,7 @@ impl Default for FdMultiOptions {
             jump_margin_harmonic_periods: 0.5,
             noise_floor: 1e-4,
             weighting: Weighting::Noise,
+            multisine_distortion_lines: true,
         }
     }
 }

@@ -69,10 +69,12 @@
 //! ~0.35 us at N = 100 (`phasor_stream_push_*`, ~2.9 M samples/s).
 
 mod fit;
+pub mod multisine;
 mod periods;
 mod stream;
 mod types;
 
+pub use multisine::{MultisineAnalysis, MultisineError, MultisineOptions, analyse_multisine};
 pub use stream::PhasorStream;
 pub use types::{
     ChannelPhasors, HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorError, PhasorOptions,
@@ -144,7 +146,9 @@ impl SineGrid {
                 frequency_hz,
                 amplitude,
             } => (frequency_hz, amplitude),
-            Excitation::Random { .. } => return Err(PhasorError::NotSine { step }),
+            Excitation::Random { .. } | Excitation::Multisine { .. } => {
+                return Err(PhasorError::NotSine { step });
+            }
         };
         let fs = sample_rate_hz;
         if !(fs.is_finite() && fs > 0.0) {

@@ -153,7 +153,7 @@ impl HarmonicAnalysis {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PhasorError {
     #[error(
-        "step {step}: not a stepped-sine record (random excitation); harmonic analysis needs a sine step"
+        "step {step}: not a stepped-sine record (random or multisine excitation); harmonic analysis needs a sine step (a periodic multisine has its own: phasor::multisine)"
     )]
     NotSine { step: usize },
     #[error("step {step}: record has no channels")]

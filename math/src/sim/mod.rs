@@ -13,8 +13,10 @@ mod hybrid;
 mod input_window;
 mod linear_step;
 pub mod noise;
+pub mod periodic_multisine;
 pub mod rig;
 pub mod run;
+mod spline;
 pub mod three_dof;
 pub mod truth;
 
@@ -23,6 +25,7 @@ use serde::{Deserialize, Serialize};
 pub use element::{ELEMENT_CHANNELS, ElementDrive, simulate_element};
 pub use excitation::{Derivs, Multisine, Program, StepSpec};
 pub use hybrid::SolverOptions;
+pub use periodic_multisine::{MultisineDesign, MultisinePlan};
 pub use rig::{
     ReplayOptions, RigEffects, RigInitial, RigResponse, ZeroPhaseLowpass, simulate_on_sampled_base,
     simulate_rig,

@@ -12,6 +12,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::excitation::{self, StepSpec};
+use super::periodic_multisine::MultisinePlan;
 use super::{
     ElementDrive, Program, RigEffects, RigInitial, SimError, SimOutput, SolverOptions,
     ThreeDofParams, TruthElement, noise, rig, simulate_element, simulate_rig, simulate_three_dof,
@@ -195,6 +196,26 @@ impl RunSpec {
             seed: 0,
             solver: SolverOptions::default(),
         }
+    }
+
+    /// A force-driven single-DOF system (`element` behind a moving mass of `mass_kg`) driven
+    /// by `realisations` periodic multisines of `plan` (force in N), one record each, with
+    /// phases (and random-odd lines) differing from record to record; noise-free, seed 0.
+    pub fn force_driven_multisine(
+        mass_kg: f64,
+        element: TruthElement,
+        plan: &MultisinePlan,
+        realisations: usize,
+        sample_rate_hz: f64,
+    ) -> RunSpec {
+        RunSpec::element_test(
+            ElementDrive::Force,
+            mass_kg,
+            element,
+            vec![plan.step(); realisations],
+            sample_rate_hz,
+            plan.samples_per_record(sample_rate_hz),
+        )
     }
 
     /// The same run with `element` as the truth.

@@ -254,7 +254,7 @@ impl HarmonicState {
                     };
                     Outcome::Analyse(analysis, origin.unwrap_or(Time::ZERO))
                 }
-                Excitation::Random { .. } => Outcome::Skipped(
+                Excitation::Random { .. } | Excitation::Multisine { .. } => Outcome::Skipped(
                     rec.step,
                     format!(
                         "random record of {} samples: kept for validation, no phasors",

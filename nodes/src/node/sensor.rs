@@ -308,6 +308,16 @@ fn describe(e: &ExcitationState) -> String {
             e.driven_channel,
             e.sample_count
         ),
+        Ok(Excitation::Multisine {
+            base_frequency_hz,
+            lines,
+            rms,
+        }) => format!(
+            "periodic multisine, {} lines of {base_frequency_hz} Hz, RMS {rms:.4} ({}), {} samples",
+            lines.len(),
+            e.driven_channel,
+            e.sample_count
+        ),
         Err(err) => err.to_string(),
     }
 }
