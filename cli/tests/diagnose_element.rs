@@ -1,0 +1,115 @@
+//! `forcemap diagnose` on an element test (a mount tester's export): no record to simulate
+//! held-out, so the phasor diagnosis decides on the sine steps, cross-validated. A planted
+//! effect is named, the true model is adequate, and a preload (invisible on the rig) is found.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use forcemap_io::csv_export::write_csv;
+use forcemap_math::recipe::SetupKind;
+use forcemap_math::sim::bench_runs::sine_grid;
+use forcemap_math::sim::{ElementDrive, RunSpec, TruthElement};
+
+/// An elastomer mount on a displacement-driven tester at 40 dB: 2e5 N/m, 300 N s/m, a 0.5 kg
+/// fixture; 2-20 Hz at 0.5, 1 and 2 mm.
+fn mount_csv(dir: &Path, name: &str, element: TruthElement) -> PathBuf {
+    let run = RunSpec {
+        snr_db: Some(40.0),
+        seed: 4,
+        ..RunSpec::element_test(
+            ElementDrive::Displacement,
+            0.5,
+            element,
+            sine_grid(&[2.0, 5.0, 10.0, 20.0], &[0.0005, 0.001, 0.002]),
+            2000.0,
+            4000,
+        )
+    };
+    let path = dir.join(name);
+    write_csv(&path, &run.simulate().unwrap(), SetupKind::Element).unwrap();
+    path
+}
+
+fn diagnose(csv: &Path, model: &str) -> serde_json::Value {
+    let o = common::forcemap(&[
+        "diagnose",
+        csv.to_str().unwrap(),
+        "--model",
+        model,
+        "--mass-kg",
+        "0.5",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+fn mount() -> TruthElement {
+    TruthElement::linear(2.0e5, 300.0)
+}
+
+#[test]
+fn a_hardening_mount_is_explained_by_cubic_stiffness_and_adequate_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = mount_csv(
+        dir.path(),
+        "cubic.csv",
+        TruthElement {
+            cubic_stiffness_n_per_m3: 1.5e10,
+            ..mount()
+        },
+    );
+    let v = diagnose(&csv, "linear");
+    assert_eq!(v["verdict"], "explained", "{v}");
+    assert_eq!(v["top_effect"], "cubic_stiffness", "{v}");
+    assert_eq!(v["evidence"], "cross_validated_force_error");
+    assert_eq!(v["setup"], "element");
+    let v = diagnose(&csv, "cubic");
+    assert_eq!(v["verdict"], "adequate", "{v}");
+}
+
+#[test]
+fn a_static_load_is_explained_by_preload() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = mount_csv(
+        dir.path(),
+        "preload.csv",
+        TruthElement {
+            preload_n: 80.0,
+            ..mount()
+        },
+    );
+    let v = diagnose(&csv, "linear");
+    assert_eq!(v["verdict"], "explained", "{v}");
+    assert_eq!(v["top_effect"], "preload", "{v}");
+    let added = &v["ranked_effects"][0]["added_parameters"][0];
+    let f0 = added["value"].as_f64().unwrap();
+    assert!((f0 / 80.0 - 1.0).abs() < 0.02, "{added}");
+}
+
+#[test]
+fn held_out_data_are_refused_for_an_element_test() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = mount_csv(dir.path(), "plain.csv", mount());
+    let o = common::forcemap(&[
+        "diagnose",
+        csv.to_str().unwrap(),
+        "--model",
+        "linear",
+        "--mass-kg",
+        "0.5",
+        "--validate",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("element setup is diagnosed on its sine steps alone"),
+        "{e}"
+    );
+}
