@@ -25,7 +25,7 @@ pub use accumulator::EquationAccumulator;
 pub use cycle::{Cycle, rebuilt_cycle};
 
 pub use fd::{ElementHarmonics, element_harmonics, step_equations};
-pub use output_error::refine_output_error;
+pub use output_error::{RigDrive, RigOutputError, refine_output_error};
 pub use td::td_step_equations;
 
 use nalgebra::{DMatrix, DVector};
