@@ -9,7 +9,8 @@
 //!   low-order polynomial per stick interval plus a jump where the element sticks or reverses),
 //!   whose columns are projected out of the step's equations.
 //! - `Method::OutputError`: fd-multi's estimate refined by output error against the exact model's
-//!   simulation (stick-slip included) of the 3-DOF drive-point setup; see `output_error`.
+//!   simulation (stick-slip included) of the rig or the 3-DOF drive-point setup; see
+//!   `output_error`.
 //! - `Method::Td`: classical time-domain force-state mapping (paper section 4.3), the baseline.
 //!
 //! Each step gives a block of equations (`StepEquations`); blocks are stacked and solved by
@@ -47,8 +48,8 @@ pub enum Method {
     Fd,
     /// All harmonics, slip-phase aware.
     FdMulti,
-    /// `FdMulti`, then refined by output error against the exact model's simulation (3-DOF
-    /// drive-point setup; a global post-step, not a per-step block producer).
+    /// `FdMulti`, then refined by output error against the exact model's simulation (rig and
+    /// 3-DOF drive-point setups; a global post-step, not a per-step block producer).
     OutputError,
     /// Time-domain FSM; `points_per_step` None = every settled sample.
     Td { points_per_step: Option<usize> },
