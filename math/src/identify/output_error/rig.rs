@@ -434,3 +434,65 @@ impl Problem for RigOutputError<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::ModelOptions;
+    use crate::phasor::PhasorOptions;
+    use crate::pipeline::analyse_sine_steps;
+    use crate::sim::{RunSpec, TruthElement};
+
+    /// The acceleration samples left out are exactly those within two samples of a change of
+    /// the truth simulation's stick/slip state (and some are: the rig sticks at every reversal).
+    #[test]
+    fn acceleration_samples_next_to_events_are_left_out() {
+        let spec = RunSpec::paper_rig_sine(None, 0);
+        let out = spec.simulate_detailed().unwrap();
+        let (an, _) =
+            analyse_sine_steps(&out.records, &PhasorOptions::for_identification()).unwrap();
+        let model = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
+        let problem =
+            RigOutputError::new(&model, 36.0, &out.records, &an, RigDrive::FittedSine).unwrap();
+        let e = TruthElement::rig_coulomb();
+        let mut p = vec![
+            e.stiffness_n_per_m,
+            e.damping_n_s_per_m,
+            e.friction.unwrap().kinetic_n,
+        ];
+        for piece in &spec.program().signal.pieces[1..] {
+            let Piece::Sine {
+                amplitude, phase, ..
+            } = piece
+            else {
+                panic!("sine steps")
+            };
+            p.extend([*amplitude, *phase]);
+        }
+        let masked = problem.masked_at(&p).unwrap();
+        let mut dropped = 0;
+        for (kept, trace) in masked.acceleration_kept.iter().zip(&out.traces) {
+            let state: Vec<(bool, bool)> = trace
+                .samples
+                .iter()
+                .map(|s| (s.stuck, s.relative_velocity_mps > 0.0))
+                .collect();
+            for (i, k) in kept.iter().enumerate() {
+                let near = (i.saturating_sub(2)..(i + 2).min(state.len() - 1))
+                    .any(|j| state[j] != state[j + 1]);
+                assert_eq!(!k, near, "sample {i}");
+                dropped += usize::from(!k);
+            }
+        }
+        assert!(dropped > 100, "{dropped} samples left out");
+        // The residual at the truth is zero, and only the mass acceleration lost samples.
+        let r = masked.residual(&p).unwrap();
+        assert!(
+            r.iter().all(|v| v.abs() < 1e-6),
+            "{:e}",
+            r.iter().fold(0.0f64, |a, v| a.max(v.abs()))
+        );
+        let all: usize = masked.settled.iter().map(|s| 3 * s.len()).sum();
+        assert!(r.len() < all && r.len() > all - dropped - 1);
+    }
+}
