@@ -128,6 +128,41 @@ fn identify_by_each_method_and_flag_overrides_params() {
     );
 }
 
+/// Output error on a rig export: the exact stick-slip simulation fitted to the samples moves
+/// fd-multi's estimate to within 1 % of the truth with a smaller reported std.
+#[test]
+fn identify_output_error_on_a_rig_export() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = rig_csv(dir.path());
+    let run = |method: &str| {
+        let o = forcemap(&[
+            "identify",
+            csv.to_str().unwrap(),
+            "--model",
+            "coulomb",
+            "--mass-kg",
+            "36",
+            "--method",
+            method,
+            "--json",
+        ]);
+        assert!(o.status.success(), "{method}: {}", stderr(&o));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
+    };
+    let oe = run("output-error");
+    let fdm = run("fd-multi");
+    assert_eq!(oe["method"], "output-error");
+    for (j, truth) in [6380.0, 184.0, 12.3].into_iter().enumerate() {
+        let (p, q) = (&oe["parameters"][j], &fdm["parameters"][j]);
+        let value = p["value"].as_f64().unwrap();
+        assert!((value / truth - 1.0).abs() < 0.01, "{p}");
+        assert!(
+            p["std"].as_f64().unwrap() < q["std"].as_f64().unwrap(),
+            "{p} against fd-multi {q}"
+        );
+    }
+}
+
 #[test]
 fn three_dof_export_needs_its_substructure_and_is_identified_with_it() {
     let dir = tempfile::tempdir().unwrap();

@@ -33,6 +33,11 @@ pub trait Term: Debug + Send + Sync {
     fn linear_coefficients(&self) -> Option<(f64, f64)> {
         None
     }
+    /// `Some(vs)` for the Stribeck excess `sgn(x') exp(-(x'/vs)^2)` (so that a simulator can
+    /// give it the friction law's exact stick phase, with breakaway above the kinetic level).
+    fn stribeck_velocity_mps(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// x: linear stiffness, coefficient k [N/m].
@@ -276,6 +281,9 @@ impl Term for StribeckVelocity {
     }
     fn jumps_at_zero_velocity(&self) -> bool {
         true
+    }
+    fn stribeck_velocity_mps(&self) -> Option<f64> {
+        Some(self.velocity_mps)
     }
 }
 

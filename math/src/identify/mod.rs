@@ -9,7 +9,8 @@
 //!   low-order polynomial per stick interval plus a jump where the element sticks or reverses),
 //!   whose columns are projected out of the step's equations.
 //! - `Method::OutputError`: fd-multi's estimate refined by output error against the exact model's
-//!   simulation (stick-slip included) of the 3-DOF drive-point setup; see `output_error`.
+//!   simulation (stick-slip included) of the rig or the 3-DOF drive-point setup; see
+//!   `output_error`.
 //! - `Method::Td`: classical time-domain force-state mapping (paper section 4.3), the baseline.
 //!
 //! - A periodic multisine record gives one block of equations per record, one complex
@@ -30,7 +31,7 @@ pub use cycle::{Cycle, rebuilt_cycle};
 
 pub use fd::{ElementHarmonics, element_harmonics, step_equations};
 pub use multisine::{identify_with_multisines, multisine_equations};
-pub use output_error::refine_output_error;
+pub use output_error::{RigDrive, RigOutputError, refine_output_error};
 pub use td::td_step_equations;
 
 use nalgebra::{DMatrix, DVector};
@@ -52,8 +53,8 @@ pub enum Method {
     Fd,
     /// All harmonics, slip-phase aware.
     FdMulti,
-    /// `FdMulti`, then refined by output error against the exact model's simulation (3-DOF
-    /// drive-point setup; a global post-step, not a per-step block producer).
+    /// `FdMulti`, then refined by output error against the exact model's simulation (rig and
+    /// 3-DOF drive-point setups; a global post-step, not a per-step block producer).
     OutputError,
     /// Time-domain FSM; `points_per_step` None = every settled sample.
     Td { points_per_step: Option<usize> },

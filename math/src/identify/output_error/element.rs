@@ -1,0 +1,156 @@
+//! The element an output-error fit simulates: a model with its parameters, every smooth term as
+//! it is and the friction terms (sgn, and the Stribeck excess) as the simulators' set-valued
+//! friction law, so that the stick phase is exact.
+
+use crate::element::{Element, Friction};
+use crate::identify::IdentifyError;
+use crate::model::{IdentifiedModel, Model};
+
+/// `model` with parameters `theta`, as the simulators run it.
+pub(crate) struct ModelElement {
+    smooth: IdentifiedModel,
+    friction: Option<Friction>,
+}
+
+/// Checks that the simulators can run `model` exactly: every term that jumps where x' changes
+/// sign must be sgn(x') (the Coulomb level) or the Stribeck excess.
+pub(crate) fn check_model(model: &Model) -> Result<(), IdentifyError> {
+    for t in model.terms.iter().filter(|t| t.jumps_at_zero_velocity()) {
+        let sgn = t.formula() == "sgn(x')";
+        if !sgn && t.stribeck_velocity_mps().is_none() {
+            return Err(IdentifyError::Step {
+                step: 0,
+                problem: format!(
+                    "output error simulates the friction exactly; it supports sgn(x') and the Stribeck excess, not {} = {} of model {}",
+                    t.symbol(),
+                    t.formula(),
+                    model.name
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+impl ModelElement {
+    /// The element of `model` (checked by [`check_model`]) at `theta`.
+    pub(crate) fn new(model: &Model, theta: &[f64]) -> ModelElement {
+        let mut kinetic = 0.0;
+        let mut excess = 0.0;
+        let mut stribeck_velocity_mps = 1.0;
+        for (t, th) in model.terms.iter().zip(theta) {
+            if !t.jumps_at_zero_velocity() {
+                continue;
+            }
+            match t.stribeck_velocity_mps() {
+                Some(vs) => {
+                    excess += th;
+                    stribeck_velocity_mps = vs;
+                }
+                None => kinetic += th,
+            }
+        }
+        // A negative level is no friction: the stick level is kept at zero, as the model
+        // simulator does (`IdentifiedModel::friction`).
+        let friction = model.has_velocity_jump().then(|| {
+            let kinetic_n = f64::max(kinetic, 0.0);
+            Friction {
+                breakaway_n: kinetic_n + f64::max(excess, 0.0),
+                kinetic_n,
+                stribeck_velocity_mps,
+                asymmetry: 0.0,
+            }
+        });
+        ModelElement {
+            smooth: IdentifiedModel::new(model.clone(), theta.to_vec()),
+            friction,
+        }
+    }
+}
+
+impl Element for ModelElement {
+    fn smooth_force(&self, x: f64, v: f64, z: &[f64]) -> f64 {
+        // IdentifiedModel's smooth force leaves every jumping term out.
+        self.smooth.smooth_force(x, v, z)
+    }
+
+    fn friction(&self) -> Option<Friction> {
+        self.friction
+    }
+
+    fn linear_coefficients(&self) -> Option<(f64, f64)> {
+        self.smooth.linear_coefficients()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::basis::{AtanVelocity, SignVelocity, StribeckVelocity, Term};
+    use crate::model::ModelOptions;
+
+    #[test]
+    fn friction_terms_become_the_friction_law() {
+        let m = Model::by_name("coulomb", &ModelOptions::default())
+            .unwrap()
+            .with_terms(
+                "stribeck",
+                &[Arc::new(StribeckVelocity { velocity_mps: 0.02 }) as Arc<dyn Term>],
+            );
+        check_model(&m).unwrap();
+        let e = ModelElement::new(&m, &[6000.0, 150.0, 10.0, 4.0]);
+        let f = e.friction().unwrap();
+        assert_eq!((f.kinetic_n, f.breakaway_n), (10.0, 14.0));
+        assert_eq!(f.stribeck_velocity_mps, 0.02);
+        // Slipping, the law is the model's force: 10 + 4 exp(-(v/vs)^2) at v = vs.
+        let v = 0.02;
+        let want = m.force(&[0.0, 0.0, 10.0, 4.0], 0.0, v);
+        assert!((f.slip_force_n(v) - want).abs() < 1e-12, "{want}");
+        assert_eq!(e.smooth_force(0.001, 0.1, &[]), 6.0 + 15.0);
+        assert_eq!(e.linear_coefficients(), Some((6000.0, 150.0)));
+        // A plain Coulomb model: no Stribeck excess.
+        let c = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
+        let f = ModelElement::new(&c, &[1.0, 2.0, 3.0]).friction().unwrap();
+        assert_eq!(f, Friction::coulomb(3.0));
+        assert!(SignVelocity.formula() == "sgn(x')");
+    }
+
+    #[test]
+    fn other_jumping_terms_are_refused_and_smooth_ones_kept() {
+        #[derive(Debug)]
+        struct Jumpy;
+        impl Term for Jumpy {
+            fn symbol(&self) -> String {
+                "j".into()
+            }
+            fn formula(&self) -> String {
+                "sgn(x') x".into()
+            }
+            fn eval(&self, x: f64, v: f64) -> f64 {
+                v.signum() * x
+            }
+            fn jumps_at_zero_velocity(&self) -> bool {
+                true
+            }
+        }
+        let lin = Model::by_name("linear", &ModelOptions::default()).unwrap();
+        let bad = lin.with_terms("jumpy", &[Arc::new(Jumpy) as Arc<dyn Term>]);
+        let e = check_model(&bad).unwrap_err().to_string();
+        assert!(e.contains("sgn(x') x"), "{e}");
+        // atan friction is smooth: simulated as it is, no stick phase.
+        let atan = lin.with_terms(
+            "atan",
+            &[Arc::new(AtanVelocity {
+                slope_s_per_m: 100.0,
+            }) as Arc<dyn Term>],
+        );
+        check_model(&atan).unwrap();
+        assert!(
+            ModelElement::new(&atan, &[1.0, 1.0, 1.0])
+                .friction()
+                .is_none()
+        );
+    }
+}

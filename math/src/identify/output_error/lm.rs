@@ -1,0 +1,156 @@
+//! The Levenberg-Marquardt loop of every output-error refinement: a setup's simulator gives the
+//! noise-weighted residuals ([`Problem`]), the loop moves the parameters until the misfit stops
+//! falling, and the Gauss-Newton information `J^T J` at the end gives the covariance.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::identify::IdentifyError;
+
+/// Gauss-Newton (Levenberg-Marquardt) iterations; the fd-multi start is close, so 2-3 suffice.
+const ITERATIONS: usize = 10;
+/// Largest change of a parameter per iteration, relative to its scale.
+const MAX_STEP: f64 = 0.05;
+/// Relative finite-difference step of the Jacobian.
+const FD_STEP: f64 = 1e-5;
+
+/// A setup's output-error problem: residuals `(measured - simulated) / noise std` of the
+/// parameters `p`.
+pub(crate) trait Problem {
+    fn residual(&self, p: &[f64]) -> Result<Vec<f64>, IdentifyError>;
+
+    /// Groups of parameters whose finite differences may share one simulation because each
+    /// moves residuals (`rows`) no other parameter of its group moves. Default: one each.
+    fn column_groups(&self, np: usize) -> Vec<Vec<usize>> {
+        (0..np).map(|j| vec![j]).collect()
+    }
+
+    /// The residual rows parameter `j` moves (all by default).
+    fn rows(&self, _j: usize, n: usize) -> std::ops::Range<usize> {
+        0..n
+    }
+
+    /// The size of each parameter at `p` (steps and finite differences are taken in
+    /// `p / scale`): its magnitude by default, 1 where it is zero.
+    fn scale(&self, p: &[f64]) -> Vec<f64> {
+        p.iter()
+            .map(|v| if v.abs() > 0.0 { v.abs() } else { 1.0 })
+            .collect()
+    }
+}
+
+/// The result of [`levenberg_marquardt`].
+pub(crate) struct Fit {
+    pub p: Vec<f64>,
+    pub residual: Vec<f64>,
+    /// Sum of squared residuals.
+    pub cost: f64,
+    /// `J^T J` in scaled parameters (`p_j / scale_j`) at the last Jacobian.
+    pub information: DMatrix<f64>,
+    pub scale: Vec<f64>,
+}
+
+impl Fit {
+    /// Covariance of the parameters (inverse Gauss-Newton information, unscaled); NaN when
+    /// the information is singular.
+    pub fn covariance(&self) -> DMatrix<f64> {
+        let np = self.p.len();
+        let inv = self
+            .information
+            .clone()
+            .try_inverse()
+            .unwrap_or_else(|| DMatrix::from_element(np, np, f64::NAN));
+        DMatrix::from_fn(np, np, |i, j| inv[(i, j)] * self.scale[i] * self.scale[j])
+    }
+
+    /// RMS of the weighted residuals (1 when the model misses the samples by the noise alone).
+    pub fn rms(&self) -> f64 {
+        (self.cost / self.residual.len().max(1) as f64).sqrt()
+    }
+
+    /// Condition number of the scaled Jacobian.
+    pub fn condition_number(&self) -> f64 {
+        let sv = self.information.singular_values();
+        (sv.max() / sv.min()).sqrt()
+    }
+}
+
+/// Jacobian of the model's output (`-d residual`) in scaled parameters, by forward differences.
+pub(crate) fn jacobian(
+    problem: &impl Problem,
+    p: &[f64],
+    r: &[f64],
+    scale: &[f64],
+) -> Result<DMatrix<f64>, IdentifyError> {
+    let np = p.len();
+    let mut jac = DMatrix::zeros(r.len(), np);
+    for group in problem.column_groups(np) {
+        let mut pp = p.to_vec();
+        for &j in &group {
+            pp[j] += scale[j] * FD_STEP;
+        }
+        let rp = problem.residual(&pp)?;
+        for &j in &group {
+            for i in problem.rows(j, r.len()) {
+                jac[(i, j)] = -(rp[i] - r[i]) / FD_STEP;
+            }
+        }
+    }
+    Ok(jac)
+}
+
+/// Minimises the sum of squared residuals from `start` (steps in `p / Problem::scale`).
+pub(crate) fn levenberg_marquardt(
+    problem: &impl Problem,
+    start: Vec<f64>,
+) -> Result<Fit, IdentifyError> {
+    let np = start.len();
+    let scale = problem.scale(&start);
+    let cost = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
+    let mut p = start;
+    let mut r = problem.residual(&p)?;
+    let mut c = cost(&r);
+    let mut lambda = 1e-3;
+    let mut jtj = DMatrix::zeros(np, np);
+    for _ in 0..ITERATIONS {
+        let jac = jacobian(problem, &p, &r, &scale)?;
+        jtj = jac.transpose() * &jac;
+        let jtr = jac.transpose() * DVector::from_column_slice(&r);
+        let mut improved = false;
+        while lambda < 1e8 {
+            let mut m = jtj.clone();
+            for d in 0..np {
+                m[(d, d)] *= 1.0 + lambda;
+            }
+            let Some(step) = m.lu().solve(&jtr) else {
+                lambda *= 10.0;
+                continue;
+            };
+            // Trust region: the start is within a few % (fd-multi), so no parameter moves by
+            // more than `MAX_STEP` of its scale per iteration.
+            if step.amax() > MAX_STEP {
+                lambda *= 10.0;
+                continue;
+            }
+            let pn: Vec<f64> = (0..np).map(|j| p[j] + step[j] * scale[j]).collect();
+            let rn = problem.residual(&pn)?;
+            let cn = cost(&rn);
+            if cn < c {
+                improved = c - cn > 1e-9 * c && step.amax() > 1e-9;
+                (p, r, c) = (pn, rn, cn);
+                lambda = (lambda * 0.1).max(1e-9);
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    Ok(Fit {
+        p,
+        residual: r,
+        cost: c,
+        information: jtj,
+        scale,
+    })
+}
