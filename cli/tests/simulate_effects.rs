@@ -15,9 +15,7 @@ use common::forcemap;
 use forcemap_io::csv_export::write_csv;
 use forcemap_io::rig_bag::read_rig_bag;
 use forcemap_math::recipe::SetupKind;
-use forcemap_math::sim::{
-    self, AsymmetricDamping, BoucWen, FreePlay, RigRun, SimSpec, TruthElement,
-};
+use forcemap_math::sim::{AsymmetricDamping, BoucWen, FreePlay, RunSpec, TruthElement};
 
 fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -100,17 +98,9 @@ fn the_flags_plant_exactly_the_truth_elements_terms() {
         }),
         ..TruthElement::rig_coulomb()
     };
-    let run = RigRun {
-        seed: 1,
-        ..RigRun::paper_sine(element.clone())
-    };
+    let run = RunSpec::paper_rig_sine(None, 1).with_element(element.clone());
     let truth = dir.path().join("truth.csv");
-    write_csv(
-        &truth,
-        &sim::simulate(&SimSpec::Rig(run)).unwrap(),
-        SetupKind::BaseExcited,
-    )
-    .unwrap();
+    write_csv(&truth, &run.simulate().unwrap(), SetupKind::BaseExcited).unwrap();
     let cli_text = std::fs::read_to_string(&cli).unwrap();
     assert!(
         cli_text == std::fs::read_to_string(&truth).unwrap(),

@@ -15,18 +15,18 @@ use forcemap_math::recipe::Setup;
 use forcemap_math::record::Record;
 use forcemap_math::sim::excitation::derive_seed;
 use forcemap_math::sim::noise::add_noise;
-use forcemap_math::sim::{SimSpec, ThreeDofRun, simulate};
+use forcemap_math::sim::{RunSpec, ThreeDofCase};
 use std::sync::OnceLock;
 
 fn case(which: &str) -> &'static Vec<Record> {
     static I: OnceLock<Vec<Record>> = OnceLock::new();
     static II: OnceLock<Vec<Record>> = OnceLock::new();
     let (cell, run) = if which == "I" {
-        (&I, ThreeDofRun::case_i())
+        (&I, RunSpec::three_dof(ThreeDofCase::I, None, 0))
     } else {
-        (&II, ThreeDofRun::case_ii())
+        (&II, RunSpec::three_dof(ThreeDofCase::Ii, None, 0))
     };
-    cell.get_or_init(|| simulate(&SimSpec::ThreeDof(run)).expect("simulation runs"))
+    cell.get_or_init(|| run.simulate().expect("simulation runs"))
 }
 
 fn identify(which: &str, method: Method) -> Identification {
@@ -132,17 +132,14 @@ fn improved_method_at_40_db_over_three_noise_seeds() {
     for seed in [0, 1, 2] {
         for (name, run, bound) in [
             // the acceptance target for CASE I is 5 %
-            ("I", ThreeDofRun::case_i(), 0.05),
+            ("I", ThreeDofCase::I, 0.05),
             // fd-multi's scatter of c at 40 dB (std ~1.5 %) reaches 2.8 %; the 2 % target of
             // CASE II is met by the output-error refinement (tests below)
-            ("II", ThreeDofRun::case_ii(), 0.03),
+            ("II", ThreeDofCase::Ii, 0.03),
         ] {
-            let records = simulate(&SimSpec::ThreeDof(ThreeDofRun {
-                snr_db: Some(40.0),
-                seed,
-                ..run
-            }))
-            .unwrap();
+            let records = RunSpec::three_dof(run, Some(40.0), seed)
+                .simulate()
+                .unwrap();
             let id = identify_records(
                 &model,
                 &setup,
@@ -182,12 +179,9 @@ fn noisy(which: &str, snr_db: f64, seed: u64) -> Vec<Record> {
 
 #[test]
 fn noise_added_here_is_the_simulators_noise() {
-    let direct = simulate(&SimSpec::ThreeDof(ThreeDofRun {
-        snr_db: Some(40.0),
-        seed: 3,
-        ..ThreeDofRun::case_ii()
-    }))
-    .unwrap();
+    let direct = RunSpec::three_dof(ThreeDofCase::Ii, Some(40.0), 3)
+        .simulate()
+        .unwrap();
     assert_eq!(direct, noisy("II", 40.0, 3));
 }
 

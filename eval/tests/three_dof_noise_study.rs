@@ -21,22 +21,22 @@ use forcemap_math::pipeline::identify_records;
 use forcemap_math::recipe::Setup;
 use forcemap_math::sim::excitation::derive_seed;
 use forcemap_math::sim::noise::add_noise;
-use forcemap_math::sim::{SimSpec, ThreeDofRun, simulate};
+use forcemap_math::sim::{RunSpec, RunSystem, ThreeDofCase, ThreeDofParams};
 
 #[test]
 #[ignore]
 fn seed_scan() {
     let run = if std::env::var("CASE").as_deref() == Ok("I") {
-        ThreeDofRun::case_i()
+        RunSpec::three_dof(ThreeDofCase::I, None, 0)
     } else {
-        ThreeDofRun::case_ii()
+        RunSpec::three_dof(ThreeDofCase::Ii, None, 0)
     };
     let snr: Option<f64> = std::env::var("SNR")
         .ok()
         .and_then(|v| v.parse().ok())
         .or(Some(40.0))
         .filter(|v| *v > 0.0);
-    let clean = simulate(&SimSpec::ThreeDof(run)).unwrap();
+    let clean = run.simulate().unwrap();
     let setup = Setup::DrivePoint {
         substructure: LinearSubstructure::paper_three_dof_substructure_i(),
     };
@@ -126,8 +126,8 @@ fn case_ii_crb() {
     use forcemap_math::record::Channel;
     use forcemap_math::sim::TruthElement;
     use forcemap_math::sim::noise::run_rms;
-    let run = ThreeDofRun::case_ii();
-    let clean = simulate(&SimSpec::ThreeDof(run.clone())).unwrap();
+    let run = RunSpec::three_dof(ThreeDofCase::Ii, None, 0);
+    let clean = run.simulate().unwrap();
     let chans = [
         Channel::RelativeDisplacementM,
         Channel::DrivePointDisplacementM,
@@ -138,7 +138,7 @@ fn case_ii_crb() {
         .map(|c| run_rms(&clean, *c).unwrap() / 100.0)
         .collect();
     let (k, c, fd, s) = TABLE1_TRUTH;
-    let p0 = run.params;
+    let p0 = ThreeDofParams::paper();
     let nch = chans.len();
     let truth = [k, c, fd, s, p0.m3_kg, p0.k33_n_per_m, p0.c33_n_s_per_m];
     let tail = std::env::var("TAIL")
@@ -150,8 +150,8 @@ fn case_ii_crb() {
         params.m3_kg = th[4];
         params.k33_n_per_m = th[5];
         params.c33_n_s_per_m = th[6];
-        ThreeDofRun {
-            params,
+        RunSpec {
+            system: RunSystem::ThreeDof { params },
             element: TruthElement {
                 stiffness_n_per_m: th[0],
                 damping_n_s_per_m: th[1],
@@ -182,7 +182,7 @@ fn case_ii_crb() {
         for (si, sgn) in [1.0, -1.0].iter().enumerate() {
             let mut th = truth;
             th[j] += sgn * h;
-            rec[si] = collect(&simulate(&SimSpec::ThreeDof(spec(th, 1.0))).unwrap());
+            rec[si] = collect(&spec(th, 1.0).simulate().unwrap());
         }
         sens.push(
             rec[0]
@@ -194,8 +194,8 @@ fn case_ii_crb() {
     }
     // Nuisance: each step's force amplitude (relative) and phase (rad), seen in every channel.
     let h = 1e-4;
-    let up = collect(&simulate(&SimSpec::ThreeDof(spec(truth, 1.0 + h))).unwrap());
-    let dn = collect(&simulate(&SimSpec::ThreeDof(spec(truth, 1.0 - h))).unwrap());
+    let up = collect(&spec(truth, 1.0 + h).simulate().unwrap());
+    let dn = collect(&spec(truth, 1.0 - h).simulate().unwrap());
     let base = collect(&clean);
     let blk = nch * tail;
     let w = std::f64::consts::TAU * 5.0;
@@ -256,7 +256,9 @@ fn case_ii_noise_budget() {
     use forcemap_math::identify::element_harmonics;
     use forcemap_math::pipeline::analyse_sine_steps;
     use forcemap_math::record::Channel;
-    let clean = simulate(&SimSpec::ThreeDof(ThreeDofRun::case_ii())).unwrap();
+    let clean = RunSpec::three_dof(ThreeDofCase::Ii, None, 0)
+        .simulate()
+        .unwrap();
     let mut rec = clean.clone();
     add_noise(&mut rec, Some(40.0), derive_seed(1, 1));
     let sub = LinearSubstructure::paper_three_dof_substructure_i();

@@ -13,15 +13,12 @@ use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::{analyse_sine_steps, identify_records};
 use forcemap_math::recipe::Setup;
-use forcemap_math::sim::{RigRun, SimSpec, TruthElement, simulate};
+use forcemap_math::sim::RunSpec;
 
 fn bench_identify(c: &mut Criterion) {
-    let run = RigRun {
-        snr_db: Some(40.0),
-        seed: 1,
-        ..RigRun::paper_sine(TruthElement::rig_coulomb())
-    };
-    let records = simulate(&SimSpec::Rig(run)).expect("simulation runs");
+    let records = RunSpec::paper_rig_sine(Some(40.0), 1)
+        .simulate()
+        .expect("simulation runs");
     let samples: usize = records.iter().map(forcemap_math::record::Record::len).sum();
     // As many harmonics as the sample rate allows (what `forcemap reproduce` uses).
     let phasor_options = PhasorOptions {

@@ -7,16 +7,11 @@ use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
 use forcemap_math::recipe::Setup;
 use forcemap_math::record::Excitation;
-use forcemap_math::sim::{RigRun, SimSpec, TruthElement, simulate};
+use forcemap_math::sim::RunSpec;
 
 #[test]
 fn live_diagnosis_of_the_rig_bag_run() {
-    let records = simulate(&SimSpec::Rig(RigRun {
-        snr_db: Some(40.0),
-        seed: 1,
-        ..RigRun::paper_sine(TruthElement::rig_coulomb())
-    }))
-    .unwrap();
+    let records = RunSpec::paper_rig_sine(Some(40.0), 1).simulate().unwrap();
     let popts = PhasorOptions::for_identification();
     let analyses: Vec<_> = records
         .iter()

@@ -9,8 +9,8 @@ use forcemap_math::sim::excitation::{Program, StepSpec};
 use forcemap_math::sim::noise::run_rms;
 use forcemap_math::sim::rig::PAPER_RIG_MASS_KG;
 use forcemap_math::sim::{
-    ReplayOptions, RigEffects, RigInitial, RigRun, SimSpec, SolverOptions, ThreeDofRun,
-    TruthElement, simulate, simulate_detailed, simulate_on_sampled_base, simulate_rig,
+    ReplayOptions, RigEffects, RigInitial, RunSpec, SolverOptions, ThreeDofCase, TruthElement,
+    simulate_on_sampled_base, simulate_rig,
 };
 
 const M: f64 = PAPER_RIG_MASS_KG;
@@ -259,8 +259,9 @@ fn coulomb_free_decay_matches_closed_form() {
 #[test]
 fn three_dof_stick_slip() {
     let fd = 5.0;
-    for (name, run) in [("I", ThreeDofRun::case_i()), ("II", ThreeDofRun::case_ii())] {
-        let out = simulate_detailed(&SimSpec::ThreeDof(run.clone())).unwrap();
+    for (name, case) in [("I", ThreeDofCase::I), ("II", ThreeDofCase::Ii)] {
+        let run = RunSpec::three_dof(case, None, 0);
+        let out = run.simulate_detailed().unwrap();
         for (k, tr) in out.traces.iter().enumerate() {
             for s in &tr.samples {
                 if s.stuck {
@@ -312,7 +313,9 @@ fn r_amp(e: &forcemap_math::record::Excitation) -> f64 {
 
 #[test]
 fn rig_paper_run_stick_invariants() {
-    let out = simulate_detailed(&SimSpec::Rig(RigRun::default())).unwrap();
+    let out = RunSpec::paper_rig_sine(None, 0)
+        .simulate_detailed()
+        .unwrap();
     assert_eq!(out.records.len(), 10);
     let mut t = 0.0;
     for (r, tr) in out.records.iter().zip(&out.traces) {
@@ -347,14 +350,14 @@ fn rig_paper_run_stick_invariants() {
 #[test]
 fn rig_substep_convergence() {
     let run = |h: f64| {
-        let spec = RigRun {
+        let spec = RunSpec {
             solver: SolverOptions {
                 max_substep_s: h,
                 ..SolverOptions::default()
             },
-            ..RigRun::default()
+            ..RunSpec::paper_rig_sine(None, 0)
         };
-        simulate(&SimSpec::Rig(spec)).unwrap()
+        spec.simulate().unwrap()
     };
     let (a, b) = (run(2e-4), run(1e-4));
     let mut worst: f64 = 0.0;
@@ -375,20 +378,18 @@ fn rig_substep_convergence() {
 
 #[test]
 fn reproducible_noise_and_snr() {
-    let mut spec = RigRun::paper_random(TruthElement::rig_coulomb(), [1.5, 2.5]);
-    spec.snr_db = Some(30.0);
-    spec.seed = 42;
-    let a = simulate(&SimSpec::Rig(spec.clone())).unwrap();
-    let b = simulate(&SimSpec::Rig(spec.clone())).unwrap();
+    let spec = RunSpec::paper_rig_random([1.5, 2.5], Some(30.0), 42);
+    let a = spec.simulate().unwrap();
+    let b = spec.simulate().unwrap();
     assert_eq!(a, b);
     let mut other = spec.clone();
     other.seed = 43;
-    let c = simulate(&SimSpec::Rig(other)).unwrap();
+    let c = other.simulate().unwrap();
     assert_ne!(a, c);
     // Different noise with the same excitation: change only the noise by comparing with clean.
     let mut clean = spec.clone();
     clean.snr_db = None;
-    let z = simulate(&SimSpec::Rig(clean)).unwrap();
+    let z = clean.simulate().unwrap();
     for ch in forcemap_math::sim::rig::RIG_CHANNELS {
         let sig = run_rms(&z, ch).unwrap();
         let noise: Vec<f64> = a[0]
@@ -417,8 +418,8 @@ fn replay_of_sampled_base_matches_truth() {
         TruthElement::linear(6380.0, 184.0),
         TruthElement::rig_coulomb(),
     ] {
-        let spec = RigRun::paper_random(el.clone(), [1.5, 2.5]);
-        let rec = &simulate(&SimSpec::Rig(spec)).unwrap()[0];
+        let spec = RunSpec::paper_rig_random([1.5, 2.5], None, 0).with_element(el.clone());
+        let rec = &spec.simulate().unwrap()[0];
         let base = rec.channel(Channel::BaseDisplacementM).unwrap();
         let truth = rec.channel(Channel::MassAccelerationMps2).unwrap();
         let resp =
@@ -447,14 +448,14 @@ fn three_dof_linear_matches_frf() {
     use num_complex::Complex64 as C;
     let p = ThreeDofParams::paper();
     let (k, c) = (8000.0, 20.0);
-    let mut run = ThreeDofRun::case_ii();
+    let mut run = RunSpec::three_dof(ThreeDofCase::Ii, None, 0);
     run.element = TruthElement::linear(k, c);
     run.steps = vec![StepSpec::Sine {
         frequency_hz: 5.0,
         amplitude: 50.0,
     }];
     run.samples_per_record = 20000;
-    let rec = &simulate(&SimSpec::ThreeDof(run)).unwrap()[0];
+    let rec = &run.simulate().unwrap()[0];
     let w = 2.0 * PI * 5.0;
     let z = |kk: f64, cc: f64| C::new(kk, w * cc);
     let mut a = [
@@ -517,9 +518,9 @@ fn three_dof_linear_matches_frf() {
 #[test]
 fn three_dof_substep_convergence() {
     let run = |h: f64| {
-        let mut r = ThreeDofRun::case_ii();
+        let mut r = RunSpec::three_dof(ThreeDofCase::Ii, None, 0);
         r.solver.max_substep_s = h;
-        simulate(&SimSpec::ThreeDof(r)).unwrap()
+        r.simulate().unwrap()
     };
     let (a, b) = (run(1e-4), run(5e-5));
     let scale = run_rms(&b, Channel::RelativeDisplacementM).unwrap();
@@ -542,11 +543,11 @@ fn three_dof_substep_convergence() {
 #[test]
 #[ignore]
 fn time_paper_rig_run() {
-    let spec = SimSpec::Rig(RigRun::default());
+    let spec = RunSpec::paper_rig_sine(None, 0);
     let t0 = std::time::Instant::now();
     let reps = 5;
     for _ in 0..reps {
-        simulate(&spec).unwrap();
+        spec.simulate().unwrap();
     }
     eprintln!(
         "paper rig run (10 x 1300 samples, sub-step 1e-4 s): {:.1} ms",
@@ -588,16 +589,17 @@ fn all_element_terms_run() {
         ..TruthElement::linear(5000.0, 100.0)
     };
     let limit = 15.0_f64.max(10.0 * 1.2 + 5.0);
-    let mut rig = RigRun::paper_sine(el.clone());
-    rig.effects = RigEffects {
-        exciter_delay_s: 0.01,
-        sensor_lowpass_hz: Some(10.0),
-        mass_factor: 1.05,
-    };
-    let mut three = ThreeDofRun::case_i();
+    let rig = RunSpec::paper_rig_sine(None, 0)
+        .with_element(el.clone())
+        .with_effects(RigEffects {
+            exciter_delay_s: 0.01,
+            sensor_lowpass_hz: Some(10.0),
+            mass_factor: 1.05,
+        });
+    let mut three = RunSpec::three_dof(ThreeDofCase::I, None, 0);
     three.element = el;
-    for spec in [SimSpec::Rig(rig), SimSpec::ThreeDof(three)] {
-        let out = simulate_detailed(&spec).unwrap();
+    for spec in [rig, three] {
+        let out = spec.simulate_detailed().unwrap();
         let (mut stuck, mut total, mut events) = (0usize, 0usize, 0usize);
         for tr in &out.traces {
             events += tr.events;

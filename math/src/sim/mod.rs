@@ -2,8 +2,7 @@
 //! exact stick-slip (no regularisation), planted rig effects and measurement noise.
 //!
 //! Entry point: [`RunSpec`] (one description of a run, with the paper's runs as named
-//! constructors) and [`RunSpec::simulate`]; [`SimSpec`] with [`simulate`] is the same run
-//! split by system. Every run is reproducible from its seed (multisine phases and noise come
+//! constructors) and [`RunSpec::simulate`]. Every run is reproducible from its seed (multisine phases and noise come
 //! from seeded ChaCha streams).
 
 pub mod bench_runs;
@@ -19,8 +18,6 @@ pub mod run;
 mod spline;
 pub mod three_dof;
 pub mod truth;
-
-use serde::{Deserialize, Serialize};
 
 pub use element::{ELEMENT_CHANNELS, ElementDrive, simulate_element};
 pub use excitation::{Derivs, Multisine, Program, StepSpec};
@@ -88,147 +85,4 @@ impl RecordTrace {
 pub struct SimOutput {
     pub records: Vec<Record>,
     pub traces: Vec<RecordTrace>,
-}
-
-/// A run of the base-excited rig.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct RigRun {
-    /// The mass the analysis knows [kg]; the true one is `nominal * effects.mass_factor`.
-    pub nominal_mass_kg: f64,
-    pub element: TruthElement,
-    pub sample_rate_hz: f64,
-    pub samples_per_record: usize,
-    /// Base displacement steps (amplitudes and RMS in m).
-    pub steps: Vec<StepSpec>,
-    pub effects: RigEffects,
-    pub initial: RigInitial,
-    /// Measurement SNR [dB] (None: noise-free).
-    pub snr_db: Option<f64>,
-    pub seed: u64,
-    pub solver: SolverOptions,
-}
-
-impl Default for RigRun {
-    /// The paper's identification run: Coulomb rig, stepped sine 1.6-3.4 Hz at 6 mm.
-    fn default() -> Self {
-        RigRun {
-            nominal_mass_kg: rig::PAPER_RIG_MASS_KG,
-            element: TruthElement::rig_coulomb(),
-            sample_rate_hz: excitation::PAPER_RIG_SAMPLE_RATE_HZ,
-            samples_per_record: excitation::PAPER_RIG_SAMPLES_PER_RECORD,
-            steps: excitation::paper_rig_sine_steps(excitation::PAPER_RIG_SINE_AMPLITUDE_M),
-            effects: RigEffects::default(),
-            initial: RigInitial::default(),
-            snr_db: None,
-            seed: 0,
-            solver: SolverOptions::default(),
-        }
-    }
-}
-
-impl RigRun {
-    /// The paper's stepped-sine identification run with `element`.
-    pub fn paper_sine(element: TruthElement) -> RigRun {
-        RigRun {
-            element,
-            ..RigRun::default()
-        }
-    }
-
-    /// A paper validation run: one band-random record (1300 samples) on `band_hz`, 4 mm RMS.
-    pub fn paper_random(element: TruthElement, band_hz: [f64; 2]) -> RigRun {
-        RigRun {
-            element,
-            steps: vec![excitation::paper_rig_random_step(
-                band_hz,
-                excitation::PAPER_RIG_RANDOM_RMS_M,
-            )],
-            ..RigRun::default()
-        }
-    }
-
-    pub fn program(&self) -> Program {
-        Program::from_steps(
-            &self.steps,
-            self.sample_rate_hz,
-            self.samples_per_record,
-            self.seed,
-        )
-    }
-}
-
-/// A run of the 3-DOF example.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct ThreeDofRun {
-    pub params: ThreeDofParams,
-    pub element: TruthElement,
-    pub sample_rate_hz: f64,
-    pub samples_per_record: usize,
-    /// Force steps on m2 (amplitudes and RMS in N).
-    pub steps: Vec<StepSpec>,
-    pub snr_db: Option<f64>,
-    pub seed: u64,
-    pub solver: SolverOptions,
-}
-
-impl Default for ThreeDofRun {
-    /// CASE II of the paper.
-    fn default() -> Self {
-        ThreeDofRun::case_ii()
-    }
-}
-
-impl ThreeDofRun {
-    fn with_amplitudes(a: &[f64]) -> ThreeDofRun {
-        ThreeDofRun {
-            params: ThreeDofParams::paper(),
-            element: TruthElement::three_dof_element(),
-            sample_rate_hz: excitation::THREE_DOF_SAMPLE_RATE_HZ,
-            samples_per_record: excitation::THREE_DOF_SAMPLES_PER_RECORD,
-            steps: excitation::three_dof_steps(a),
-            snr_db: None,
-            seed: 0,
-            solver: SolverOptions::default(),
-        }
-    }
-
-    /// CASE I: 5, 10, 15, 20, 25 N at 5 Hz.
-    pub fn case_i() -> ThreeDofRun {
-        ThreeDofRun::with_amplitudes(&excitation::THREE_DOF_CASE_I_N)
-    }
-
-    /// CASE II: 50, 60, 70, 80, 90 N at 5 Hz.
-    pub fn case_ii() -> ThreeDofRun {
-        ThreeDofRun::with_amplitudes(&excitation::THREE_DOF_CASE_II_N)
-    }
-
-    pub fn program(&self) -> Program {
-        Program::from_steps(
-            &self.steps,
-            self.sample_rate_hz,
-            self.samples_per_record,
-            self.seed,
-        )
-    }
-}
-
-/// A serialisable description of a simulated run.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "system", rename_all = "snake_case")]
-pub enum SimSpec {
-    Rig(RigRun),
-    ThreeDof(ThreeDofRun),
-}
-
-/// Simulates a run and adds its measurement noise; returns the records.
-pub fn simulate(spec: &SimSpec) -> Result<Vec<Record>, SimError> {
-    simulate_detailed(spec).map(|o| o.records)
-}
-
-/// [`simulate`] with per-record diagnostics (traces are noise-free): the run as a
-/// [`RunSpec`], simulated by [`RunSpec::simulate_detailed`].
-pub fn simulate_detailed(spec: &SimSpec) -> Result<SimOutput, SimError> {
-    RunSpec::from(spec.clone()).simulate_detailed()
 }

@@ -344,182 +344,26 @@ impl RunSpec {
     }
 }
 
-impl From<super::SimSpec> for RunSpec {
-    fn from(spec: super::SimSpec) -> RunSpec {
-        match spec {
-            super::SimSpec::Rig(r) => RunSpec {
-                system: RunSystem::Rig {
-                    nominal_mass_kg: r.nominal_mass_kg,
-                    effects: r.effects,
-                    initial: r.initial,
-                },
-                element: r.element,
-                steps: r.steps,
-                sample_rate_hz: r.sample_rate_hz,
-                samples_per_record: r.samples_per_record,
-                snr_db: r.snr_db,
-                seed: r.seed,
-                solver: r.solver,
-            },
-            super::SimSpec::ThreeDof(r) => RunSpec {
-                system: RunSystem::ThreeDof { params: r.params },
-                element: r.element,
-                steps: r.steps,
-                sample_rate_hz: r.sample_rate_hz,
-                samples_per_record: r.samples_per_record,
-                snr_db: r.snr_db,
-                seed: r.seed,
-                solver: r.solver,
-            },
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::sim::excitation::{
         PAPER_RIG_RANDOM_BANDS_HZ, PAPER_RIG_RANDOM_RMS_M, paper_rig_random_step,
     };
-    use crate::sim::{RigRun, SimSpec, ThreeDofRun, simulate_rig, simulate_three_dof};
-
-    /// What `sim::simulate` did before it went through `RunSpec`.
-    fn old_simulate(spec: &SimSpec) -> Vec<Record> {
-        let (mut out, snr, seed) = match spec {
-            SimSpec::Rig(r) => (
-                simulate_rig(
-                    &r.element,
-                    r.nominal_mass_kg,
-                    &r.program(),
-                    &r.effects,
-                    r.initial,
-                    &r.solver,
-                )
-                .unwrap(),
-                r.snr_db,
-                r.seed,
-            ),
-            SimSpec::ThreeDof(r) => (
-                simulate_three_dof(&r.params, &r.element, &r.program(), &r.solver).unwrap(),
-                r.snr_db,
-                r.seed,
-            ),
-        };
-        noise::add_noise(&mut out.records, snr, excitation::derive_seed(seed, 1));
-        out.records
-    }
-
-    /// Same records, bit for bit.
-    fn assert_bit_identical(a: &[Record], b: &[Record]) {
-        assert_eq!(a.len(), b.len(), "record count");
-        for (x, y) in a.iter().zip(b) {
-            assert_eq!(x.step, y.step);
-            assert_eq!(x.excitation, y.excitation);
-            assert_eq!(x.sample_rate_hz.to_bits(), y.sample_rate_hz.to_bits());
-            assert_eq!(x.start_time_s.to_bits(), y.start_time_s.to_bits());
-            assert_eq!(x.channels.len(), y.channels.len());
-            for ((cx, vx), (cy, vy)) in x.channels.iter().zip(&y.channels) {
-                assert_eq!(cx, cy);
-                assert_eq!(vx.len(), vy.len());
-                for (i, (p, q)) in vx.iter().zip(vy).enumerate() {
-                    assert_eq!(p.to_bits(), q.to_bits(), "step {}, {cx:?}[{i}]", x.step);
-                }
-            }
-        }
-    }
-
-    /// The paper's rig run as the sensor, `simulate` and the diagnosis demo built it.
-    fn old_paper_rig(snr_db: Option<f64>, seed: u64) -> RigRun {
-        let mut run = RigRun {
-            snr_db,
-            seed,
-            ..RigRun::paper_sine(TruthElement::rig_coulomb())
-        };
-        for band in PAPER_RIG_RANDOM_BANDS_HZ {
-            run.steps
-                .push(paper_rig_random_step(band, PAPER_RIG_RANDOM_RMS_M));
-        }
-        run
-    }
-
     #[test]
     fn paper_rig_is_the_paper_run() {
         let spec = RunSpec::paper_rig(Some(40.0), 1);
-        assert_eq!(
-            spec,
-            RunSpec::from(SimSpec::Rig(old_paper_rig(Some(40.0), 1)))
+        let mut steps = excitation::paper_rig_sine_steps(excitation::PAPER_RIG_SINE_AMPLITUDE_M);
+        steps.extend(
+            PAPER_RIG_RANDOM_BANDS_HZ.map(|b| paper_rig_random_step(b, PAPER_RIG_RANDOM_RMS_M)),
         );
+        assert_eq!(spec.steps, steps);
+        assert_eq!(spec.element, TruthElement::rig_coulomb());
         assert_eq!(spec.steps.len(), 12);
         assert_eq!(spec.samples_per_record, 1300);
         assert_eq!(spec.sample_rate_hz, 100.0);
         assert_eq!(spec.mass_kg(), Some(36.0));
         assert_eq!(spec.driven_channel(), Channel::BaseDisplacementM);
-    }
-
-    #[test]
-    fn paper_rig_records_equal_the_old_runs() {
-        for (snr, seed) in [(Some(40.0), 1), (None, 0), (Some(25.0), 7)] {
-            let old = old_simulate(&SimSpec::Rig(old_paper_rig(snr, seed)));
-            assert_bit_identical(&RunSpec::paper_rig(snr, seed).simulate().unwrap(), &old);
-        }
-    }
-
-    #[test]
-    fn the_reproduction_runs_are_the_old_ones() {
-        let truth = TruthElement::linear(6000.0, 150.0);
-        let old_sine = RigRun {
-            snr_db: Some(30.0),
-            seed: 3,
-            ..RigRun::paper_sine(truth.clone())
-        };
-        assert_eq!(
-            RunSpec::paper_rig_sine(Some(30.0), 3).with_element(truth.clone()),
-            RunSpec::from(SimSpec::Rig(old_sine))
-        );
-        for band in PAPER_RIG_RANDOM_BANDS_HZ {
-            let old = RigRun {
-                snr_db: Some(30.0),
-                seed: 5,
-                ..RigRun::paper_random(truth.clone(), band)
-            };
-            let spec = RunSpec::paper_rig_random(band, Some(30.0), 5).with_element(truth.clone());
-            assert_eq!(spec, RunSpec::from(SimSpec::Rig(old.clone())));
-            assert_bit_identical(&spec.simulate().unwrap(), &old_simulate(&SimSpec::Rig(old)));
-        }
-        for (case, old) in [
-            (ThreeDofCase::I, ThreeDofRun::case_i()),
-            (ThreeDofCase::Ii, ThreeDofRun::case_ii()),
-        ] {
-            assert_eq!(
-                RunSpec::three_dof(case, None, 0),
-                RunSpec::from(SimSpec::ThreeDof(old.clone()))
-            );
-            let noisy = ThreeDofRun {
-                snr_db: Some(40.0),
-                seed: 2,
-                ..old
-            };
-            assert_eq!(
-                RunSpec::three_dof(case, Some(40.0), 2),
-                RunSpec::from(SimSpec::ThreeDof(noisy))
-            );
-        }
-    }
-
-    #[test]
-    fn three_dof_records_equal_the_old_run() {
-        let old = ThreeDofRun {
-            snr_db: Some(40.0),
-            seed: 1,
-            ..ThreeDofRun::case_i()
-        };
-        let spec = RunSpec::three_dof(ThreeDofCase::I, Some(40.0), 1);
-        assert_eq!(spec.driven_channel(), Channel::ForceN);
-        assert_eq!(spec.mass_kg(), None);
-        assert_bit_identical(
-            &spec.simulate().unwrap(),
-            &old_simulate(&SimSpec::ThreeDof(old)),
-        );
     }
 
     #[test]
