@@ -200,29 +200,7 @@ pub fn analyse_record(
         cap,
     } = SineGrid::of(step, &record.excitation, record.sample_rate_hz)?;
     let fs = record.sample_rate_hz;
-    let Some((first, first_data)) = record.channels.first() else {
-        return Err(PhasorError::NoChannels { step });
-    };
-    let len = first_data.len();
-    for (c, data) in &record.channels {
-        if data.len() != len {
-            return Err(PhasorError::ChannelLengthMismatch {
-                step,
-                channel: *c,
-                len: data.len(),
-                first: *first,
-                expected: len,
-            });
-        }
-        if let Some((i, v)) = data.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(PhasorError::NonFinite {
-                step,
-                channel: *c,
-                sample: i,
-                value: *v,
-            });
-        }
-    }
+    let len = checked_length(record)?;
     let nu = frequency_hz / fs;
     let periods = whole_periods(len, nu);
     if periods < 2 {
@@ -322,4 +300,34 @@ pub fn synthesize(phasors: &[Complex64], frequency_hz: f64, t_s: f64) -> f64 {
         w *= z;
     }
     s
+}
+
+/// The common length of a record's channels, refusing a record without channels, with
+/// channels of unequal length or with a non-finite sample (every analysis's first check).
+pub(crate) fn checked_length(record: &Record) -> Result<usize, PhasorError> {
+    let step = record.step;
+    let Some((first, first_data)) = record.channels.first() else {
+        return Err(PhasorError::NoChannels { step });
+    };
+    let len = first_data.len();
+    for (c, data) in &record.channels {
+        if data.len() != len {
+            return Err(PhasorError::ChannelLengthMismatch {
+                step,
+                channel: *c,
+                len: data.len(),
+                first: *first,
+                expected: len,
+            });
+        }
+        if let Some((i, v)) = data.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(PhasorError::NonFinite {
+                step,
+                channel: *c,
+                sample: i,
+                value: *v,
+            });
+        }
+    }
+    Ok(len)
 }

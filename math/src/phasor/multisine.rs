@@ -103,23 +103,9 @@ pub enum MultisineError {
     NotMultisine { step: usize },
     #[error("step {step}: the multisine excites no line")]
     NoLines { step: usize },
-    #[error("step {step}: record has no channels")]
-    NoChannels { step: usize },
-    #[error("step {step}: channel {} has {len} samples, channel {} has {expected}", channel.name(), first.name())]
-    ChannelLengthMismatch {
-        step: usize,
-        channel: Channel,
-        len: usize,
-        first: Channel,
-        expected: usize,
-    },
-    #[error("step {step}: sample {sample} of channel {} is not finite ({value})", channel.name())]
-    NonFinite {
-        step: usize,
-        channel: Channel,
-        sample: usize,
-        value: f64,
-    },
+    /// The record's channels themselves (none, unequal lengths, a non-finite sample).
+    #[error(transparent)]
+    Channels(#[from] super::PhasorError),
     #[error(
         "step {step}: a multisine period of {base_frequency_hz} Hz at {sample_rate_hz} Hz is {samples_per_period} samples, not a whole number"
     )]
@@ -194,29 +180,7 @@ pub fn analyse_multisine(
             nyquist_hz: fs / 2.0,
         });
     }
-    let Some((first, first_data)) = record.channels.first() else {
-        return Err(MultisineError::NoChannels { step });
-    };
-    let len = first_data.len();
-    for (c, data) in &record.channels {
-        if data.len() != len {
-            return Err(MultisineError::ChannelLengthMismatch {
-                step,
-                channel: *c,
-                len: data.len(),
-                first: *first,
-                expected: len,
-            });
-        }
-        if let Some((i, v)) = data.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(MultisineError::NonFinite {
-                step,
-                channel: *c,
-                sample: i,
-                value: *v,
-            });
-        }
-    }
+    let len = super::checked_length(record)?;
     let available = len / n;
     let skip = options.transient_periods;
     if available < skip + MIN_MULTISINE_PERIODS {
