@@ -38,6 +38,12 @@ struct Data {
 
 fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data> {
     let file = path.display().to_string();
+    if import.kind == SetupKind::DrivePoint {
+        bail!(
+            "{file}: the diagnosis needs the base-excited rig channels (base and relative displacement, mass acceleration) or an element test's (relative displacement, force); this is a {} export",
+            import.kind
+        );
+    }
     let params = match &args.params {
         Some(p) => read_params(p, None)?,
         None => Params::new(),

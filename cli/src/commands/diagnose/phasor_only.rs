@@ -1,5 +1,5 @@
 //! The diagnosis of stepped-sine data that hold no record to simulate the baseline on (an
-//! element test, a drive point): the phasor diagnosis the live diagnoser runs
+//! element test; a drive point is refused until it has its held-out path): the phasor diagnosis the live diagnoser runs
 //! (`forcemap_math::diagnose::PhasorDiagnosis`), its evidence the element-force error
 //! cross-validated by leaving each step out.
 
