@@ -129,9 +129,11 @@ impl DiagnoserCore {
                 }
             };
             out.push(Output::Log(format!(
-                "after {} steps: {}",
+                "after {} steps: {} ({}; floor {:.2} %)",
                 findings.steps,
-                findings.findings.headline()
+                findings.findings.headline(),
+                findings.findings.evidence.measure(),
+                findings.findings.floor_percent
             )));
             out.push(Output::Diagnosis(diagnosis_message(
                 &self.baseline_name,
