@@ -88,3 +88,38 @@ fn asking_for_no_topics_gives_no_messages() {
     assert_eq!(reader.messages_on(&[]).unwrap().count(), 0);
     assert!(reader.messages().unwrap().count() > 0);
 }
+
+#[test]
+fn streamed_playback_is_the_playback_and_stops_when_asked() {
+    use forcemap_io::rig_bag::RigBagReader;
+    let reader = RigBagReader::open(&committed_bag()).unwrap();
+    let whole = reader.playback().unwrap();
+    let mut streamed = Vec::new();
+    reader
+        .stream_playback(|m| {
+            streamed.push(m);
+            true
+        })
+        .unwrap();
+    assert_eq!(streamed.len(), whole.len());
+    for (a, b) in streamed.iter().zip(&whole) {
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
+    }
+    let mut first = 0;
+    reader
+        .stream_playback(|_| {
+            first += 1;
+            first < 5
+        })
+        .unwrap();
+    assert_eq!(first, 5);
+    // The summary's count of samples, which the sensor reports progress against.
+    let samples = whole
+        .iter()
+        .filter(|m| matches!(m, forcemap_io::rig_messages::RigMessage::Sample(_)))
+        .count();
+    assert_eq!(
+        reader.message_count(forcemap_io::rig_bag::RigTopic::Samples),
+        samples as u64
+    );
+}

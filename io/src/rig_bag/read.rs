@@ -301,8 +301,21 @@ impl RigBagReader {
     /// after the last sample when the bag has none (a recording stopped before the exciter went
     /// idle). What the sensor node plays.
     pub fn playback(&self) -> Result<Vec<RigMessage>, RigBagError> {
-        self.required(RigTopic::Samples)?;
         let mut out = Vec::new();
+        self.stream_playback(|m| {
+            out.push(m);
+            true
+        })?;
+        Ok(out)
+    }
+
+    /// [`playback`](Self::playback) one message at a time, in constant memory: `emit` takes
+    /// each message and says whether to go on.
+    pub fn stream_playback(
+        &self,
+        mut emit: impl FnMut(RigMessage) -> bool,
+    ) -> Result<(), RigBagError> {
+        self.required(RigTopic::Samples)?;
         let mut last: Option<(u32, Time, String)> = None;
         let mut saw_idle = false;
         let mut period = 0.0f64;
@@ -321,7 +334,9 @@ impl RigBagReader {
                 RigMessage::Excitation(s) => saw_idle |= s.is_idle(),
                 RigMessage::Parameters(_) => {}
             }
-            out.push(m);
+            if !emit(m) {
+                return Ok(());
+            }
         }
         let Some((step, t, frame)) = last else {
             return Err(RigBagError::Empty {
@@ -331,14 +346,22 @@ impl RigBagReader {
         };
         if !saw_idle {
             let end = t.add_secs_f64(period);
-            out.push(RigMessage::Excitation(ExcitationState::idle(
+            emit(RigMessage::Excitation(ExcitationState::idle(
                 Header::new(end, &frame),
                 step as usize + 1,
                 end,
                 Channel::BaseDisplacementM,
             )));
         }
-        Ok(out)
+        Ok(())
+    }
+
+    /// How many messages the bag holds on its topic of `kind` (from its summary; 0 without
+    /// the topic).
+    pub fn message_count(&self, kind: RigTopic) -> u64 {
+        self.topic(kind)
+            .and_then(|t| self.reader.topic(t).ok())
+            .map_or(0, |info| info.message_count)
     }
 }
 

@@ -16,7 +16,7 @@
 //! Stamps: the simulated run starts at the wall-clock time the node starts publishing; a bag is
 //! played with the stamps it holds (as `ros2 bag play` does).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
@@ -32,7 +32,7 @@ use forcemap_msgs::msg::{ExcitationState, RigSample};
 use crate::log_line;
 use crate::ros::{NodeSetup, RosNode, publish_blocking, qos};
 use forcemap_io::params::Params;
-use forcemap_io::rig_bag::read_rig_messages;
+use forcemap_io::rig_bag::{RigBagReader, RigTopic};
 use forcemap_io::rig_messages::{
     RigMessage, SIMULATED_CONSTANTS_MESSAGE, constants_status, rig_messages,
 };
@@ -92,9 +92,15 @@ fn run_spec(p: &Params) -> anyhow::Result<RunSpec> {
 /// topics is the next kind). A source is prepared before the node touches the network, so bad
 /// input fails fast; its messages are taken once the subscribers listen.
 pub trait SampleSource: Send {
+    /// How many samples the run publishes (for progress).
+    fn sample_count(&self) -> usize;
+
     /// The messages in publishing order, for a run that starts now at `run_start` (a bag keeps
-    /// the stamps it holds, as `ros2 bag play` does).
-    fn messages(self: Box<Self>, run_start: Time) -> Box<dyn Iterator<Item = RigMessage> + Send>;
+    /// the stamps it holds, as `ros2 bag play` does); an error ends the run.
+    fn messages(
+        self: Box<Self>,
+        run_start: Time,
+    ) -> Box<dyn Iterator<Item = anyhow::Result<RigMessage>> + Send>;
 }
 
 /// The simulated run of a [`RunSpec`], stamped from the moment it is published.
@@ -128,7 +134,14 @@ impl SimulatedRun {
 }
 
 impl SampleSource for SimulatedRun {
-    fn messages(self: Box<Self>, run_start: Time) -> Box<dyn Iterator<Item = RigMessage> + Send> {
+    fn sample_count(&self) -> usize {
+        self.records.iter().map(Record::len).sum()
+    }
+
+    fn messages(
+        self: Box<Self>,
+        run_start: Time,
+    ) -> Box<dyn Iterator<Item = anyhow::Result<RigMessage>> + Send> {
         let this = *self;
         let messages: Vec<RigMessage> = rig_messages(
             &this.records,
@@ -138,26 +151,52 @@ impl SampleSource for SimulatedRun {
             &this.frame,
         )
         .collect();
-        Box::new(messages.into_iter())
+        Box::new(messages.into_iter().map(Ok))
     }
 }
 
-/// The rig messages of a bag, played with their own stamps.
+/// The rig messages of a bag, played with their own stamps, streamed from the file (a reader
+/// thread a bounded queue ahead of the publisher), so that memory stays flat however long the
+/// bag.
 pub struct BagPlayback {
-    messages: Vec<RigMessage>,
+    path: PathBuf,
+    samples: usize,
 }
 
+/// Messages the reader thread may be ahead of the publisher.
+const PLAYBACK_QUEUE: usize = 4096;
+
 impl BagPlayback {
+    /// Opens the bag and checks its rig topics (bad input fails here, before the network).
     pub fn open(path: &Path) -> anyhow::Result<BagPlayback> {
+        let reader = RigBagReader::open(path)?;
         Ok(BagPlayback {
-            messages: read_rig_messages(path)?,
+            path: path.to_path_buf(),
+            samples: reader.message_count(RigTopic::Samples) as usize,
         })
     }
 }
 
 impl SampleSource for BagPlayback {
-    fn messages(self: Box<Self>, _run_start: Time) -> Box<dyn Iterator<Item = RigMessage> + Send> {
-        Box::new(self.messages.into_iter())
+    fn sample_count(&self) -> usize {
+        self.samples
+    }
+
+    fn messages(
+        self: Box<Self>,
+        _run_start: Time,
+    ) -> Box<dyn Iterator<Item = anyhow::Result<RigMessage>> + Send> {
+        let (tx, rx) = std::sync::mpsc::sync_channel(PLAYBACK_QUEUE);
+        let path = self.path;
+        std::thread::spawn(move || {
+            let result = RigBagReader::open(&path)
+                .and_then(|r| r.stream_playback(|m| tx.send(Ok(m)).is_ok()));
+            if let Err(e) = result {
+                // The publisher stops at the error and exits with it.
+                let _ = tx.send(Err(anyhow::Error::new(e)));
+            }
+        });
+        Box::new(rx.into_iter())
     }
 }
 
@@ -217,11 +256,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     // Discovery of the subscriber's reader completes a little after the count changes.
     tokio::time::sleep(Duration::from_millis(300)).await;
 
-    let messages: Vec<RigMessage> = source.messages(crate::ros::now_time()).collect();
-    let total_samples = messages
-        .iter()
-        .filter(|m| matches!(m, RigMessage::Sample(_)))
-        .count();
+    let total_samples = source.sample_count();
+    let messages = source.messages(crate::ros::now_time());
     log_line!(
         "publishing {total_samples} samples on {} ({})",
         setup.absolute_topic(topics::SAMPLES),
@@ -239,11 +275,17 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         crate::ros::shutdown_signal().await;
         stop_w.store(true, std::sync::atomic::Ordering::SeqCst);
     });
-    let first_stamp = messages.iter().find_map(RigMessage::stamp);
+    // The run's time origin: the first stamped message, due at once (the constants before it
+    // are not timed).
+    let mut first_stamp: Option<Time> = None;
     let wall0 = Instant::now();
     let mut published = 0usize;
     let mut last_report = Instant::now();
     for m in messages {
+        let m = m?;
+        if first_stamp.is_none() {
+            first_stamp = m.stamp();
+        }
         if stop.load(std::sync::atomic::Ordering::SeqCst) {
             log_line!("stopped after {published} of {total_samples} samples");
             return Ok(());
