@@ -11,10 +11,10 @@ mod common;
 use std::f64::consts::PI;
 
 use forcemap_io::csv_export::write_csv;
-use forcemap_math::element::Friction;
 use forcemap_math::recipe::SetupKind;
-use forcemap_math::sim::{AsymmetricDamping, ElementDrive, RunSpec, StepSpec, TruthElement};
+use forcemap_math::sim::{ElementDrive, RunSpec, StepSpec};
 
+// The dyno damper's truth (`RunSpec::damper_dyno`), for the closed forms.
 const PRELOAD_N: f64 = 150.0;
 const K_N_PER_M: f64 = 2000.0;
 const REBOUND_N_S_PER_M: f64 = 2500.0;
@@ -22,15 +22,7 @@ const COMPRESSION_N_S_PER_M: f64 = 1000.0;
 const FRICTION_N: f64 = 40.0;
 
 fn dyno_csv(dir: &std::path::Path, snr_db: Option<f64>) -> std::path::PathBuf {
-    let element = TruthElement {
-        preload_n: PRELOAD_N,
-        friction: Some(Friction::coulomb(FRICTION_N)),
-        asymmetric_damping: Some(AsymmetricDamping {
-            rebound_n_s_per_m: REBOUND_N_S_PER_M,
-            compression_n_s_per_m: COMPRESSION_N_S_PER_M,
-        }),
-        ..TruthElement::linear(K_N_PER_M, 0.0)
-    };
+    let element = RunSpec::damper_dyno(None, 0).element;
     let steps = [1.0, 2.0, 4.0]
         .iter()
         .flat_map(|&f| {
@@ -81,6 +73,24 @@ fn the_dynamic_stiffness_table_is_the_dampers_closed_form() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // The closed forms' constants are the dyno's truth.
+    let theta: std::collections::BTreeMap<_, _> = RunSpec::DAMPER_DYNO_THETA.into_iter().collect();
+    assert_eq!(
+        [
+            theta["offset"],
+            theta["k"],
+            theta["c"] + theta["ca"],
+            theta["c"] - theta["ca"],
+            theta["fd"]
+        ],
+        [
+            PRELOAD_N,
+            K_N_PER_M,
+            REBOUND_N_S_PER_M,
+            COMPRESSION_N_S_PER_M,
+            FRICTION_N
+        ]
+    );
     let rows = v["dynamic_stiffness"]
         .as_array()
         .expect("a dynamic_stiffness table");

@@ -3,25 +3,16 @@
 //! not, and identifies as the simulated records do.
 
 use forcemap_io::csv_export::{read_csv, write_csv};
-use forcemap_math::element::Friction;
 use forcemap_math::identify::{FdMultiOptions, Method};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::identify_records;
 use forcemap_math::recipe::{Setup, SetupKind};
 use forcemap_math::record::Record;
-use forcemap_math::sim::{AsymmetricDamping, ElementDrive, RunSpec, StepSpec, TruthElement};
+use forcemap_math::sim::{ElementDrive, RunSpec, StepSpec};
 
 fn dyno_records() -> Vec<Record> {
-    let element = TruthElement {
-        preload_n: 150.0,
-        friction: Some(Friction::coulomb(40.0)),
-        asymmetric_damping: Some(AsymmetricDamping {
-            rebound_n_s_per_m: 2500.0,
-            compression_n_s_per_m: 1000.0,
-        }),
-        ..TruthElement::linear(2000.0, 0.0)
-    };
+    let element = RunSpec::damper_dyno(None, 0).element;
     // At least 8 periods per step: the step finder needs about 6 of the lowest frequency.
     let steps = [2.0, 4.0, 8.0]
         .iter()

@@ -218,17 +218,8 @@ fn phasors_of_no_setup_are_refused_without_stopping_the_node() {
 
 /// The phasor messages of a simulated damper on a dyno (the element setup).
 fn damper_phasor_messages() -> (Vec<forcemap_math::record::Record>, Vec<HarmonicPhasors>) {
-    use forcemap_math::element::Friction;
-    use forcemap_math::sim::{AsymmetricDamping, ElementDrive, RunSpec, StepSpec, TruthElement};
-    let element = TruthElement {
-        preload_n: 150.0,
-        friction: Some(Friction::coulomb(40.0)),
-        asymmetric_damping: Some(AsymmetricDamping {
-            rebound_n_s_per_m: 2500.0,
-            compression_n_s_per_m: 1000.0,
-        }),
-        ..TruthElement::linear(2000.0, 0.0)
-    };
+    use forcemap_math::sim::{ElementDrive, RunSpec, StepSpec};
+    let element = RunSpec::damper_dyno(None, 0).element;
     let steps = [1.0, 2.0, 4.0, 8.0]
         .iter()
         .flat_map(|&f| {
