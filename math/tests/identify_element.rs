@@ -29,6 +29,20 @@ fn identify(run: &RunSpec, model: &str, constants: &SetupConstants) -> Vec<(Stri
         &FdMultiOptions::default(),
     )
     .expect("identifies");
+    // The parameters the setup added are the last ones, by name (the identified moving mass).
+    let extras = id.extra_values(&setup);
+    let named: Vec<f64> = setup
+        .extra_parameters()
+        .iter()
+        .map(|n| {
+            id.parameters
+                .iter()
+                .find(|p| p.name == *n)
+                .expect("named")
+                .value
+        })
+        .collect();
+    assert_eq!(extras, named);
     id.parameters
         .iter()
         .map(|p| (p.name.clone(), p.value, p.std))

@@ -125,7 +125,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     }
     // The element force with the parameters the setup added (an identified moving mass).
     let theta = id.theta();
-    let element_setup = setup.with_extra_values(theta.get(model.terms.len()..).unwrap_or(&[]));
+    let element_setup = setup.with_extra_values(&id.extra_values(&setup));
     let element_steps = if setup.kind() == SetupKind::Element {
         element_outputs::element_steps(&element_setup, &model, &theta, &analyses, &import.records)
             .with_context(|| format!("{file}: the dynamic stiffness table"))?

@@ -306,6 +306,16 @@ impl Identification {
     pub fn theta(&self) -> Vec<f64> {
         self.parameters.iter().map(|p| p.value).collect()
     }
+
+    /// The values of the parameters `setup` added (after the model's, in the order of
+    /// [`Setup::extra_parameters`]): an element test's identified moving mass.
+    pub fn extra_values(&self, setup: &Setup) -> Vec<f64> {
+        let n = setup.extra_parameters().len();
+        self.parameters[self.parameters.len().saturating_sub(n)..]
+            .iter()
+            .map(|p| p.value)
+            .collect()
+    }
 }
 
 /// Stacks step blocks and solves (through the same accumulator the live identifier keeps, so

@@ -35,16 +35,15 @@ fn with_known_extras(
         &FdMultiOptions::default(),
     )
     .context("identifying the moving mass with the baseline")?;
-    let theta = id.theta();
-    let extras = theta.get(baseline.terms.len()..).unwrap_or(&[]);
+    let extras = id.extra_values(setup);
     let note = setup
         .extra_parameters()
         .iter()
-        .zip(extras)
+        .zip(&extras)
         .map(|(n, v)| format!("{n} = {v:.4} identified with the baseline, then held"))
         .collect::<Vec<_>>()
         .join(", ");
-    Ok((setup.with_extra_values(extras), Some(note)))
+    Ok((setup.with_extra_values(&extras), Some(note)))
 }
 
 pub fn run(
