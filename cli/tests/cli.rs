@@ -163,6 +163,60 @@ fn identify_output_error_on_a_rig_export() {
     }
 }
 
+/// Tracking offline: theta after every sine step. Without forgetting (factor 1) the last theta
+/// is the converged one (the same equations, the same solve); with forgetting the track has
+/// one theta per step and its last is the reported one.
+#[test]
+fn identify_tracking_reports_theta_after_every_step() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = rig_csv(dir.path());
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "identify",
+            csv.to_str().unwrap(),
+            "--model",
+            "coulomb",
+            "--mass-kg",
+            "36",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let o = forcemap(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
+    };
+    let converged = run(&[]);
+    let unforgetting = run(&["--forgetting-per-step", "1"]);
+    let forgetting = run(&["--forgetting-per-step", "0.8"]);
+    let values = |j: &serde_json::Value| -> Vec<f64> {
+        j["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["value"].as_f64().unwrap())
+            .collect()
+    };
+    for (a, b) in values(&converged).iter().zip(values(&unforgetting)) {
+        assert!((a / b - 1.0).abs() < 1e-12, "{a} against {b}");
+    }
+    let steps = converged["steps_used"].as_array().unwrap().len();
+    let track = forgetting["track"].as_array().unwrap();
+    assert!(
+        track.len() >= steps - 2 && track.len() <= steps,
+        "{} of {steps}",
+        track.len()
+    );
+    let last: Vec<f64> = track.last().unwrap()["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["value"].as_f64().unwrap())
+        .collect();
+    assert_eq!(last, values(&forgetting));
+    // Forgetting weighs the steps unequally: not the converged theta.
+    assert_ne!(values(&forgetting), values(&converged));
+}
+
 #[test]
 fn three_dof_export_needs_its_substructure_and_is_identified_with_it() {
     let dir = tempfile::tempdir().unwrap();

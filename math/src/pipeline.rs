@@ -103,6 +103,46 @@ pub fn identify_records_with_analyses(
     Ok((id, analyses))
 }
 
+/// Tracks `model` on the sine steps of `records`: theta after every step, the steps before it
+/// weighed by `factor_per_step` each time a step is added ([`identify::track_steps`]), and the
+/// harmonic analyses. The last theta is the current one and carries the analysis notes. The
+/// periodic multisine records are refused: forgetting is per step.
+pub fn track_records_with_analyses(
+    model: &Model,
+    setup: &Setup,
+    method: Method,
+    records: &[Record],
+    phasor_options: &PhasorOptions,
+    fd_options: &FdMultiOptions,
+    factor_per_step: f64,
+) -> Result<(Vec<Identification>, Vec<HarmonicAnalysis>), PipelineError> {
+    if let Some(r) = records
+        .iter()
+        .find(|r| matches!(r.excitation, Excitation::Multisine { .. }))
+    {
+        return Err(PipelineError::Identify(identify::IdentifyError::Step {
+            step: r.step,
+            problem:
+                "tracking forgets per sine step; a periodic multisine record cannot be tracked"
+                    .into(),
+        }));
+    }
+    let (analyses, notes) = analyse_sine_steps(records, phasor_options)?;
+    let mut track =
+        identify::track_steps(model, setup, method, &analyses, fd_options, factor_per_step)?;
+    if track.is_empty() {
+        // No step determined theta; forgetting does not change which parameters the equations
+        // determine, so the converged solve gives the reason (or, equally, the one theta).
+        track.push(identify::identify(
+            model, setup, method, records, &analyses, fd_options,
+        )?);
+    }
+    if let Some(last) = track.last_mut() {
+        last.warnings.splice(0..0, notes);
+    }
+    Ok((track, analyses))
+}
+
 /// The prediction of a base-excited rig model on one record.
 #[derive(Debug, Clone, Serialize)]
 pub struct Validation {

@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Context, anyhow};
-use forcemap_math::identify::{Identification, Method, rebuilt_cycle, track_steps};
+use forcemap_math::identify::{Identification, Method, rebuilt_cycle};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::{IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
@@ -77,36 +77,43 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     let setup = recipe.setup.setup()?;
     let model = recipe.model.build()?;
     let method = recipe.method;
-    let (converged, analyses) = pipeline::identify_records_with_analyses(
-        &model,
-        &setup,
-        method,
-        &import.records,
-        &recipe.phasor,
-        &recipe.fd_options(),
-    )
-    .with_context(|| {
+    let what = || {
         format!(
             "{file}: identifying model '{}' by {}",
             model.name,
             method.name()
         )
-    })?;
-    // Tracking: theta after every step, as the live identifier publishes it; the last is the
-    // current one.
-    let track = match recipe.tracking {
-        Tracking::Converged => Vec::new(),
-        Tracking::Forgetting { factor_per_step } => track_steps(
-            &model,
-            &setup,
-            method,
-            &analyses,
-            &recipe.fd_options(),
-            factor_per_step,
-        )
-        .with_context(|| format!("{file}: tracking"))?,
     };
-    let id = track.last().cloned().unwrap_or(converged);
+    // Tracking: theta after every step, as the live identifier publishes it; the last is the
+    // current one. Converged: one theta from every step.
+    let (id, track, analyses) = match recipe.tracking {
+        Tracking::Converged => {
+            let (id, analyses) = pipeline::identify_records_with_analyses(
+                &model,
+                &setup,
+                method,
+                &import.records,
+                &recipe.phasor,
+                &recipe.fd_options(),
+            )
+            .with_context(what)?;
+            (id, Vec::new(), analyses)
+        }
+        Tracking::Forgetting { factor_per_step } => {
+            let (track, analyses) = pipeline::track_records_with_analyses(
+                &model,
+                &setup,
+                method,
+                &import.records,
+                &recipe.phasor,
+                &recipe.fd_options(),
+                factor_per_step,
+            )
+            .with_context(|| format!("{} (tracking)", what()))?;
+            let id = track.last().cloned().context("tracking gave no theta")?;
+            (id, track, analyses)
+        }
+    };
 
     // Validation on the random records (rig only: the model is simulated on the measured base).
     let mut validations = Vec::new();
