@@ -382,15 +382,47 @@ pub fn type_name<M: forcemap_msgs::RosMessage>() -> MessageTypeName {
     MessageTypeName::new(pkg, ty)
 }
 
-/// Resolves on SIGINT or SIGTERM.
+/// The process's shutdown flag: set once SIGINT or SIGTERM has arrived.
+static SHUTDOWN: std::sync::OnceLock<tokio::sync::watch::Sender<bool>> = std::sync::OnceLock::new();
+
+/// Installs the SIGINT/SIGTERM listener once per process (inside a tokio runtime) and returns
+/// the flag it sets. One listener for the process's life, rather than one per wait: tokio
+/// delivers a signal only to the receivers that exist when it arrives, so a handler created
+/// per loop iteration lost a SIGTERM that came while the node was busy between two waits
+/// (a harmonic node then ignored the launcher's SIGTERM and never stopped).
+fn shutdown_flag() -> &'static tokio::sync::watch::Sender<bool> {
+    SHUTDOWN.get_or_init(|| {
+        use tokio::signal::unix::{SignalKind, signal};
+        let (tx, _) = tokio::sync::watch::channel(false);
+        // Registered here, synchronously, so that from now on a signal is not lost.
+        let term = signal(SignalKind::terminate());
+        let int = signal(SignalKind::interrupt());
+        match (term, int) {
+            (Ok(mut term), Ok(mut int)) => {
+                let tx = tx.clone();
+                tokio::spawn(async move {
+                    tokio::select! {
+                        _ = term.recv() => {}
+                        _ = int.recv() => {}
+                    }
+                    tx.send_replace(true);
+                });
+            }
+            (Err(e), _) | (_, Err(e)) => {
+                eprintln!(
+                    "warning: cannot listen for SIGINT/SIGTERM ({e}); stop the node with SIGKILL"
+                );
+            }
+        }
+        tx
+    })
+}
+
+/// Resolves once SIGINT or SIGTERM has arrived (at once if one already has).
 pub async fn shutdown_signal() {
-    use tokio::signal::unix::{SignalKind, signal};
-    let mut term = signal(SignalKind::terminate()).expect("SIGTERM handler");
-    let mut int = signal(SignalKind::interrupt()).expect("SIGINT handler");
-    tokio::select! {
-        _ = term.recv() => {}
-        _ = int.recv() => {}
-    }
+    let mut flag = shutdown_flag().subscribe();
+    // The sender lives in a static, so the channel never closes.
+    let _ = flag.wait_for(|stopped| *stopped).await;
 }
 
 /// Runs a node's main future on a tokio runtime, stopping it cleanly on SIGINT/SIGTERM.
@@ -404,7 +436,11 @@ where
         .enable_all()
         .build()
         .context("starting the tokio runtime")?;
-    rt.block_on(main())
+    rt.block_on(async {
+        // Listen from the start, before the node's main future runs.
+        shutdown_flag();
+        main().await
+    })
 }
 
 /// Prints a line of the node's log to stdout at once (the launcher prefixes it with the node
