@@ -1,6 +1,7 @@
 //! Faults in the real node graph: an identifier killed with SIGKILL in the middle of a run and
 //! restarted ends with the theta of an undisturbed run; a recorder killed with SIGKILL leaves a
-//! bag that `forcemap bag recover` restores with every message the recorder had put on disk.
+//! bag that `forcemap bag recover` restores with every message the recorder had put on disk; every
+//! idle node stops cleanly on SIGTERM.
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
@@ -163,4 +164,68 @@ fn recorder_killed_leaves_a_bag_that_recover_restores() {
         n += 1;
     }
     assert!(n > 3 * 1300, "only {n} samples recovered");
+}
+
+/// Every node of the main job, idle (the sensor waits for more subscribers than there are),
+/// stops by itself on SIGTERM, as the launcher and a process supervisor stop it: exit status 0,
+/// not death by the signal and not the run_node grace period's error.
+#[test]
+fn every_idle_node_stops_cleanly_on_sigterm() {
+    let d = domain(11);
+    let dir = tempfile::tempdir().unwrap();
+    let bag = repo().join("bags/rig_40db");
+    let nodes = [
+        (
+            "sensor",
+            vec![
+                "source:=bag".to_string(),
+                format!("bag:={}", bag.display()),
+                "min_subscribers:=99".into(),
+            ],
+            "waiting for 99 subscriber(s)",
+        ),
+        ("harmonic", vec![], "waiting for samples"),
+        (
+            "identifier",
+            vec!["model:=coulomb".into()],
+            "identifying model",
+        ),
+        (
+            "diagnoser",
+            vec!["baseline:=linear".into()],
+            "diagnosing the gap",
+        ),
+        (
+            "recorder",
+            vec![format!("bag:={}", dir.path().join("bag").display())],
+            "recording",
+        ),
+        (
+            "monitor",
+            vec![format!(
+                "summary_json:={}",
+                dir.path().join("summary.json").display()
+            )],
+            "watching",
+        ),
+    ];
+    let mut running: Vec<NodeProcess> = nodes
+        .iter()
+        .map(|(kind, params, _)| NodeProcess::start(kind, d, params))
+        .collect();
+    for (node, (_, _, ready)) in running.iter().zip(&nodes) {
+        node.wait_for(ready, Duration::from_secs(60));
+    }
+    for node in &running {
+        node.signal("TERM");
+    }
+    for node in &mut running {
+        let status = node.wait_exit(Duration::from_secs(15));
+        assert!(
+            status.success(),
+            "{} on SIGTERM: {status}; output:\n{}",
+            node.name,
+            node.lines().join("\n")
+        );
+    }
 }

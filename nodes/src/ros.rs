@@ -418,6 +418,15 @@ fn shutdown_flag() -> &'static tokio::sync::watch::Sender<bool> {
     })
 }
 
+/// Whether SIGINT or SIGTERM has arrived, for loops that poll rather than wait.
+pub fn shutdown_requested() -> bool {
+    *shutdown_flag().borrow()
+}
+
+/// How long a node has after SIGINT/SIGTERM to stop by itself (a recorder finishing its bag)
+/// before [`run_node`] ends it; below the launcher's 10 s before SIGKILL.
+const SHUTDOWN_GRACE: std::time::Duration = std::time::Duration::from_secs(5);
+
 /// Resolves once SIGINT or SIGTERM has arrived (at once if one already has).
 pub async fn shutdown_signal() {
     let mut flag = shutdown_flag().subscribe();
@@ -439,7 +448,18 @@ where
     rt.block_on(async {
         // Listen from the start, before the node's main future runs.
         shutdown_flag();
-        main().await
+        let main = main();
+        tokio::pin!(main);
+        tokio::select! {
+            result = &mut main => result,
+            () = async {
+                shutdown_signal().await;
+                tokio::time::sleep(SHUTDOWN_GRACE).await;
+            } => Err(anyhow::anyhow!(
+                "did not stop within {} s of SIGINT/SIGTERM; ended",
+                SHUTDOWN_GRACE.as_secs()
+            )),
+        }
     })
 }
 

@@ -244,6 +244,10 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         if n >= min_subscribers {
             break;
         }
+        if crate::ros::shutdown_requested() {
+            log_line!("stopped while waiting for subscribers");
+            return Ok(());
+        }
         if Instant::now() > deadline {
             bail!(
                 "{} subscriber(s) on {} after {startup_timeout} s, {min_subscribers} expected (min_subscribers): is the harmonic node running on the same ROS_DOMAIN_ID?",
