@@ -26,6 +26,17 @@ pub struct NodeProcess {
 impl NodeProcess {
     /// `forcemap node KIND --ros-args -r __ns:=/rig -p ...` on `domain`.
     pub fn start(kind: &str, domain: u16, params: &[String]) -> NodeProcess {
+        Self::start_in(None, kind, domain, params)
+    }
+
+    /// [`NodeProcess::start`] inside the network namespace `netns` (`ip netns exec`), as on
+    /// another host.
+    pub fn start_in(
+        netns: Option<&str>,
+        kind: &str,
+        domain: u16,
+        params: &[String],
+    ) -> NodeProcess {
         let mut args = vec![
             "node".to_string(),
             kind.to_string(),
@@ -42,7 +53,15 @@ impl NodeProcess {
                 args.push(p.clone());
             }
         }
-        let mut child = Command::new(forcemap())
+        let mut command = match netns {
+            Some(ns) => {
+                let mut c = Command::new("ip");
+                c.args(["netns", "exec", ns]).arg(forcemap());
+                c
+            }
+            None => Command::new(forcemap()),
+        };
+        let mut child = command
             .args(&args)
             .env("ROS_DOMAIN_ID", domain.to_string())
             .stdout(Stdio::piped())
