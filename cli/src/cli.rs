@@ -90,6 +90,10 @@ pub struct BenchGraphArgs {
     /// 0: as fast as the graph acknowledges; 1: real time.
     #[arg(long, default_value_t = 0.0)]
     pub rate_factor: f64,
+    /// Rigs in the graph, each in its own namespace (/rig1, /rig2, ...; /rig for one) with its
+    /// own harmonic node and identifier, all fed the same run (a four-poster: 4).
+    #[arg(long, default_value_t = 1)]
+    pub rigs: usize,
     #[arg(long)]
     pub json: bool,
 }

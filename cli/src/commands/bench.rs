@@ -3,7 +3,9 @@
 //!
 //! The harmonic node and the identifier run as separate processes, as in a launch; this
 //! process plays the sensor (a simulated rig run published as fast as the graph acknowledges,
-//! or at a rate factor) and a control node (it subscribes to theta). It reports:
+//! or at a rate factor) and a control node (it subscribes to theta). With `--rigs N` there are
+//! N rigs, each in its own namespace with its own two nodes (a four-poster's corners), fed the
+//! same run interleaved sample by sample. It reports:
 //! - samples per second published with no loss (every step analysed, none dropped);
 //! - latency from the last sample of a step (when its publish returned) to the theta that
 //!   includes that step (when it arrived here), p50 and p99 over the steps;
@@ -55,7 +57,7 @@ fn proc_usage(pid: u32) -> Option<(f64, u64)> {
 }
 
 /// (seconds since the start, node, CPU seconds, RSS bytes).
-type UsageSample = (f64, &'static str, f64, u64);
+type UsageSample = (f64, String, f64, u64);
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
@@ -66,14 +68,16 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 }
 
 struct Spawned {
-    name: &'static str,
+    /// `namespace/kind`, e.g. `/rig2/harmonic`.
+    name: String,
     child: Child,
     lines: Arc<Mutex<Vec<String>>>,
 }
 
-fn spawn(kind: &'static str, domain: u16, params: &[&str]) -> anyhow::Result<Spawned> {
+fn spawn(kind: &str, namespace: &str, domain: u16, params: &[&str]) -> anyhow::Result<Spawned> {
     let exe = std::env::current_exe().context("finding the forcemap executable")?;
-    let mut args = vec!["node", kind, "--ros-args", "-r", "__ns:=/rig"];
+    let ns = format!("__ns:={namespace}");
+    let mut args = vec!["node", kind, "--ros-args", "-r", &ns];
     for p in params {
         args.push("-p");
         args.push(p);
@@ -99,7 +103,7 @@ fn spawn(kind: &'static str, domain: u16, params: &[&str]) -> anyhow::Result<Spa
         });
     }
     Ok(Spawned {
-        name: kind,
+        name: format!("{namespace}/{kind}"),
         child,
         lines,
     })
@@ -131,74 +135,118 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         steps: sine_steps(&freqs, PAPER_RIG_SINE_AMPLITUDE_M),
         ..RunSpec::paper_rig_sine(Some(40.0), 1)
     };
-    let setup = NodeSetup {
-        name: "bench_sensor".into(),
-        namespace: "/rig".into(),
-        params: Params::new(),
-        remaps: BTreeMap::new(),
+    if args.rigs == 0 {
+        bail!("--rigs must be at least 1");
+    }
+    let namespaces: Vec<String> = if args.rigs == 1 {
+        vec!["/rig".to_string()]
+    } else {
+        (1..=args.rigs).map(|k| format!("/rig{k}")).collect()
     };
+    let setups: Vec<NodeSetup> = namespaces
+        .iter()
+        .map(|ns| NodeSetup {
+            name: "bench_sensor".into(),
+            namespace: ns.clone(),
+            params: Params::new(),
+            remaps: BTreeMap::new(),
+        })
+        .collect();
     eprintln!(
         "simulating {} steps at {} Hz ...",
         args.steps, args.sample_rate_hz
     );
     let records = spec.simulate().context("simulating the rig")?;
-    let constants = constants_status(
-        SIMULATED_CONSTANTS_MESSAGE,
-        &setup.fully_qualified_name(),
-        &spec.constants(),
-    );
     let samples_per_step = records.first().map_or(0, Record::len);
 
-    let harmonic = spawn("harmonic", domain, &[])?;
-    let identifier = spawn("identifier", domain, &["model:=coulomb", "mass_kg:=36.0"])?;
-    let mut children = vec![harmonic, identifier];
+    let mut children = Vec::new();
+    for ns in &namespaces {
+        children.push(spawn("harmonic", ns, domain, &[])?);
+        children.push(spawn(
+            "identifier",
+            ns,
+            domain,
+            &["model:=coulomb", "mass_kg:=36.0"],
+        )?);
+    }
 
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()?;
     let result = rt.block_on(async {
-        let mut ros = RosNode::start(setup.clone())?;
-        let samples_pub = ros.publisher::<RigSample>(topics::SAMPLES, qos::samples())?;
-        let excitation_pub =
-            ros.publisher::<ExcitationState>(topics::EXCITATION, qos::excitation())?;
-        let parameters_pub =
-            ros.publisher::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
-        let theta_sub = ros.subscription::<IdentifiedParameters>(topics::THETA, qos::theta())?;
-        let received: Arc<Mutex<BTreeMap<u32, i64>>> = Arc::new(Mutex::new(BTreeMap::new()));
-        let rec = received.clone();
-        tokio::spawn(async move {
-            while let Ok((t, _)) = theta_sub.async_take().await {
-                let at = now_ns();
-                if let Some(last) = t.steps_used.last() {
-                    rec.lock().expect("lock").entry(*last).or_insert(at);
+        // One sensor and one theta subscriber per rig, as each corner's bench would have.
+        let mut rigs = Vec::new();
+        for setup in &setups {
+            let mut ros = RosNode::start(setup.clone())?;
+            let samples_pub = ros.publisher::<RigSample>(topics::SAMPLES, qos::samples())?;
+            let excitation_pub =
+                ros.publisher::<ExcitationState>(topics::EXCITATION, qos::excitation())?;
+            let parameters_pub =
+                ros.publisher::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
+            let theta_sub =
+                ros.subscription::<IdentifiedParameters>(topics::THETA, qos::theta())?;
+            let received: Arc<Mutex<BTreeMap<u32, i64>>> = Arc::new(Mutex::new(BTreeMap::new()));
+            let rec = received.clone();
+            tokio::spawn(async move {
+                while let Ok((t, _)) = theta_sub.async_take().await {
+                    let at = now_ns();
+                    if let Some(last) = t.steps_used.last() {
+                        rec.lock().expect("lock").entry(*last).or_insert(at);
+                    }
                 }
-            }
-        });
+            });
+            let constants = constants_status(
+                SIMULATED_CONSTANTS_MESSAGE,
+                &setup.fully_qualified_name(),
+                &spec.constants(),
+            );
+            rigs.push((
+                ros,
+                samples_pub,
+                excitation_pub,
+                parameters_pub,
+                received,
+                constants,
+            ));
+        }
         let t0 = Instant::now();
-        while samples_pub.get_subscription_count(&ros.node) < 1 {
-            if t0.elapsed() > Duration::from_secs(30) {
-                bail!("the harmonic node did not subscribe within 30 s");
+        for (ros, samples_pub, ..) in &rigs {
+            while samples_pub.get_subscription_count(&ros.node) < 1 {
+                if t0.elapsed() > Duration::from_secs(30) {
+                    bail!(
+                        "the harmonic node of {} did not subscribe within 30 s",
+                        ros.setup.namespace
+                    );
+                }
+                tokio::time::sleep(Duration::from_millis(50)).await;
             }
-            tokio::time::sleep(Duration::from_millis(50)).await;
         }
         tokio::time::sleep(Duration::from_millis(500)).await;
 
         let run_start = Time::from_nanos(now_ns());
-        let messages: Vec<RigMessage> = rig_messages(
-            &records,
-            spec.driven_channel(),
-            Some(constants),
-            run_start,
-            "rig",
-        )
-        .collect();
-        let first_stamp = messages.iter().find_map(|m| match m {
+        // Every rig plays the same run; its messages differ only by the constants' node name.
+        let messages: Vec<Vec<RigMessage>> = rigs
+            .iter()
+            .map(|r| {
+                rig_messages(
+                    &records,
+                    spec.driven_channel(),
+                    Some(r.5.clone()),
+                    run_start,
+                    "rig",
+                )
+                .collect()
+            })
+            .collect();
+        let first_stamp = messages[0].iter().find_map(|m| match m {
             RigMessage::Sample(s) => Some(s.header.stamp),
             _ => None,
         });
-        let pids: Vec<(&'static str, u32)> =
-            children.iter().map(|c| (c.name, c.child.id())).collect();
+        let pids: Vec<(String, u32)> = children
+            .iter()
+            .map(|c| (c.name.clone(), c.child.id()))
+            .collect();
         let usage: Arc<Mutex<Vec<UsageSample>>> = Arc::new(Mutex::new(Vec::new()));
         let us = usage.clone();
         let sampler_start = Instant::now();
@@ -208,7 +256,7 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
                     if let Some((cpu, rss)) = proc_usage(*pid) {
                         us.lock().expect("lock").push((
                             sampler_start.elapsed().as_secs_f64(),
-                            name,
+                            name.clone(),
                             cpu,
                             rss,
                         ));
@@ -219,49 +267,66 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         });
 
         let wall0 = Instant::now();
-        let mut last_sample_at: BTreeMap<u32, i64> = BTreeMap::new();
-        let mut published = 0usize;
-        let bar = indicatif::ProgressBar::new(
-            messages
-                .iter()
-                .filter(|m| matches!(m, RigMessage::Sample(_)))
-                .count() as u64,
-        );
-        for m in messages {
-            if args.rate_factor > 0.0
-                && let (Some(t0s), RigMessage::Sample(s)) = (first_stamp, &m)
-            {
-                let due = wall0
-                    + Duration::from_secs_f64(
-                        (s.header.stamp.secs_since(t0s) / args.rate_factor).max(0.0),
-                    );
-                let now = Instant::now();
-                if due > now {
-                    tokio::time::sleep(due - now).await;
+        // (rig, step) -> when the publish of the step's last sample returned.
+        let mut last_sample_at: BTreeMap<(usize, u32), i64> = BTreeMap::new();
+        let mut rig_published = vec![0usize; rigs.len()];
+        let per_rig_samples = messages[0]
+            .iter()
+            .filter(|m| matches!(m, RigMessage::Sample(_)))
+            .count();
+        let bar = indicatif::ProgressBar::new((per_rig_samples * rigs.len()) as u64);
+        // The rigs' messages interleaved one by one, paced by the first rig's stamps.
+        let mut streams: Vec<_> = messages.into_iter().map(Vec::into_iter).collect();
+        loop {
+            let mut any = false;
+            for (rig, stream) in streams.iter_mut().enumerate() {
+                let Some(m) = stream.next() else { continue };
+                any = true;
+                if rig == 0
+                    && args.rate_factor > 0.0
+                    && let (Some(t0s), RigMessage::Sample(s)) = (first_stamp, &m)
+                {
+                    let due = wall0
+                        + Duration::from_secs_f64(
+                            (s.header.stamp.secs_since(t0s) / args.rate_factor).max(0.0),
+                        );
+                    let now = Instant::now();
+                    if due > now {
+                        tokio::time::sleep(due - now).await;
+                    }
+                }
+                let (_, samples_pub, excitation_pub, parameters_pub, ..) = &rigs[rig];
+                match m {
+                    RigMessage::Sample(s) => {
+                        let step = s.step;
+                        publish_blocking(samples_pub, s).await?;
+                        rig_published[rig] += 1;
+                        if rig_published[rig].is_multiple_of(samples_per_step.max(1)) {
+                            last_sample_at.insert((rig, step), now_ns());
+                        }
+                    }
+                    RigMessage::Excitation(e) => publish_blocking(excitation_pub, e).await?,
+                    RigMessage::Parameters(p) => publish_blocking(parameters_pub, p).await?,
                 }
             }
-            match m {
-                RigMessage::Sample(s) => {
-                    let step = s.step;
-                    publish_blocking(&samples_pub, s).await?;
-                    published += 1;
-                    if published.is_multiple_of(samples_per_step.max(1)) {
-                        last_sample_at.insert(step, now_ns());
-                    }
-                    if published.is_multiple_of(1000) {
-                        bar.set_position(published as u64);
-                    }
-                }
-                RigMessage::Excitation(e) => publish_blocking(&excitation_pub, e).await?,
-                RigMessage::Parameters(p) => publish_blocking(&parameters_pub, p).await?,
+            let published: usize = rig_published.iter().sum();
+            if published.is_multiple_of(1000) {
+                bar.set_position(published as u64);
+            }
+            if !any {
+                break;
             }
         }
+        let published: usize = rig_published.iter().sum();
         let publish_s = wall0.elapsed().as_secs_f64();
         bar.finish_and_clear();
-        // Wait for the last theta.
+        // Wait for every rig's last theta.
         let last_step = (args.steps - 1) as u32;
         let t1 = Instant::now();
-        while !received.lock().expect("lock").contains_key(&last_step) {
+        while !rigs
+            .iter()
+            .all(|r| r.4.lock().expect("lock").contains_key(&last_step))
+        {
             if t1.elapsed() > Duration::from_secs(60) {
                 break;
             }
@@ -269,7 +334,17 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         }
         let total_s = wall0.elapsed().as_secs_f64();
         sampler.abort();
-        let received = received.lock().expect("lock").clone();
+        let received: BTreeMap<(usize, u32), i64> = rigs
+            .iter()
+            .enumerate()
+            .flat_map(|(rig, r)| {
+                r.4.lock()
+                    .expect("lock")
+                    .iter()
+                    .map(|(step, at)| ((rig, *step), *at))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
         let usage = usage.lock().expect("lock").clone();
         Ok::<_, anyhow::Error>((
             published,
@@ -302,10 +377,10 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         .filter_map(|(step, t)| received.get(step).map(|r| (r - t) as f64 / 1e6))
         .collect();
     latencies_ms.sort_by(f64::total_cmp);
-    let lossless = dropped.is_empty() && received.len() == args.steps;
+    let lossless = dropped.is_empty() && received.len() == args.steps * args.rigs;
 
     let mut per_node = Vec::new();
-    for name in ["harmonic", "identifier"] {
+    for name in children.iter().map(|c| c.name.as_str()) {
         let s: Vec<&UsageSample> = usage.iter().filter(|u| u.1 == name).collect();
         if s.len() < 2 {
             continue;
@@ -324,6 +399,7 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
     let report = json!({
         "sample_rate_hz": args.sample_rate_hz,
         "steps": args.steps,
+        "rigs": args.rigs,
         "samples": published,
         "rate_factor": args.rate_factor,
         "publish_s": publish_s,
@@ -341,9 +417,10 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         println!(
-            "{} samples at {} Hz ({} steps of {samples_per_step}) published in {publish_s:.2} s: {:.0} samples/s, {}",
+            "{} samples at {} Hz ({} rig(s), {} steps of {samples_per_step} each) published in {publish_s:.2} s: {:.0} samples/s, {}",
             published,
             args.sample_rate_hz,
+            args.rigs,
             args.steps,
             published as f64 / publish_s,
             if lossless {
@@ -352,13 +429,13 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
                 format!(
                     "LOSS: {} theta updates for {} steps, dropped: {:?}",
                     received.len(),
-                    args.steps,
+                    args.steps * args.rigs,
                     dropped
                 )
             }
         );
         println!(
-            "last sample of a step -> theta: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms over {} steps",
+            "last sample of a step -> theta: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms over {} steps of every rig",
             percentile(&latencies_ms, 50.0),
             percentile(&latencies_ms, 99.0),
             latencies_ms.last().copied().unwrap_or(f64::NAN),
@@ -366,7 +443,7 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         );
         for n in &per_node {
             println!(
-                "{:<10} CPU {:>5.1} % of a core, RSS {:.1} MiB early, {:.1} MiB at the end (max {:.1})",
+                "{:<18} CPU {:>5.1} % of a core, RSS {:.1} MiB early, {:.1} MiB at the end (max {:.1})",
                 n["node"].as_str().unwrap_or(""),
                 n["cpu_percent"].as_f64().unwrap_or(f64::NAN),
                 n["rss_early_mib"].as_f64().unwrap_or(f64::NAN),
