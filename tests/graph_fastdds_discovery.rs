@@ -239,9 +239,6 @@ fn start_nodes(d: u16, out: &Path) -> Vec<NodeProcess> {
 }
 
 #[test]
-#[ignore = "the discovery race is not fully fixed: in the clean-clone CI run of 2026-11-23, one \
-            of 3 runs with Fast DDS started before the nodes missed 11 of the identifier's \
-            endpoints (115 of 126); run it with --ignored to measure"]
 fn fast_dds_started_before_or_after_the_nodes_discovers_every_endpoint() {
     let Some(exe) = peer::fastdds_peer() else {
         return;

@@ -195,6 +195,9 @@ enum DiscoveryTimerEvent {
   ParticipantCleanup,
   TopicCleanup,
   PublishParticipantMessage,
+  // forcemap patch: announce our endpoints (SEDP) again, as new samples, once
+  // newly discovered participants have had time to process our SPDP.
+  RepublishLocalEndpoints,
   #[cfg(feature = "security")]
   CachedSecureMessageResend,
 }
@@ -216,6 +219,9 @@ pub(crate) struct Discovery {
   // announcement does not need the DomainParticipant's lock (an application
   // thread creating endpoints may hold it while waiting for the event loop).
   first_spdp_data: Option<SpdpDiscoveredParticipantData>,
+  // forcemap patch: a RepublishLocalEndpoints timer event is pending (one
+  // republication covers every participant discovered before it fires).
+  republish_scheduled: bool,
   discovery_db: Arc<RwLock<DiscoveryDB>>,
 
   // Discovery started sender confirms to application thread that we are running
@@ -307,6 +313,8 @@ impl Discovery {
   const PARTICIPANT_CLEANUP_PERIOD: StdDuration = StdDuration::from_secs(2);
   const TOPIC_CLEANUP_PERIOD: StdDuration = StdDuration::from_secs(60); // timer for cleaning up inactive topics
   const SPDP_PUBLISH_PERIOD: StdDuration = StdDuration::from_secs(10);
+  // forcemap patch: see RepublishLocalEndpoints.
+  const REPUBLISH_LOCAL_ENDPOINTS_DELAY: StdDuration = StdDuration::from_secs(1);
   const CHECK_PARTICIPANT_MESSAGES: StdDuration = StdDuration::from_secs(1);
   #[cfg(feature = "security")]
   const CACHED_SECURE_DISCOVERY_MESSAGE_RESEND_PERIOD: StdDuration = StdDuration::from_secs(1);
@@ -663,6 +671,7 @@ impl Discovery {
       poll,
       domain_participant,
       first_spdp_data: None,
+      republish_scheduled: false,
       discovery_db,
       discovery_started_sender,
       discovery_updated_sender,
@@ -906,6 +915,10 @@ impl Discovery {
                     DiscoveryTimerEvent::PublishParticipantMessage,
                   );
                 }
+                DiscoveryTimerEvent::RepublishLocalEndpoints => {
+                  self.republish_scheduled = false;
+                  self.republish_local_endpoints();
+                }
                 #[cfg(feature = "security")]
                 DiscoveryTimerEvent::CachedSecureMessageResend => {
                   self.on_secure_discovery_message_resend_triggered();
@@ -1119,6 +1132,20 @@ impl Discovery {
         );
       }
 
+      // forcemap patch (discovery race with Fast DDS): announce our endpoints
+      // again a little later, as new samples. A participant that receives our
+      // SEDP data before it has processed our SPDP (its receive threads may take
+      // them in either order) drops them; Fast DDS 2.9 then never reports those
+      // endpoints, even after it asks for the samples again and gets them. New
+      // samples, sent once it knows us, are processed like any other.
+      if guid_prefix != self.domain_participant.guid().prefix && !self.republish_scheduled {
+        self.republish_scheduled = true;
+        self.discovery_timer.borrow_mut().set_timeout(
+          Self::REPUBLISH_LOCAL_ENDPOINTS_DELAY,
+          DiscoveryTimerEvent::RepublishLocalEndpoints,
+        );
+      }
+
       // This may be a rediscovery of a previously seen participant that
       // was temporarily lost due to network outage. Process the SEDP samples
       // (topics, readers, writers) that are already pending in our discovery
@@ -1177,14 +1204,20 @@ impl Discovery {
   }
 
   fn on_participant_shutting_down(&mut self) {
-    let db = discovery_db_read(&self.discovery_db);
-
-    for reader in db.get_all_local_topic_readers() {
-      self.send_endpoint_dispose_message(reader.reader_proxy.remote_reader_guid);
-    }
-
-    for writer in db.get_all_local_topic_writers() {
-      self.send_endpoint_dispose_message(writer.writer_proxy.remote_writer_guid);
+    // forcemap patch (deadlock): the DiscoveryDB is released before publishing
+    // (see add_local_writer).
+    let endpoints: Vec<GUID> = {
+      let db = discovery_db_read(&self.discovery_db);
+      db.get_all_local_topic_readers()
+        .map(|reader| reader.reader_proxy.remote_reader_guid)
+        .chain(
+          db.get_all_local_topic_writers()
+            .map(|writer| writer.writer_proxy.remote_writer_guid),
+        )
+        .collect()
+    };
+    for guid in endpoints {
+      self.send_endpoint_dispose_message(guid);
     }
 
     self
@@ -1865,50 +1898,88 @@ impl Discovery {
     }
   }
 
+  // forcemap patch: publishes every local user endpoint to SEDP again (see
+  // RepublishLocalEndpoints). Remote participants that know them update them in
+  // place; one that had dropped them discovers them now.
+  fn republish_local_endpoints(&self) {
+    let (readers, writers) = {
+      let db = discovery_db_read(&self.discovery_db);
+      let readers: Vec<DiscoveredReaderData> = db.get_all_local_topic_readers().cloned().collect();
+      let writers: Vec<DiscoveredWriterData> = db.get_all_local_topic_writers().cloned().collect();
+      (readers, writers)
+    };
+    debug!(
+      "Republishing {} local readers and {} local writers to SEDP",
+      readers.len(),
+      writers.len()
+    );
+    for reader in &readers {
+      self.sedp_publish_single_user_reader(reader);
+    }
+    for writer in &writers {
+      self.sedp_publish_single_user_writer(writer);
+    }
+  }
+
   fn add_local_writer(&self, guid: GUID) {
-    // Get writer data from db
-    let db = discovery_db_read(&self.discovery_db);
-    let writer_data = match db.get_local_topic_writer(guid) {
-      Some(d) => d,
-      None => {
+    // forcemap patch (deadlock at node start-up): take what is needed out of the
+    // DiscoveryDB and release it before publishing and notifying. The notification
+    // channel to the DP event loop is bounded (32); when it is full, send() blocks
+    // until the event loop drains it, and the event loop reads the DiscoveryDB to
+    // process notifications. Holding our read lock while blocked deadlocks as soon
+    // as an application thread waits for the write lock (creating an endpoint):
+    // std's RwLock then blocks new readers, the event loop among them.
+    let (writer_data, existing_readers) = {
+      let db = discovery_db_read(&self.discovery_db);
+      let Some(writer_data) = db.get_local_topic_writer(guid).cloned() else {
         warn!("Did not find a local writer {guid:?}");
         return;
-      }
+      };
+      let readers: Vec<DiscoveredReaderData> = db
+        .readers_on_topic(writer_data.publication_topic_data.topic_name())
+        .into_iter()
+        .cloned()
+        .collect();
+      (writer_data, readers)
     };
 
     // Publish it to SEDP (if needed)
-    self.sedp_publish_single_user_writer(writer_data);
+    self.sedp_publish_single_user_writer(&writer_data);
 
     // Send the ReaderUpdated notification on any existing readers on the writer's
     // topic This will result in matching the endpoints if possible
-    let existing_readers = db.readers_on_topic(writer_data.publication_topic_data.topic_name());
     for reader in existing_readers {
       self.send_discovery_notification(DiscoveryNotificationType::ReaderUpdated {
-        discovered_reader_data: reader.clone(),
+        discovered_reader_data: reader,
       });
     }
   }
 
   fn add_local_reader(&self, guid: GUID) {
-    // Get reader data from db
-    let db = discovery_db_read(&self.discovery_db);
-    let reader_data = match db.get_local_topic_reader(guid) {
-      Some(d) => d,
-      None => {
+    // forcemap patch (deadlock at node start-up): as in add_local_writer, the
+    // DiscoveryDB is released before publishing and notifying.
+    let (reader_data, existing_writers) = {
+      let db = discovery_db_read(&self.discovery_db);
+      let Some(reader_data) = db.get_local_topic_reader(guid).cloned() else {
         warn!("Did not find a local reader {guid:?}");
         return;
-      }
+      };
+      let writers: Vec<DiscoveredWriterData> = db
+        .writers_on_topic(reader_data.subscription_topic_data.topic_name())
+        .into_iter()
+        .cloned()
+        .collect();
+      (reader_data, writers)
     };
 
     // Publish it to SEDP (if needed)
-    self.sedp_publish_single_user_reader(reader_data);
+    self.sedp_publish_single_user_reader(&reader_data);
 
     // Send the WriterUpdated notification on any existing writers on the readers's
     // topic This will result in matching the endpoints if possible
-    let existing_writers = db.writers_on_topic(reader_data.subscription_topic_data.topic_name());
     for writer in existing_writers {
       self.send_discovery_notification(DiscoveryNotificationType::WriterUpdated {
-        discovered_writer_data: writer.clone(),
+        discovered_writer_data: writer,
       });
     }
   }
@@ -1966,12 +2037,13 @@ impl Discovery {
   }
 
   pub fn sedp_publish_topic(&self, topic_name: &str) {
-    let db = discovery_db_read(&self.discovery_db);
+    // forcemap patch (deadlock at node start-up): the DiscoveryDB is released
+    // before publishing (see add_local_writer).
     // We might have multiple topics with the same name (but different Qos etc..),
     // and the following call gets just one of them. Should we publish all of
     // them or is this enough?
-    let topic_data = match db.get_topic(topic_name) {
-      Some(data) => data,
+    let topic_data = match discovery_db_read(&self.discovery_db).get_topic(topic_name) {
+      Some(data) => data.clone(),
       None => {
         warn!("Did not find topic data with topic name {topic_name}");
         return;
@@ -1984,7 +2056,7 @@ impl Discovery {
       return;
     }
 
-    match self.dcps_topic.writer.write(topic_data.clone(), None) {
+    match self.dcps_topic.writer.write(topic_data, None) {
       Ok(()) => {
         debug!("Published topic {topic_name} to DCPSTopic");
       }
