@@ -1,5 +1,6 @@
 //! `forcemap launch` with the shipped launch files: the simulated rig end to end (the README's
-//! main command) and a clean stop of every node on Ctrl-C.
+//! main command), a clean stop of every node on Ctrl-C, and four rigs in one graph (the
+//! four-poster launch).
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
@@ -15,9 +16,17 @@ use std::time::{Duration, Instant};
 use common::*;
 
 fn launch(domain_id: u16, args: &[String]) -> (std::process::Child, Arc<Mutex<Vec<String>>>) {
+    launch_file("rig_sim.launch.yaml", domain_id, args)
+}
+
+fn launch_file(
+    file: &str,
+    domain_id: u16,
+    args: &[String],
+) -> (std::process::Child, Arc<Mutex<Vec<String>>>) {
     let mut child = Command::new(forcemap())
         .arg("launch")
-        .arg(repo().join("launch_configs/rig_sim.launch.yaml"))
+        .arg(repo().join("launch_configs").join(file))
         .args(args)
         .env("ROS_DOMAIN_ID", domain_id.to_string())
         .stdout(Stdio::piped())
@@ -204,4 +213,72 @@ fn bad_node_settings_fail_fast_and_name_the_parameter() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("ROS_DOMAIN_ID='999'"));
+}
+
+/// The four-poster: four corners in one graph, each identified from its own rig's samples
+/// (each corner's own noise seed), none disturbed by the others; Ctrl-C then stops all 16
+/// nodes cleanly.
+#[test]
+fn four_corners_in_one_graph_are_each_identified() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let (mut child, lines) = launch_file(
+        "four_poster.launch.yaml",
+        domain(13),
+        &[format!("out:={}", out.display()), "rate_factor:=0.0".into()],
+    );
+    let corners = ["front_left", "front_right", "rear_left", "rear_right"];
+    let t0 = Instant::now();
+    while !corners
+        .iter()
+        .all(|c| out.join(c).join("summary.json").exists())
+    {
+        assert!(
+            t0.elapsed() < Duration::from_secs(180),
+            "not every corner's summary was written"
+        );
+        assert!(child.try_wait().unwrap().is_none(), "launch ended early");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let mut thetas = Vec::new();
+    for c in corners {
+        let summary: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join(c).join("summary.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(summary["steps_used"].as_array().unwrap().len(), 10, "{c}");
+        for p in summary["parameters"].as_array().unwrap() {
+            let err = p["error_percent"].as_f64().unwrap();
+            assert!(err.abs() < 1.0, "{c}: {p}");
+        }
+        thetas.push(summary_theta(&out.join(c).join("summary.json")));
+    }
+    // Each corner saw its own noise: four different thetas, not one rig's four times.
+    for i in 0..thetas.len() {
+        for j in i + 1..thetas.len() {
+            assert_ne!(thetas[i], thetas[j], "{} and {}", corners[i], corners[j]);
+        }
+    }
+    assert!(
+        Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .unwrap()
+            .success()
+    );
+    let status = child.wait().unwrap();
+    assert!(status.success(), "{status}");
+    let lines = lines.lock().unwrap().clone();
+    for c in corners {
+        for kind in ["sensor", "harmonic", "identifier", "monitor"] {
+            let label = format!("{c}/{kind}");
+            assert!(
+                lines
+                    .iter()
+                    .any(|l| l.starts_with(&format!("[launch] {label} exited (exit status: 0)"))),
+                "{label} did not exit cleanly:\n{}",
+                lines.join("\n")
+            );
+        }
+    }
 }

@@ -90,6 +90,9 @@ struct RemapEntry {
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaunchNode {
     pub name: String,
+    /// What its output lines and the launcher's messages call it: the name, or the name with
+    /// its namespace (`front_left/monitor`) where several nodes share the name.
+    pub label: String,
     pub exec: String,
     /// Arguments after `forcemap node EXEC`.
     pub args: Vec<String>,
@@ -292,6 +295,7 @@ pub fn plan(path: &Path, args: &[String]) -> anyhow::Result<Vec<LaunchNode>> {
                     ),
                 };
                 nodes.push(LaunchNode {
+                    label: fq.trim_start_matches('/').to_string(),
                     name,
                     exec: n.exec.clone(),
                     args,
@@ -308,6 +312,12 @@ pub fn plan(path: &Path, args: &[String]) -> anyhow::Result<Vec<LaunchNode>> {
     }
     if nodes.is_empty() {
         bail!("{file}: no nodes to launch");
+    }
+    // A unique name is label enough; shared names keep their namespace.
+    for i in 0..nodes.len() {
+        if nodes.iter().filter(|n| n.name == nodes[i].name).count() == 1 {
+            nodes[i].label = nodes[i].name.clone();
+        }
     }
     Ok(nodes)
 }
@@ -363,18 +373,18 @@ pub fn run(file: &Path, args: &[String], dry_run: bool) -> anyhow::Result<()> {
             .stderr(Stdio::piped())
             .stdin(Stdio::null())
             .spawn()
-            .with_context(|| format!("starting node {}", n.name))?;
+            .with_context(|| format!("starting node {}", n.label))?;
         pipes.push(forward(
-            n.name.clone(),
+            n.label.clone(),
             child.stdout.take().expect("piped"),
             false,
         ));
         pipes.push(forward(
-            n.name.clone(),
+            n.label.clone(),
             child.stderr.take().expect("piped"),
             true,
         ));
-        println!("[launch] started {} (pid {})", n.name, child.id());
+        println!("[launch] started {} (pid {})", n.label, child.id());
         children.push((n, child, None));
     }
     // Supervise until stopped, a shutdown node ends, or all have ended.
@@ -389,11 +399,11 @@ pub fn run(file: &Path, args: &[String], dry_run: bool) -> anyhow::Result<()> {
                 && let Some(s) = c.try_wait()?
             {
                 *status = Some(s);
-                println!("[launch] {} exited ({s})", n.name);
+                println!("[launch] {} exited ({s})", n.label);
                 if n.shutdown_on_exit {
-                    reason = format!("{} ended", n.name);
+                    reason = format!("{} ended", n.label);
                 } else if !s.success() {
-                    reason = format!("{} failed", n.name);
+                    reason = format!("{} failed", n.label);
                 }
             }
         }
@@ -406,7 +416,7 @@ pub fn run(file: &Path, args: &[String], dry_run: bool) -> anyhow::Result<()> {
     let running: Vec<String> = children
         .iter()
         .filter(|(_, _, s)| s.is_none())
-        .map(|(n, _, _)| n.name.clone())
+        .map(|(n, _, _)| n.label.clone())
         .collect();
     if !running.is_empty() {
         println!("[launch] {reason}: stopping {}", running.join(", "));
@@ -422,11 +432,11 @@ pub fn run(file: &Path, args: &[String], dry_run: bool) -> anyhow::Result<()> {
         while status.is_none() {
             if let Some(s) = c.try_wait()? {
                 *status = Some(s);
-                println!("[launch] {} exited ({s})", n.name);
+                println!("[launch] {} exited ({s})", n.label);
             } else if Instant::now() > grace {
                 signal(c, nix::sys::signal::Signal::SIGKILL);
                 *status = Some(c.wait()?);
-                killed.push(n.name.clone());
+                killed.push(n.label.clone());
             } else {
                 std::thread::sleep(Duration::from_millis(20));
             }
@@ -438,7 +448,7 @@ pub fn run(file: &Path, args: &[String], dry_run: bool) -> anyhow::Result<()> {
     let failed: Vec<String> = children
         .iter()
         .filter(|(_, _, s)| !s.is_some_and(|s| s.success()))
-        .map(|(n, _, s)| format!("{} ({})", n.name, s.map_or("?".into(), |s| s.to_string())))
+        .map(|(n, _, s)| format!("{} ({})", n.label, s.map_or("?".into(), |s| s.to_string())))
         .collect();
     if !killed.is_empty() {
         bail!(
@@ -503,6 +513,39 @@ mod tests {
         .map(ToString::to_string)
         .collect();
         assert_eq!(n.args, expected);
+    }
+
+    /// The shipped launch files: the main job's nodes are labelled by their names; the
+    /// four-poster's, which share names across four corners, by namespace and name.
+    #[test]
+    fn shared_node_names_are_labelled_with_their_namespace() {
+        let configs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch_configs");
+        let main_job = plan(&configs.join("rig_sim.launch.yaml"), &[]).unwrap();
+        let labels: Vec<&str> = main_job.iter().map(|n| n.label.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "recorder",
+                "harmonic",
+                "identifier",
+                "diagnoser",
+                "monitor",
+                "sensor"
+            ]
+        );
+        let four = plan(&configs.join("four_poster.launch.yaml"), &[]).unwrap();
+        assert_eq!(four.len(), 16);
+        let labels: std::collections::BTreeSet<&str> =
+            four.iter().map(|n| n.label.as_str()).collect();
+        assert_eq!(labels.len(), 16, "{labels:?}");
+        for corner in ["front_left", "front_right", "rear_left", "rear_right"] {
+            for kind in ["sensor", "harmonic", "identifier", "monitor"] {
+                assert!(
+                    labels.contains(format!("{corner}/{kind}").as_str()),
+                    "{labels:?}"
+                );
+            }
+        }
     }
 
     #[test]
