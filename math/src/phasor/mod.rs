@@ -72,10 +72,12 @@ mod fit;
 pub mod multisine;
 mod periods;
 mod stream;
+pub mod sweep;
 mod types;
 
 pub use multisine::{MultisineAnalysis, MultisineError, MultisineOptions, analyse_multisine};
 pub use stream::PhasorStream;
+pub use sweep::{SweepKind, SweepLaw, SweepOptions, analyse_sweep};
 pub use types::{
     ChannelPhasors, HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorError, PhasorOptions,
 };
