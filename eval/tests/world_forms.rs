@@ -153,12 +153,14 @@ fn drift_without_fade_is_the_plain_damper_and_series_compliance_is_the_oil_dampe
     let drift = rig_record(&world(vec![Term::Drift {
         damping_n_s_per_m: 184.0,
         fade_per_j: 0.0,
+        energy_at_start_j: 0.0,
     }]));
     assert!(max_abs_diff(&plain, &drift) < 1e-9);
     // With fade, the damping falls over the record and the response differs.
     let fading = rig_record(&world(vec![Term::Drift {
         damping_n_s_per_m: 184.0,
         fade_per_j: 0.02,
+        energy_at_start_j: 0.0,
     }]));
     assert!(max_abs_diff(&plain, &fading) > 1e-2);
     // The series spring with the damper against the independent oil damper of the exact forms.
@@ -184,6 +186,7 @@ fn drift_rates_follow_the_fading_damper() {
     let w = world(vec![Term::Drift {
         damping_n_s_per_m: 184.0,
         fade_per_j: 0.01,
+        energy_at_start_j: 0.0,
     }]);
     let mut dz = [0.0];
     w.internal_rates(0.0, 0.1, &[20.0], &mut dz);
@@ -326,4 +329,42 @@ fn the_wide_draws_are_seeded_and_cover_every_family() {
         generate_cases(200, 1, 30.0)[73].planted,
         Planted::One { .. }
     ));
+}
+
+#[test]
+fn a_drift_replay_starts_with_the_energy_dissipated_before_it() {
+    // E' = c0 (1 - fade E) v^2 integrated at constant v for 60 s against the closed form the
+    // replay of a later record starts from.
+    let drift = Term::Drift {
+        damping_n_s_per_m: 184.0,
+        fade_per_j: 0.002,
+        energy_at_start_j: 0.0,
+    };
+    let w = world(vec![drift]);
+    let (v, dt) = (0.08, 1e-3);
+    let mut e = [0.0];
+    let mut de = [0.0];
+    for _ in 0..60_000 {
+        w.internal_rates(0.0, v, &e, &mut de);
+        e[0] += dt * de[0];
+    }
+    let Term::Drift {
+        energy_at_start_j, ..
+    } = drift.at_dissipation(v * v * 60.0)
+    else {
+        panic!("a drift stays a drift")
+    };
+    assert!(
+        (energy_at_start_j - e[0]).abs() < 1e-3 * e[0],
+        "{energy_at_start_j} vs {}",
+        e[0]
+    );
+    // The replay from there continues the fading: its force is that of the run at 60 s.
+    let later = world(vec![drift.at_dissipation(v * v * 60.0)]);
+    let (a, b) = (
+        later.smooth_force(0.0, v, &[0.0]),
+        w.smooth_force(0.0, v, &e),
+    );
+    assert!((a - b).abs() < 1e-3 * b.abs());
+    assert!(e[0] > 50.0 && e[0] < 70.0 / 0.9, "{}", e[0]);
 }

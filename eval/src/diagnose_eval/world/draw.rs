@@ -211,6 +211,7 @@ pub fn draw<R: Rng>(name: &str, rng: &mut R) -> Option<WorldEffect> {
             Term::Drift {
                 damping_n_s_per_m: super::RIG_C,
                 fade_per_j: uniform(rng, 0.05, 0.4) / RUN_DISSIPATION_J,
+                energy_at_start_j: 0.0,
             },
         ),
         "cogging" => one(

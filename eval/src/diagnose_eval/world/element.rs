@@ -52,10 +52,12 @@ pub enum Term {
         stiffness_n_per_m: f64,
     },
     /// The base damping fades with the energy it dissipated: `c = c0 (1 - fade E)`, `E' = c v^2`
-    /// (one state, J); adds `-c0 fade E v` to the base `c0 v`.
+    /// (one state, J, counted from `energy_at_start_j`: a replay of a later record starts with
+    /// what the run dissipated before it); adds `-c0 fade E v` to the base `c0 v`.
     Drift {
         damping_n_s_per_m: f64,
         fade_per_j: f64,
+        energy_at_start_j: f64,
     },
     /// Position-periodic cogging `amplitude sin(2 pi x / pitch + phase)`.
     Cogging {
@@ -73,6 +75,29 @@ pub enum Term {
 pub const ELASTOMER_TAUS_S: [f64; 4] = [0.01, 0.04, 0.16, 0.64];
 
 impl Term {
+    /// The term as a replay starting after the run accumulated `v2_integral` (the integral of
+    /// the squared relative velocity [m^2/s]) sees it: a drift starts with the energy its
+    /// damper dissipated by then, `E = (1 - exp(-fade c0 I)) / fade` (from
+    /// `E' = c0 (1 - fade E) v^2`); every other term is unchanged.
+    pub fn at_dissipation(&self, v2_integral: f64) -> Term {
+        match *self {
+            Term::Drift {
+                damping_n_s_per_m,
+                fade_per_j,
+                ..
+            } => Term::Drift {
+                damping_n_s_per_m,
+                fade_per_j,
+                energy_at_start_j: if fade_per_j > 0.0 {
+                    -(-fade_per_j * damping_n_s_per_m * v2_integral).exp_m1() / fade_per_j
+                } else {
+                    damping_n_s_per_m * v2_integral
+                },
+            },
+            t => t,
+        }
+    }
+
     fn states(&self) -> usize {
         match self {
             Term::BoucWen { .. } | Term::SeriesCompliance { .. } | Term::Drift { .. } => 1,
@@ -132,7 +157,8 @@ impl Term {
             Term::Drift {
                 damping_n_s_per_m,
                 fade_per_j,
-            } => -damping_n_s_per_m * (fade_per_j * z[0]).min(1.0) * v,
+                energy_at_start_j,
+            } => -damping_n_s_per_m * (fade_per_j * (energy_at_start_j + z[0])).min(1.0) * v,
             Term::Cogging {
                 amplitude_n,
                 pitch_m,
@@ -155,7 +181,11 @@ impl Term {
             Term::Drift {
                 damping_n_s_per_m,
                 fade_per_j,
-            } => dz[0] = damping_n_s_per_m * (1.0 - fade_per_j * z[0]).max(0.0) * v * v,
+                energy_at_start_j,
+            } => {
+                let fade = fade_per_j * (energy_at_start_j + z[0]);
+                dz[0] = damping_n_s_per_m * (1.0 - fade).max(0.0) * v * v;
+            }
             Term::Elastomer {
                 stiffness_n_per_m,
                 order,

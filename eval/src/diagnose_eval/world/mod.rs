@@ -15,6 +15,7 @@ use forcemap_math::diagnose::effects::Transform;
 use forcemap_math::diagnose::score::predict_record;
 use forcemap_math::pipeline::nmse_percent;
 use forcemap_math::record::{Channel, Excitation, Record};
+use forcemap_math::signal::differentiate::central_difference_at_rate;
 use forcemap_math::sim::excitation::derive_seed;
 use forcemap_math::sim::noise::add_noise;
 use forcemap_math::sim::rig::PAPER_RIG_MASS_KG;
@@ -121,12 +122,31 @@ pub fn simulate(world: &World, snr_db: f64, seed: u64) -> Result<WorldRun, SimEr
     add_noise(&mut records, Some(snr_db), derive_seed(seed, 1));
     let mut sum = 0.0;
     let mut n = 0usize;
+    // The run's integral of the squared relative velocity before each record [m^2/s].
+    let mut v2_integral = 0.0;
     for ((noisy, clean), physical) in records.iter().zip(&clean).zip(&physical) {
-        if !matches!(noisy.excitation, Excitation::Random { .. }) {
-            continue;
+        let fs = physical.sample_rate_hz;
+        let v = physical
+            .channel(Channel::RelativeDisplacementM)
+            .map(|x| central_difference_at_rate(x, fs))
+            .unwrap_or_default();
+        if matches!(noisy.excitation, Excitation::Random { .. }) {
+            let at_start = World {
+                element: WorldElement {
+                    base: world.element.base.clone(),
+                    terms: world
+                        .element
+                        .terms
+                        .iter()
+                        .map(|t| t.at_dissipation(v2_integral))
+                        .collect(),
+                },
+                ..world.clone()
+            };
+            sum += truth_nmse_percent(&at_start, noisy, clean, physical)?;
+            n += 1;
         }
-        sum += truth_nmse_percent(world, noisy, clean, physical)?;
-        n += 1;
+        v2_integral += v.iter().map(|v| v * v).sum::<f64>() / fs;
     }
     Ok(WorldRun {
         records,
