@@ -436,7 +436,11 @@ fn eval_forms_exact_is_the_default_and_wide_plants_world_effects() {
         let kind = c["case"]["planted"]["kind"].as_str().unwrap();
         assert!(["none", "wide", "wide_pair"].contains(&kind), "{kind}");
     }
-    for k in ["pairs_both_top_two", "shrink_within_20_percent", "confusion"] {
+    for k in [
+        "pairs_both_top_two",
+        "shrink_within_20_percent",
+        "confusion",
+    ] {
         assert!(!v["summary"][k].is_null(), "missing {k}");
     }
 }

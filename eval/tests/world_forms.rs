@@ -368,3 +368,40 @@ fn a_drift_replay_starts_with_the_energy_dissipated_before_it() {
     assert!((a - b).abs() < 1e-3 * b.abs());
     assert!(e[0] > 50.0 && e[0] < 70.0 / 0.9, "{}", e[0]);
 }
+
+#[test]
+fn the_elastomer_branches_are_maxwell_elements() {
+    // Each branch f' = k v - f / tau under v = cos(w t): steady amplitude k tau / sqrt(1 + (w
+    // tau)^2), against the sum of the four integrated states.
+    let (stiffness, order) = (2000.0, 0.4);
+    let w = world(vec![Term::Elastomer {
+        stiffness_n_per_m: stiffness,
+        order,
+    }]);
+    let omega = TAU * 2.5;
+    let dt = 1e-4;
+    let mut z = [0.0; 4];
+    let mut dz = [0.0; 4];
+    let mut peak: f64 = 0.0;
+    for i in 0..200_000 {
+        let t = i as f64 * dt;
+        w.internal_rates(0.0, (omega * t).cos(), &z, &mut dz);
+        for (zi, di) in z.iter_mut().zip(&dz) {
+            *zi += dt * di;
+        }
+        if t > 15.0 {
+            let f = w.smooth_force(0.0, 0.0, &z) - w.base.smooth_force(0.0, 0.0, &[]);
+            peak = peak.max(f.abs());
+        }
+    }
+    let (mut re, mut im) = (0.0, 0.0);
+    for tau in forcemap_eval::diagnose_eval::world::element::ELASTOMER_TAUS_S {
+        let k = stiffness * (tau / 0.04f64).powf(-order);
+        // f / v = k tau / (1 + i w tau).
+        let d = 1.0 + (omega * tau).powi(2);
+        re += k * tau / d;
+        im -= k * tau * omega * tau / d;
+    }
+    let want = re.hypot(im);
+    assert!((peak - want).abs() < 2e-3 * want, "{peak} vs {want}");
+}

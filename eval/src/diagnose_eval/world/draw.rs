@@ -202,7 +202,7 @@ pub fn draw<R: Rng>(name: &str, rng: &mut R) -> Option<WorldEffect> {
             NewName,
             Term::SeriesCompliance {
                 damping_n_s_per_m: super::RIG_C,
-                stiffness_n_per_m: log_uniform(rng, 2000.0, 30000.0),
+                stiffness_n_per_m: log_uniform(rng, 1000.0, 12000.0),
             },
         ),
         "drift" => one(

@@ -192,7 +192,8 @@ impl Term {
             } => {
                 for (i, tau) in ELASTOMER_TAUS_S.iter().enumerate() {
                     let k = stiffness_n_per_m * (tau / 0.04).powf(-order);
-                    dz[i] = k * (v - z[i] / tau);
+                    // A spring k in series with a dashpot k tau: f' = k v - f / tau.
+                    dz[i] = k * v - z[i] / tau;
                 }
             }
             _ => {}
