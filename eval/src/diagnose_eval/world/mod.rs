@@ -122,31 +122,52 @@ pub fn simulate(world: &World, snr_db: f64, seed: u64) -> Result<WorldRun, SimEr
     add_noise(&mut records, Some(snr_db), derive_seed(seed, 1));
     let mut sum = 0.0;
     let mut n = 0usize;
-    // The run's integral of the squared relative velocity before each record [m^2/s].
+    // The run's integral of the squared relative velocity before each record [m^2/s], and
+    // each record's squared relative velocity over time.
+    let mut v2_before = Vec::with_capacity(physical.len());
+    let mut v2_record: Vec<Vec<f64>> = Vec::with_capacity(physical.len());
     let mut v2_integral = 0.0;
-    for ((noisy, clean), physical) in records.iter().zip(&clean).zip(&physical) {
-        let fs = physical.sample_rate_hz;
-        let v = physical
+    for p in &physical {
+        let fs = p.sample_rate_hz;
+        let v2: Vec<f64> = p
             .channel(Channel::RelativeDisplacementM)
             .map(|x| central_difference_at_rate(x, fs))
-            .unwrap_or_default();
-        if matches!(noisy.excitation, Excitation::Random { .. }) {
-            let at_start = World {
-                element: WorldElement {
-                    base: world.element.base.clone(),
-                    terms: world
-                        .element
-                        .terms
-                        .iter()
-                        .map(|t| t.at_dissipation(v2_integral))
-                        .collect(),
-                },
-                ..world.clone()
-            };
-            sum += truth_nmse_percent(&at_start, noisy, clean, physical)?;
-            n += 1;
+            .unwrap_or_default()
+            .iter()
+            .map(|v| v * v / fs)
+            .collect();
+        v2_before.push(v2_integral);
+        v2_integral += v2.iter().sum::<f64>();
+        v2_record.push(v2);
+    }
+    for j in 0..records.len() {
+        if !matches!(records[j].excitation, Excitation::Random { .. }) {
+            continue;
         }
-        v2_integral += v.iter().map(|v| v * v).sum::<f64>() / fs;
+        let now = [&records[j], &clean[j], &physical[j]];
+        let (before, preroll, v2_at_start) = match j.checked_sub(1) {
+            Some(i) => {
+                let p = PREROLL_SAMPLES.min(records[i].len());
+                let skipped = records[i].len() - p;
+                let at = v2_before[i] + v2_record[i][..skipped].iter().sum::<f64>();
+                (Some([&records[i], &clean[i], &physical[i]]), p, at)
+            }
+            None => (None, 0, v2_before[j]),
+        };
+        let at_start = World {
+            element: WorldElement {
+                base: world.element.base.clone(),
+                terms: world
+                    .element
+                    .terms
+                    .iter()
+                    .map(|t| t.at_dissipation(v2_at_start))
+                    .collect(),
+            },
+            ..world.clone()
+        };
+        sum += truth_nmse_percent(&at_start, now, before, preroll)?;
+        n += 1;
     }
     Ok(WorldRun {
         records,
@@ -154,31 +175,60 @@ pub fn simulate(world: &World, snr_db: f64, seed: u64) -> Result<WorldRun, SimEr
     })
 }
 
-/// The true model's held-out NMSE on one record: the world element replayed on the base the
-/// rig received plus the noise of the measured base (the relative displacement, which gives
-/// the initial state, likewise), the predicted mass acceleration through the world's sensor
-/// dynamics on that channel.
+/// Samples of the preceding record the true model's replay starts from, so that the world's
+/// internal states (hysteresis, series spring, elastomer branches) have settled when the scored
+/// record begins (the record's own samples alone would start them from rest).
+const PREROLL_SAMPLES: usize = 300;
+
+/// The true model's held-out NMSE on one record (`now`: noisy, clean and physical): the world
+/// element replayed on the base the rig received plus the noise of the measured base (the
+/// relative displacement, which gives the initial state, likewise), from `preroll` samples
+/// before the record (the tail of `before`), the predicted mass acceleration through the
+/// world's sensor dynamics on that channel, scored over the record's samples.
 fn truth_nmse_percent(
     world: &World,
-    noisy: &Record,
-    clean: &Record,
-    physical: &Record,
+    now: [&Record; 3],
+    before: Option<[&Record; 3]>,
+    preroll: usize,
 ) -> Result<f64, SimError> {
-    let mut replay = noisy.clone();
-    for c in [Channel::BaseDisplacementM, Channel::RelativeDisplacementM] {
-        let missing = || SimError::InvalidSpec(format!("world record lacks {}", c.name()));
-        let (Some(n), Some(m), Some(p)) = (noisy.channel(c), clean.channel(c), physical.channel(c))
+    let missing = |c: Channel| SimError::InvalidSpec(format!("world record lacks {}", c.name()));
+    let received = |r: [&Record; 3], c: Channel, from: usize| -> Result<Vec<f64>, SimError> {
+        let (Some(n), Some(m), Some(p)) = (r[0].channel(c), r[1].channel(c), r[2].channel(c))
         else {
-            return Err(missing());
+            return Err(missing(c));
         };
-        let received: Vec<f64> = n
+        Ok(n[from..]
             .iter()
-            .zip(m)
-            .zip(p)
+            .zip(&m[from..])
+            .zip(&p[from..])
             .map(|((n, m), p)| p + (n - m))
-            .collect();
-        *replay.channel_mut(c).ok_or_else(missing)? = received;
+            .collect())
+    };
+    let measured = |r: &Record, from: usize| -> Result<Vec<f64>, SimError> {
+        r.channel(Channel::MassAccelerationMps2)
+            .map(|a| a[from..].to_vec())
+            .ok_or_else(|| missing(Channel::MassAccelerationMps2))
+    };
+    let mut channels = Vec::new();
+    for c in [Channel::BaseDisplacementM, Channel::RelativeDisplacementM] {
+        let mut v = match before {
+            Some(b) => received(b, c, b[0].len() - preroll)?,
+            None => Vec::new(),
+        };
+        v.extend(received(now, c, 0)?);
+        channels.push((c, v));
     }
+    let mut acc = match before {
+        Some(b) => measured(b[0], b[0].len() - preroll)?,
+        None => Vec::new(),
+    };
+    let scored = measured(now[0], 0)?;
+    acc.extend(&scored);
+    channels.push((Channel::MassAccelerationMps2, acc));
+    let replay = Record {
+        channels,
+        ..now[0].clone()
+    };
     let held = predict_record(
         &world.element,
         PAPER_RIG_MASS_KG,
@@ -188,8 +238,8 @@ fn truth_nmse_percent(
     let mut predicted = held.predicted_mps2;
     for s in &world.sensors {
         if s.applies_to(Channel::MassAccelerationMps2) {
-            predicted = s.filter(&predicted, noisy.sample_rate_hz);
+            predicted = s.filter(&predicted, now[0].sample_rate_hz);
         }
     }
-    Ok(nmse_percent(&held.measured_mps2, &predicted))
+    Ok(nmse_percent(&scored, &predicted[preroll..]))
 }
