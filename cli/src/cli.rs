@@ -413,4 +413,17 @@ pub struct DiagnoseEvalArgs {
     /// One JSON object (summary and cases) instead of tables.
     #[arg(long)]
     pub json: bool,
+    /// The forms of the planted effects: `exact` plants each in its candidate's form; `wide`
+    /// draws each from a wider family in a world simulator of its own, adds new-name and
+    /// out-of-library effects, and reports each group separately (its SNRs are fixed, 20, 30
+    /// and 40 dB: `--snr-db` is not used).
+    #[arg(long, value_enum, default_value_t = EvalForms::Exact)]
+    pub forms: EvalForms,
+}
+
+/// The forms `diagnose-eval` plants its effects in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EvalForms {
+    Exact,
+    Wide,
 }

@@ -403,3 +403,44 @@ fn an_axis_record_is_diagnosed_in_the_time_domain_whatever_holds_it() {
         String::from_utf8_lossy(&o.stderr)
     );
 }
+
+/// `--forms exact` is the default (its output is the published one); `--forms wide` plants
+/// world effects and scores them with the same summary.
+#[test]
+fn eval_forms_exact_is_the_default_and_wide_plants_world_effects() {
+    let default = forcemap(&["diagnose-eval", "--cases", "2", "--seed", "5"]);
+    let exact = forcemap(&[
+        "diagnose-eval",
+        "--cases",
+        "2",
+        "--seed",
+        "5",
+        "--forms",
+        "exact",
+    ]);
+    assert_eq!(default.status.code(), Some(0));
+    assert_eq!(default.stdout, exact.stdout);
+    let v = json(&[
+        "diagnose-eval",
+        "--forms",
+        "wide",
+        "--cases",
+        "2",
+        "--seed",
+        "3",
+        "--json",
+    ]);
+    let cases = v["cases"].as_array().unwrap();
+    assert_eq!(cases.len(), 2);
+    for c in cases {
+        let kind = c["case"]["planted"]["kind"].as_str().unwrap();
+        assert!(["none", "wide", "wide_pair"].contains(&kind), "{kind}");
+    }
+    for k in [
+        "pairs_both_top_two",
+        "shrink_within_20_percent",
+        "confusion",
+    ] {
+        assert!(!v["summary"][k].is_null(), "missing {k}");
+    }
+}

@@ -3,7 +3,7 @@
 
 use forcemap_eval::diagnose_eval::{self as eval, CaseResult, EvalSummary};
 
-use crate::cli::DiagnoseEvalArgs;
+use crate::cli::{DiagnoseEvalArgs, EvalForms};
 
 pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
     if args.cases == 0 {
@@ -12,7 +12,10 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
     if !args.snr_db.is_finite() {
         anyhow::bail!("--snr-db = {}: not a finite number", args.snr_db);
     }
-    let mut cases = eval::generate_cases(args.cases, args.seed, args.snr_db);
+    let mut cases = match args.forms {
+        EvalForms::Exact => eval::generate_cases(args.cases, args.seed, args.snr_db),
+        EvalForms::Wide => eval::generate_wide_cases(args.cases, args.seed),
+    };
     if let Some(i) = args.only.iter().find(|i| **i >= args.cases) {
         anyhow::bail!(
             "--only {i}: there are only {} cases (indices 0..{}); raise --cases",
@@ -50,6 +53,8 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
                 Err(e) => println!("failed: {e}"),
             }
         }
+    } else if args.forms == EvalForms::Wide {
+        print_wide(args, &results);
     } else {
         print_summary(args, &summary, &results);
     }
@@ -103,6 +108,28 @@ fn print_summary(args: &DiagnoseEvalArgs, s: &EvalSummary, results: &[Result<Cas
         "shrink, explained single effects: mean |predicted - true| {:.2} %-points (mean true shrink {:.2} %-points)",
         s.shrink_mean_abs_error_percent, s.shrink_mean_true_percent
     );
+    print_confusion(s);
+    println!("confusable pairs (single effects, every SNR; planted as the one, named the other):");
+    for p in &s.confusable_pairs {
+        println!(
+            "  {} / {}: {} cases, {} named {}, {} named {}",
+            p.effects[0].name(),
+            p.effects[1].name(),
+            p.cases,
+            p.first_named_second,
+            p.effects[1].name(),
+            p.second_named_first,
+            p.effects[0].name()
+        );
+    }
+    for e in &s.failed {
+        println!("failed: {e}");
+    }
+    let _ = results;
+}
+
+/// The confusion matrix (rows: planted; columns: named), with its column key.
+fn print_confusion(s: &EvalSummary) {
     let mut columns: Vec<String> = s
         .confusion
         .values()
@@ -134,23 +161,89 @@ fn print_summary(args: &DiagnoseEvalArgs, s: &EvalSummary, results: &[Result<Cas
             .collect::<Vec<_>>()
             .join(", ")
     );
-    println!("confusable pairs (single effects, every SNR; planted as the one, named the other):");
-    for p in &s.confusable_pairs {
-        println!(
-            "  {} / {}: {} cases, {} named {}, {} named {}",
-            p.effects[0].name(),
-            p.effects[1].name(),
-            p.cases,
-            p.first_named_second,
-            p.effects[1].name(),
-            p.second_named_first,
-            p.effects[0].name()
-        );
+}
+
+/// The wide forms' report: each group scored separately by the one summariser.
+fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
+    let ok: Vec<&CaseResult> = results.iter().filter_map(|r| r.as_ref().ok()).collect();
+    println!(
+        "forcemap diagnose-eval --forms wide --cases {} --seed {}: {} cases ({} failed)",
+        args.cases,
+        args.seed,
+        results.len(),
+        results.iter().filter(|r| r.is_err()).count()
+    );
+    let pct = |r: &eval::Rate| format!("{:.1} % ({}/{})", r.percent, r.hits, r.of);
+    let mut groups: Vec<String> = eval::WIDE_SNRS_DB
+        .iter()
+        .map(|snr| format!("single effects at {snr} dB"))
+        .collect();
+    groups.extend(["pairs", "out of library", "new names", "no effect"].map(String::from));
+    for g in &groups {
+        let subset: Vec<Result<CaseResult, String>> = ok
+            .iter()
+            .filter(|r| eval::wide_group(&r.case) == *g)
+            .map(|r| Ok((*r).clone()))
+            .collect();
+        let snr = subset
+            .first()
+            .and_then(|r| r.as_ref().ok())
+            .map_or(eval::WIDE_SNRS_DB[1], |r| r.case.snr_db);
+        let s = eval::summarise(&subset, snr);
+        println!();
+        println!("== {g}: {} cases", subset.len());
+        match g.as_str() {
+            "pairs" => {
+                println!("top effect one of the two: {}", pct(&s.pairs_one_named));
+                println!(
+                    "both among the two best-ranked: {}  (target >= 80 %)",
+                    pct(&s.pairs_both_top_two)
+                );
+                for r in subset.iter().filter_map(|r| r.as_ref().ok()) {
+                    let top: Vec<&str> = r.ranked.iter().take(2).map(|x| x.0.as_str()).collect();
+                    println!(
+                        "  {:<40} -> {:<20} ranked {}",
+                        r.label,
+                        r.named,
+                        top.join(", ")
+                    );
+                }
+                continue;
+            }
+            "out of library" => println!(
+                "given a library name: {}  (target <= 10 %)",
+                pct(&s.out_of_library_named)
+            ),
+            "no effect" => println!("false alarms: {}  (target <= 5 %)", pct(&s.false_alarms)),
+            _ => {
+                println!(
+                    "top-1, effects causing >= 2 % held-out NMSE alone: {}{}",
+                    pct(&s.top1),
+                    if g.ends_with("30 dB") {
+                        "  (target >= 95 %)"
+                    } else {
+                        ""
+                    }
+                );
+                println!(
+                    "below 2 %: named right {}, adequate {}, other answer {}",
+                    pct(&s.below_threshold_named_right),
+                    pct(&s.below_threshold_adequate),
+                    pct(&s.below_threshold_wrong)
+                );
+                println!(
+                    "shrink, explained (>= 2 %): within 20 % of the true model's {}  (mean |predicted - true| {:.2} %-points, mean true {:.2} %-points)",
+                    pct(&s.shrink_within_20_percent),
+                    s.shrink_mean_abs_error_percent,
+                    s.shrink_mean_true_percent
+                );
+            }
+        }
+        print_confusion(&s);
     }
-    for e in &s.failed {
-        println!("failed: {e}");
+    for r in results.iter().filter_map(|r| r.as_ref().err()) {
+        println!("failed: {r}");
     }
-    let _ = results;
 }
 
 /// One case in full: what was planted, what was named, and every candidate's figures.

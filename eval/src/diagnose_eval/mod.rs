@@ -10,6 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 mod summary;
+pub mod world;
 
 pub use summary::{
     CONFUSABLE_PAIRS, ConfusablePair, EvalSummary, QUALIFYING_GAP_PERCENT, Rate, summarise,
@@ -47,6 +48,15 @@ pub enum Planted {
     CompressibleOil {
         oil_stiffness_n_per_m: f64,
     },
+    /// `--forms wide`: one effect in a form drawn wider than its candidate's (or a new-name or
+    /// out-of-library effect), simulated by [`world`].
+    Wide {
+        effect: world::WorldEffect,
+    },
+    /// `--forms wide`: two library effects in wide forms.
+    WidePair {
+        effects: [world::WorldEffect; 2],
+    },
 }
 
 impl Planted {
@@ -56,6 +66,47 @@ impl Planted {
             Planted::One { effect, .. } => effect.name().into(),
             Planted::Two { effects } => format!("{}+{}", effects[0].name(), effects[1].name()),
             Planted::CompressibleOil { .. } => "out_of_library".into(),
+            Planted::Wide { effect } => match effect.kind {
+                world::WorldKind::OutOfLibrary => format!("out_of_library:{}", effect.name),
+                _ => effect.name.into(),
+            },
+            Planted::WidePair { effects } => format!("{}+{}", effects[0].name, effects[1].name),
+        }
+    }
+
+    /// One effect with a name the diagnosis should give (a library effect, or a new name).
+    pub fn is_single(&self) -> bool {
+        match self {
+            Planted::One { .. } => true,
+            Planted::Wide { effect } => effect.kind != world::WorldKind::OutOfLibrary,
+            _ => false,
+        }
+    }
+
+    /// Out of the library: any library name is wrong.
+    pub fn is_out_of_library(&self) -> bool {
+        match self {
+            Planted::CompressibleOil { .. } => true,
+            Planted::Wide { effect } => effect.kind == world::WorldKind::OutOfLibrary,
+            _ => false,
+        }
+    }
+
+    /// The names of a planted pair.
+    pub fn pair_names(&self) -> Option<[&'static str; 2]> {
+        match self {
+            Planted::Two { effects } => Some(effects.map(Effect::name)),
+            Planted::WidePair { effects } => Some(effects.map(|e| e.name)),
+            _ => None,
+        }
+    }
+
+    /// The wide forms' world effects (empty for the exact forms).
+    pub fn world_effects(&self) -> Vec<world::WorldEffect> {
+        match self {
+            Planted::Wide { effect } => vec![*effect],
+            Planted::WidePair { effects } => effects.to_vec(),
+            _ => Vec::new(),
         }
     }
 }
@@ -192,6 +243,8 @@ pub fn truth_of(planted: &Planted) -> Truth {
         Planted::CompressibleOil {
             oil_stiffness_n_per_m,
         } => t.oil_stiffness_n_per_m = Some(*oil_stiffness_n_per_m),
+        // The wide forms' truth is their world (`world::World::of`), not a `TruthElement`.
+        Planted::Wide { .. } | Planted::WidePair { .. } => {}
     }
     t
 }
@@ -237,6 +290,11 @@ fn truth_element(t: &Truth) -> Box<dyn Element> {
 
 /// Simulates a case: the paper's stepped sine and its two band-random records, with noise.
 pub fn simulate_case(case: &CaseSpec) -> Result<(Truth, Vec<Record>), SimError> {
+    if !case.planted.world_effects().is_empty() {
+        return Err(SimError::InvalidSpec(
+            "the wide forms are simulated by their world (world::simulate)".into(),
+        ));
+    }
     let truth = truth_of(&case.planted);
     let run = RunSpec::paper_rig(Some(case.snr_db), case.seed)
         .with_element(truth.element.clone())
@@ -271,18 +329,14 @@ pub struct CaseResult {
 
 /// Runs the diagnosis on one case.
 pub fn run_case(case: &CaseSpec) -> Result<CaseResult, DiagnoseError> {
-    let (truth, records) =
-        simulate_case(case).map_err(|source| DiagnoseError::Simulation { step: 0, source })?;
-    let baseline = Model::by_name(truth.baseline, &ModelOptions::default())
-        .expect("eval baselines are known models");
-    let setup = Setup::BaseExcited {
-        mass_kg: PAPER_RIG_MASS_KG,
-    };
-    let options = DiagnoseOptions {
-        pairs: false,
-        ..DiagnoseOptions::default()
-    };
-    let d = diagnose(&setup, &baseline, &records, &[], &options)?.diagnosis;
+    let sim_error = |source| DiagnoseError::Simulation { step: 0, source };
+    let effects = case.planted.world_effects();
+    if !effects.is_empty() {
+        let w = world::World::of(&effects);
+        let run = world::simulate(&w, case.snr_db, case.seed).map_err(sim_error)?;
+        return diagnose_case(case, &run.records, w.baseline, run.truth_nmse_percent);
+    }
+    let (truth, records) = simulate_case(case).map_err(sim_error)?;
     let element = truth_element(&truth);
     let transform = Transform {
         delay_s: truth.effects.exciter_delay_s,
@@ -303,6 +357,26 @@ pub fn run_case(case: &CaseSpec) -> Result<CaseResult, DiagnoseError> {
             .nmse_percent;
     }
     truth_nmse /= random.len().max(1) as f64;
+    diagnose_case(case, &records, truth.baseline, truth_nmse)
+}
+
+/// The diagnosis of a case's records against `baseline`, with the true model's held-out NMSE.
+fn diagnose_case(
+    case: &CaseSpec,
+    records: &[Record],
+    baseline: &str,
+    truth_nmse: f64,
+) -> Result<CaseResult, DiagnoseError> {
+    let baseline = Model::by_name(baseline, &ModelOptions::default())
+        .expect("eval baselines are known models");
+    let setup = Setup::BaseExcited {
+        mass_kg: PAPER_RIG_MASS_KG,
+    };
+    let options = DiagnoseOptions {
+        pairs: false,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&setup, &baseline, records, &[], &options)?.diagnosis;
     let f = &d.findings;
     let named = match (f.verdict, f.top_effect) {
         (Verdict::Explained, Some(e)) => e.name().to_string(),
@@ -377,6 +451,73 @@ pub fn generate_cases(n: usize, seed: u64, snr_db: f64) -> Vec<CaseSpec> {
             }
         })
         .collect()
+}
+
+/// The SNRs [dB] of the wide forms' single effects (every other group is at the middle one).
+pub const WIDE_SNRS_DB: [f64; 3] = [20.0, 30.0, 40.0];
+
+/// Seeded cases of the wide forms: 10 % without an effect, 50 % one library effect in a wide
+/// form (family uniform, SNR uniform over [`WIDE_SNRS_DB`]), 12 % two library effects,
+/// 14 % out of the library, 14 % the new names; all but the single effects at 30 dB.
+pub fn generate_wide_cases(n: usize, seed: u64) -> Vec<CaseSpec> {
+    use world::draw::{LIBRARY_FAMILIES, NEW_NAMES, OUT_OF_LIBRARY, draw};
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|index| {
+            let u: f64 = rng.random();
+            let mut snr_db = WIDE_SNRS_DB[1];
+            fn pick(names: &[&str], rng: &mut ChaCha8Rng) -> world::WorldEffect {
+                let name = names[rng.random_range(0..names.len())];
+                draw(name, rng).expect("the draw knows its own names")
+            }
+            let planted = if u < 0.10 {
+                Planted::None
+            } else if u < 0.60 {
+                snr_db = WIDE_SNRS_DB[rng.random_range(0..WIDE_SNRS_DB.len())];
+                Planted::Wide {
+                    effect: pick(&LIBRARY_FAMILIES, &mut rng),
+                }
+            } else if u < 0.72 {
+                let a = rng.random_range(0..LIBRARY_FAMILIES.len());
+                let mut b = rng.random_range(0..LIBRARY_FAMILIES.len() - 1);
+                if b >= a {
+                    b += 1;
+                }
+                Planted::WidePair {
+                    effects: [
+                        pick(&LIBRARY_FAMILIES[a..=a], &mut rng),
+                        pick(&LIBRARY_FAMILIES[b..=b], &mut rng),
+                    ],
+                }
+            } else if u < 0.86 {
+                Planted::Wide {
+                    effect: pick(&OUT_OF_LIBRARY, &mut rng),
+                }
+            } else {
+                Planted::Wide {
+                    effect: pick(&NEW_NAMES, &mut rng),
+                }
+            };
+            CaseSpec {
+                index,
+                seed: rng.random(),
+                planted,
+                snr_db,
+            }
+        })
+        .collect()
+}
+
+/// The group a wide-forms case is reported in: "single effects at 30 dB", "pairs", "out of
+/// library", "new names", "no effect".
+pub fn wide_group(case: &CaseSpec) -> String {
+    match &case.planted {
+        Planted::None => "no effect".into(),
+        Planted::Two { .. } | Planted::WidePair { .. } => "pairs".into(),
+        p if p.is_out_of_library() => "out of library".into(),
+        Planted::Wide { effect } if effect.kind == world::WorldKind::NewName => "new names".into(),
+        _ => format!("single effects at {} dB", case.snr_db),
+    }
 }
 
 /// Runs `cases` on `threads` threads; `progress` is called after each case (from any thread).

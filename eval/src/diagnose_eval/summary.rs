@@ -74,6 +74,11 @@ pub struct EvalSummary {
     pub below_threshold_wrong: Rate,
     /// Two-effect cases whose top effect is one of the two.
     pub pairs_one_named: Rate,
+    /// Two-effect cases whose two best-ranked candidates are the two effects.
+    pub pairs_both_top_two: Rate,
+    /// Explained qualifying single effects whose predicted shrink is within 20 % of the true
+    /// model's.
+    pub shrink_within_20_percent: Rate,
     /// Mean |predicted shrink - true shrink| over explained single-effect cases [%-points],
     /// and the mean true shrink for scale.
     pub shrink_mean_abs_error_percent: f64,
@@ -92,7 +97,7 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
         .iter()
         .filter_map(|r| r.as_ref().err().cloned())
         .collect();
-    let single = |r: &&CaseResult| matches!(r.case.planted, Planted::One { .. });
+    let single = |r: &&CaseResult| r.case.planted.is_single();
     let qualifying: Vec<&&CaseResult> = ok
         .iter()
         .filter(|r| single(r) && r.effect_gap_percent >= QUALIFYING_GAP_PERCENT)
@@ -116,7 +121,7 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
         .collect();
     let ool: Vec<&&CaseResult> = ok
         .iter()
-        .filter(|r| matches!(r.case.planted, Planted::CompressibleOil { .. }))
+        .filter(|r| r.case.planted.is_out_of_library())
         .collect();
     let below: Vec<&&CaseResult> = ok
         .iter()
@@ -124,23 +129,26 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
         .collect();
     let pairs: Vec<&&CaseResult> = ok
         .iter()
-        .filter(|r| matches!(r.case.planted, Planted::Two { .. }))
+        .filter(|r| r.case.planted.pair_names().is_some())
         .collect();
     let explained: Vec<&&&CaseResult> = qualifying
         .iter()
         .filter(|r| r.verdict == Verdict::Explained)
         .collect();
-    let (mut err, mut tru) = (0.0, 0.0);
+    let (mut err, mut tru, mut within) = (0.0, 0.0, 0);
     for r in &explained {
         let predicted = r.gap_before_percent - r.gap_after_percent;
         let truth = r.gap_before_percent - r.truth_nmse_percent;
         err += (predicted - truth).abs();
         tru += truth;
+        if (predicted - truth).abs() <= 0.2 * truth.abs() {
+            within += 1;
+        }
     }
     let ne = explained.len().max(1) as f64;
     let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
     for r in &ok {
-        if matches!(r.case.planted, Planted::Two { .. }) {
+        if r.case.planted.pair_names().is_some() {
             continue;
         }
         let row = if single(r) && r.effect_gap_percent < QUALIFYING_GAP_PERCENT {
@@ -202,13 +210,29 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
         pairs_one_named: rate(
             pairs
                 .iter()
-                .filter(|r| match r.case.planted {
-                    Planted::Two { effects } => effects.iter().any(|e| e.name() == r.named),
-                    _ => false,
+                .filter(|r| {
+                    r.case
+                        .planted
+                        .pair_names()
+                        .is_some_and(|n| n.contains(&r.named.as_str()))
                 })
                 .count(),
             pairs.len(),
         ),
+        pairs_both_top_two: rate(
+            pairs
+                .iter()
+                .filter(|r| {
+                    let top: Vec<&str> = r.ranked.iter().take(2).map(|x| x.0.as_str()).collect();
+                    r.case
+                        .planted
+                        .pair_names()
+                        .is_some_and(|n| n.iter().all(|e| top.contains(e)))
+                })
+                .count(),
+            pairs.len(),
+        ),
+        shrink_within_20_percent: rate(within, explained.len()),
         shrink_mean_abs_error_percent: err / ne,
         shrink_mean_true_percent: tru / ne,
         confusion,
@@ -216,9 +240,7 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
             .iter()
             .map(|&[a, b]| {
                 let planted = |e: Effect| {
-                    move |r: &&&CaseResult| {
-                        matches!(r.case.planted, Planted::One { effect, .. } if effect == e)
-                    }
+                    move |r: &&&CaseResult| r.case.planted.is_single() && r.label == e.name()
                 };
                 let count = |e: Effect, named: Effect| {
                     ok.iter()
