@@ -231,6 +231,18 @@ pub enum CaseArg {
     Ii,
 }
 
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ExcitationArg {
+    /// The system's stepped-sine program (with the rig's random validation records).
+    Stepped,
+    /// Periodic multisines (random-odd lines), then a band-random validation record.
+    Multisine,
+    /// Not simulated yet: refused with a message.
+    Sweep,
+    /// Not simulated yet as a drive of its own: refused with a message.
+    Random,
+}
+
 #[derive(Debug, Args)]
 pub struct SimulateArgs {
     #[arg(long, value_enum, default_value_t = SystemArg::Rig)]
@@ -243,6 +255,10 @@ pub struct SimulateArgs {
     pub snr_db: Option<f64>,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The drive: stepped sines, or (shaker-sdof only) two periodic multisines and a
+    /// band-random validation record.
+    #[arg(long, value_enum, default_value_t = ExcitationArg::Stepped)]
+    pub excitation: ExcitationArg,
     /// Rig: skip the two band-random validation records.
     #[arg(long)]
     pub no_random: bool,

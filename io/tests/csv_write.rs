@@ -242,23 +242,23 @@ fn random_records_write_frequency_zero_and_values_round_trip_as_text() {
     assert_eq!(text.lines().count(), 21);
 }
 
-/// The contract has no column for a multisine's lines: such a record is refused before the
-/// file system is touched.
+/// A multisine record whose lines are not ascending is refused before the file system is
+/// touched.
 #[test]
-fn a_multisine_record_is_refused_and_nothing_is_written() {
+fn a_multisine_record_with_bad_lines_is_refused_and_nothing_is_written() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("out.csv");
     let mut r = record(3, &RIG);
     r.excitation = Excitation::Multisine {
         base_frequency_hz: 0.5,
-        lines: vec![9, 11, 15],
+        lines: vec![9, 15, 11],
         rms: 60.0,
     };
     let msg = write_csv(&path, &[r], SetupKind::BaseExcited)
         .unwrap_err()
         .to_string();
     assert!(
-        msg.contains("out.csv") && msg.contains("step 3") && msg.contains("multisine"),
+        msg.contains("out.csv") && msg.contains("step 3") && msg.contains("ascending"),
         "{msg}"
     );
     assert!(dir_entries(dir.path()).is_empty());

@@ -7,7 +7,7 @@ use forcemap_math::sim::{
     AsymmetricDamping, BoucWen, FreePlay, RigEffects, RunSpec, ThreeDofCase, TruthElement,
 };
 
-use crate::cli::{CaseArg, EffectArgs, SimulateArgs, SystemArg};
+use crate::cli::{CaseArg, EffectArgs, ExcitationArg, SimulateArgs, SystemArg};
 use forcemap_io::csv_export::write_csv;
 use forcemap_io::rig_bag::{DEFAULT_RUN_START, write_rig_bag};
 
@@ -233,6 +233,30 @@ fn planted_rig_effects(e: &EffectArgs) -> anyhow::Result<RigEffects> {
 }
 
 pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
+    match (args.excitation, args.system) {
+        (ExcitationArg::Stepped, _) => {}
+        (ExcitationArg::Multisine, SystemArg::ShakerSdof) => {
+            if args.bag.is_some() {
+                bail!(
+                    "--excitation multisine cannot be written to a bag yet: the ExcitationState \
+                     message has no multisine kind (a multisine would read back as a random \
+                     record); write --csv instead"
+                );
+            }
+        }
+        (ExcitationArg::Multisine, _) => {
+            bail!("--excitation multisine is simulated for --system shaker-sdof only")
+        }
+        (ExcitationArg::Sweep | ExcitationArg::Random, _) => bail!(
+            "--excitation {} is not simulated yet (stepped, and multisine for --system \
+             shaker-sdof, are)",
+            if args.excitation == ExcitationArg::Sweep {
+                "sweep"
+            } else {
+                "random"
+            }
+        ),
+    }
     let spec = match args.system {
         SystemArg::Rig => {
             let spec = if args.no_random {
@@ -256,6 +280,9 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
             }
             let spec = match system {
                 SystemArg::DamperDyno => RunSpec::damper_dyno(args.snr_db, args.seed),
+                SystemArg::ShakerSdof if args.excitation == ExcitationArg::Multisine => {
+                    RunSpec::shaker_sdof_multisine(args.snr_db, args.seed)
+                }
                 SystemArg::ShakerSdof => RunSpec::shaker_sdof(args.snr_db, args.seed),
                 _ => {
                     let case = match args.case {

@@ -8,6 +8,7 @@ use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::{Channel, Record};
 
 use super::error::CsvError;
+use super::multisine::{MULTISINE_BASE_COLUMN, MULTISINE_COLUMNS, MULTISINE_LINES_COLUMN};
 use crate::steps::WRITTEN_INTERVAL_REL_TOL;
 
 /// Column names of the fixed (non-channel) columns.
@@ -55,6 +56,9 @@ pub(super) struct Layout {
     /// The label columns, both present or both absent.
     pub step_col: Option<usize>,
     pub freq_col: Option<usize>,
+    /// The multisine label columns (base frequency, lines), both present or both absent, only
+    /// with the label columns.
+    pub multisine_cols: Option<(usize, usize)>,
     /// The channel columns present, in [`Channel::ALL`] order.
     pub channel_cols: Vec<(Channel, usize)>,
     pub ignored_columns: Vec<String>,
@@ -127,6 +131,33 @@ impl Layout {
         let time_col = index[TIME_COLUMN];
         let step_col = index.get(STEP_COLUMN).copied();
         let freq_col = index.get(FREQUENCY_COLUMN).copied();
+        let multisine_cols = match (
+            index.get(MULTISINE_BASE_COLUMN),
+            index.get(MULTISINE_LINES_COLUMN),
+        ) {
+            (Some(&b), Some(&l)) if step_col.is_some() => Some((b, l)),
+            (None, None) => None,
+            (b, _) => {
+                let message = if b.is_some() != index.contains_key(MULTISINE_LINES_COLUMN) {
+                    format!(
+                        "the multisine columns '{}' and '{}' go together; the header has one \
+                         without the other",
+                        MULTISINE_COLUMNS[0], MULTISINE_COLUMNS[1]
+                    )
+                } else {
+                    format!(
+                        "the multisine columns '{}' and '{}' label steps, so they need the \
+                         '{STEP_COLUMN}' and '{FREQUENCY_COLUMN}' columns too",
+                        MULTISINE_COLUMNS[0], MULTISINE_COLUMNS[1]
+                    )
+                };
+                return Err(CsvError::Malformed {
+                    path: path.to_path_buf(),
+                    line: Some(1),
+                    message,
+                });
+            }
+        };
         let channel_cols: Vec<(Channel, usize)> = Channel::ALL
             .into_iter()
             .filter_map(|c| index.get(c.name()).map(|&i| (c, i)))
@@ -135,6 +166,7 @@ impl Layout {
             name == TIME_COLUMN
                 || name == STEP_COLUMN
                 || name == FREQUENCY_COLUMN
+                || (multisine_cols.is_some() && MULTISINE_COLUMNS.contains(&name))
                 || Channel::from_name(name).is_some()
         };
         let ignored_columns: Vec<String> = header
@@ -147,6 +179,7 @@ impl Layout {
             time_col,
             step_col,
             freq_col,
+            multisine_cols,
             channel_cols,
             ignored_columns,
         })

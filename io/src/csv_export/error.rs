@@ -101,6 +101,27 @@ pub enum CsvError {
         cell: String,
         reason: &'static str,
     },
+    #[error("{}: line {line}, column '{column}': '{cell}': {reason}", path.display())]
+    BadMultisineCell {
+        path: PathBuf,
+        line: u64,
+        column: &'static str,
+        cell: String,
+        reason: String,
+    },
+    #[error(
+        "{}: line {line}, columns 'multisine_base_hz'/'multisine_lines': the multisine of \
+         step {step} changes inside the step ({change})",
+        path.display()
+    )]
+    MultisineChanged {
+        path: PathBuf,
+        step: usize,
+        first_line: u64,
+        line: u64,
+        /// What the step's first line has and what this line has.
+        change: String,
+    },
     #[error(
         "{}: line {line}, column 'time_s': time {time} s does not increase \
          (line {prev_line} has {prev_time} s)",

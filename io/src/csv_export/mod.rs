@@ -10,6 +10,8 @@
 //!   `base_displacement_m`, `relative_displacement_m`, `mass_acceleration_mps2`.
 //! * [`SetupKind::DrivePoint`] (force-driven structure, the 3-DOF example) additionally
 //!   requires `relative_displacement_m`, `drive_point_displacement_m`, `force_n`.
+//! * Optional, both or neither, with the labels: `multisine_base_hz` and `multisine_lines`,
+//!   which label a periodic multisine step ([`multisine`] says how).
 //! * Any other [`Channel::name`] column is optional and read when present. Every cell of a
 //!   present channel column must hold a finite number.
 //! * Columns with other names are ignored and returned in [`CsvImport::ignored_columns`].
@@ -40,8 +42,8 @@
 //! truncated last line) are detected from the first lines and undone before the rows are read
 //! ([`dialect`]); [`CsvImport::notices`] says what was found.
 //!
-//! Files: `contract` (column names, required columns, the header's layout), `dialect`, `read`,
-//! `write`, `error`.
+//! Files: `contract` (column names, required columns, the header's layout), `dialect`,
+//! `multisine` (the multisine label columns), `read`, `write`, `error`.
 //!
 //! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
 //! [`SetupKind::DrivePoint`]: forcemap_math::recipe::SetupKind::DrivePoint
@@ -50,6 +52,7 @@
 mod contract;
 pub mod dialect;
 mod error;
+pub mod multisine;
 mod read;
 mod write;
 
@@ -58,6 +61,7 @@ pub use contract::{
     required_columns,
 };
 pub use error::CsvError;
+pub use multisine::{MULTISINE_BASE_COLUMN, MULTISINE_LINES_COLUMN};
 pub use read::{read_csv, read_csv_from};
 pub(crate) use write::fmt_f64;
 pub use write::write_csv;

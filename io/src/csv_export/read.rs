@@ -13,11 +13,13 @@ use super::contract::{
 };
 use super::dialect;
 use super::error::{CsvError, csv_error};
+use super::multisine::{self, MultisineLabel};
 use crate::steps::unlabelled::{StepWithFrequency, check_labels, split_run};
 use crate::steps::{
     AssembledStep, StepAssembler, StepError, StepFault, StepPlan, StepRules, StepSample,
     estimated_excitation, rms_about_mean,
 };
+use forcemap_math::record::Excitation;
 use forcemap_math::segment::SegmentOptions;
 
 /// Reads a test-bench CSV export (see the module documentation for the contract).
@@ -104,6 +106,12 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
             }
             (f != 0.0).then_some(f)
         };
+        let multisine = match layout.multisine_cols {
+            Some((base_col, lines_col)) => {
+                multisine::parse_row(path, line, cell(base_col), cell(lines_col), freq)?
+            }
+            None => None,
+        };
 
         if let Some((t0, l0)) = prev_time
             && time <= t0
@@ -134,7 +142,7 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
                 let result = assembler.finish_step();
                 steps.extend(done.completed(path, result)?);
             }
-            current = Some(StepRows::new(step, freq));
+            current = Some(StepRows::new(step, freq, multisine.clone()));
         }
         let cur = current.as_mut().expect("current step exists");
         if cur.frequency != freq {
@@ -145,6 +153,29 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
                 line,
                 first: cur.frequency,
                 found: freq,
+            });
+        }
+        if cur.multisine != multisine {
+            let text = |m: &Option<MultisineLabel>| {
+                m.as_ref().map_or("no multisine".to_string(), |m| {
+                    format!(
+                        "base {} Hz, lines '{}'",
+                        m.base_frequency_hz,
+                        multisine::format_lines(&m.lines)
+                    )
+                })
+            };
+            return Err(CsvError::MultisineChanged {
+                path: p(),
+                step,
+                first_line: cur.lines[0],
+                line,
+                change: format!(
+                    "line {} has {}, this line {}",
+                    cur.lines[0],
+                    text(&cur.multisine),
+                    text(&multisine)
+                ),
             });
         }
         let values = layout
@@ -176,6 +207,8 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
 
     let sample_rate_hz = common_sample_rate(path, &steps)?;
     let driven = layout.profile.driven_channel();
+    let multisines: Vec<Option<MultisineLabel>> =
+        steps.iter().map(|s| s.multisine.clone()).collect();
     let mut found: Vec<StepWithFrequency> = steps
         .into_iter()
         .map(|s| (s.assembled.record, s.frequency))
@@ -185,7 +218,14 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
     }
     let options = SegmentOptions::default();
     let warnings = if labelled {
-        check_labels(&found, driven, &options)
+        // The segmenter knows sines and the rest: a multisine label is not checked by it.
+        let checkable: Vec<StepWithFrequency> = found
+            .iter()
+            .zip(&multisines)
+            .filter(|(_, m)| m.is_none())
+            .map(|(s, _)| s.clone())
+            .collect();
+        check_labels(&checkable, driven, &options)
     } else {
         let (run, _) = &found[0];
         found = split_run(run, driven, &unlabelled_times, &options).map_err(|e| {
@@ -200,9 +240,17 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
     };
     let records = found
         .into_iter()
-        .map(|(mut record, frequency)| {
+        .enumerate()
+        .map(|(k, (mut record, frequency))| {
             let level = rms_about_mean(record.channel(driven).expect("a required channel"));
-            record.excitation = estimated_excitation(frequency, level);
+            record.excitation = match multisines.get(k).cloned().flatten() {
+                Some(m) => Excitation::Multisine {
+                    base_frequency_hz: m.base_frequency_hz,
+                    lines: m.lines,
+                    rms: level,
+                },
+                None => estimated_excitation(frequency, level),
+            };
             record
         })
         .collect();
@@ -221,6 +269,7 @@ struct StepRows {
     step: usize,
     /// `None` stands for random excitation (0 or empty).
     frequency: Option<f64>,
+    multisine: Option<MultisineLabel>,
     lines: Vec<u64>,
     plan: StepPlan,
 }
@@ -229,18 +278,27 @@ struct StepRows {
 struct ReadStep {
     step: usize,
     frequency: Option<f64>,
+    multisine: Option<MultisineLabel>,
     first_line: u64,
     last_line: u64,
     assembled: AssembledStep,
 }
 
 impl StepRows {
-    fn new(step: usize, frequency: Option<f64>) -> StepRows {
+    fn new(step: usize, frequency: Option<f64>, multisine: Option<MultisineLabel>) -> StepRows {
         // The export carries no amplitude: it is estimated once the step is complete.
-        let excitation = estimated_excitation(frequency, f64::NAN);
+        let excitation = match &multisine {
+            Some(m) => Excitation::Multisine {
+                base_frequency_hz: m.base_frequency_hz,
+                lines: m.lines.clone(),
+                rms: f64::NAN,
+            },
+            None => estimated_excitation(frequency, f64::NAN),
+        };
         StepRows {
             step,
             frequency,
+            multisine,
             lines: Vec::new(),
             plan: StepPlan {
                 excitation,
@@ -268,6 +326,7 @@ impl StepRows {
             Some(Ok(assembled)) => Ok(Some(ReadStep {
                 step: self.step,
                 frequency: self.frequency,
+                multisine: self.multisine.clone(),
                 first_line: self.line(0),
                 last_line: self.last_line(),
                 assembled,

@@ -10,10 +10,12 @@ use forcemap_math::record::{Channel, Excitation, Record};
 
 use super::contract::{FREQUENCY_COLUMN, SAMPLE_INTERVAL_REL_TOL, STEP_COLUMN, TIME_COLUMN};
 use super::error::{CsvError, csv_error};
+use super::multisine::{MULTISINE_COLUMNS, format_lines, lines_fault};
 
 /// Writes `records` in the CSV contract of this module for `profile`, atomically.
 ///
-/// Columns: `time_s, step, frequency_hz`, then every channel of the records in
+/// Columns: `time_s, step, frequency_hz`, then `multisine_base_hz, multisine_lines` when a
+/// record is a periodic multisine (0 and empty on the other records), then every channel of the records in
 /// [`Channel::ALL`] order. Time of sample `i` is [`Record::time_s`]; random records write
 /// frequency `0`. Numbers use Rust's shortest round-trip formatting, so reading the file back
 /// gives the same f64 values bit for bit.
@@ -21,7 +23,7 @@ use super::error::{CsvError, csv_error};
 /// Everything is checked before the file system is touched (all records with the same
 /// channels, the profile's channels present, at least 3 finite samples per channel, the same
 /// positive sample rate, contiguous steps, increasing time, sine frequencies finite and
-/// positive; no periodic multisine record, which the contract cannot describe yet). The data
+/// positive, multisine base frequencies positive with ascending lines). The data
 /// go to a temporary file in the target directory which is renamed over `path` at the end; on
 /// any error the temporary file is removed and `path` is untouched.
 pub fn write_csv(
@@ -41,7 +43,15 @@ pub fn write_csv(
     {
         let file = tmp.file.take().expect("temporary file is open");
         let mut wtr = csv::WriterBuilder::new().from_writer(BufWriter::new(file));
+        // The multisine columns only when a record is a multisine: other exports stay as they
+        // were.
+        let multisine = records
+            .iter()
+            .any(|r| matches!(r.excitation, Excitation::Multisine { .. }));
         let mut header = vec![TIME_COLUMN, STEP_COLUMN, FREQUENCY_COLUMN];
+        if multisine {
+            header.extend(MULTISINE_COLUMNS);
+        }
         header.extend(channels.iter().map(|c| c.name()));
         wtr.write_record(&header).map_err(|e| csv_error(path, e))?;
         let mut fields: Vec<String> = Vec::with_capacity(header.len());
@@ -50,6 +60,14 @@ pub fn write_csv(
             let freq = match r.excitation {
                 Excitation::Sine { frequency_hz, .. } => fmt_f64(frequency_hz),
                 Excitation::Random { .. } | Excitation::Multisine { .. } => "0".to_string(),
+            };
+            let (base, lines) = match &r.excitation {
+                Excitation::Multisine {
+                    base_frequency_hz,
+                    lines,
+                    ..
+                } => (fmt_f64(*base_frequency_hz), format_lines(lines)),
+                _ => ("0".to_string(), String::new()),
             };
             let samples: Vec<&[f64]> = channels
                 .iter()
@@ -60,6 +78,10 @@ pub fn write_csv(
                 fields.push(fmt_f64(r.time_s(i)));
                 fields.push(step.clone());
                 fields.push(freq.clone());
+                if multisine {
+                    fields.push(base.clone());
+                    fields.push(lines.clone());
+                }
                 fields.extend(samples.iter().map(|x| fmt_f64(x[i])));
                 wtr.write_record(&fields).map_err(|e| csv_error(path, e))?;
             }
@@ -186,11 +208,20 @@ fn validate_for_write(
                 }
             }
             Excitation::Random { .. } => {}
-            Excitation::Multisine { .. } => {
-                return Err(bad(format!(
-                    "{what}: a periodic multisine record cannot be written yet (the CSV \
-                     contract has no column for its lines)"
-                )));
+            Excitation::Multisine {
+                base_frequency_hz,
+                ref lines,
+                ..
+            } => {
+                if !(base_frequency_hz.is_finite() && base_frequency_hz > 0.0) {
+                    return Err(bad(format!(
+                        "{what}: multisine base frequency {base_frequency_hz} Hz is not a \
+                         positive number"
+                    )));
+                }
+                if let Some(reason) = lines_fault(lines) {
+                    return Err(bad(format!("{what}: multisine lines {lines:?}: {reason}")));
+                }
             }
         }
         for i in 0..n {
