@@ -309,29 +309,27 @@ impl Program {
         let duration = samples_per_record as f64 / sample_rate_hz;
         for (k, step) in steps.iter().enumerate() {
             let t0 = (k * samples_per_record) as f64 / sample_rate_hz;
-            match *step {
+            // Each step is one piece of the drive and one record plan.
+            let (piece, excitation) = match *step {
                 StepSpec::Sine {
                     frequency_hz,
                     amplitude,
                 } => {
                     let omega = 2.0 * PI * frequency_hz;
-                    signal.push(
+                    let piece = Piece::Sine {
                         t0,
-                        Piece::Sine {
-                            t0,
-                            amplitude,
-                            omega,
-                            phase,
-                        },
-                    );
+                        amplitude,
+                        omega,
+                        phase,
+                    };
                     phase = (phase + omega * duration).rem_euclid(2.0 * PI);
-                    records.push(RecordPlan {
-                        samples: samples_per_record,
-                        excitation: Excitation::Sine {
+                    (
+                        piece,
+                        Excitation::Sine {
                             frequency_hz,
                             amplitude,
                         },
-                    });
+                    )
                 }
                 StepSpec::Random {
                     low_hz,
@@ -348,20 +346,16 @@ impl Program {
                         samples_per_record,
                         sample_rate_hz,
                     );
-                    signal.push(
-                        t0,
+                    (
                         Piece::Multisine {
                             t0,
                             signal: Arc::new(ms),
                         },
-                    );
-                    records.push(RecordPlan {
-                        samples: samples_per_record,
-                        excitation: Excitation::Random {
+                        Excitation::Random {
                             band_hz: Some([low_hz, high_hz]),
                             rms,
                         },
-                    });
+                    )
                 }
                 StepSpec::Multisine {
                     base_frequency_hz,
@@ -373,23 +367,24 @@ impl Program {
                     let s = derive_seed(seed, 2000 + k as u64);
                     let lines = multisine_lines(base_frequency_hz, low_hz, high_hz, design, s);
                     let ms = periodic_multisine(base_frequency_hz, &lines, rms, s, sample_rate_hz);
-                    signal.push(
-                        t0,
+                    (
                         Piece::Multisine {
                             t0,
                             signal: Arc::new(ms),
                         },
-                    );
-                    records.push(RecordPlan {
-                        samples: samples_per_record,
-                        excitation: Excitation::Multisine {
+                        Excitation::Multisine {
                             base_frequency_hz,
                             lines,
                             rms,
                         },
-                    });
+                    )
                 }
-            }
+            };
+            signal.push(t0, piece);
+            records.push(RecordPlan {
+                samples: samples_per_record,
+                excitation,
+            });
         }
         // Before the run the signal rests at its value at t = 0 (continuous start).
         if signal.pieces.len() > 1 {
