@@ -35,6 +35,7 @@ use forcemap_io::rig_messages::{
 };
 use forcemap_io::topics;
 use forcemap_nodes::ros::{NodeSetup, RosNode, publish_blocking, qos};
+use ros2_client::Publisher;
 
 /// CPU time (s) and resident memory (bytes) of a process, from /proc.
 fn proc_usage(pid: u32) -> Option<(f64, u64)> {
@@ -107,6 +108,18 @@ fn spawn(kind: &str, namespace: &str, domain: u16, params: &[&str]) -> anyhow::R
         child,
         lines,
     })
+}
+
+/// One rig's side of the bench process: its sensor's publishers, its control node's record of
+/// when each step's theta arrived, and its rig constants.
+struct BenchRig {
+    ros: RosNode,
+    samples_pub: Publisher<RigSample>,
+    excitation_pub: Publisher<ExcitationState>,
+    parameters_pub: Publisher<DiagnosticStatus>,
+    /// Last step a theta included -> when it arrived [ns].
+    theta_arrivals: Arc<Mutex<BTreeMap<u32, i64>>>,
+    constants: DiagnosticStatus,
 }
 
 fn now_ns() -> i64 {
@@ -201,17 +214,20 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
                 &setup.fully_qualified_name(),
                 &spec.constants(),
             );
-            rigs.push((
+            rigs.push(BenchRig {
                 ros,
                 samples_pub,
                 excitation_pub,
                 parameters_pub,
-                received,
+                theta_arrivals: received,
                 constants,
-            ));
+            });
         }
         let t0 = Instant::now();
-        for (ros, samples_pub, ..) in &rigs {
+        for BenchRig {
+            ros, samples_pub, ..
+        } in &rigs
+        {
             while samples_pub.get_subscription_count(&ros.node) < 1 {
                 if t0.elapsed() > Duration::from_secs(30) {
                     bail!(
@@ -232,7 +248,7 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
                 rig_messages(
                     &records,
                     spec.driven_channel(),
-                    Some(r.5.clone()),
+                    Some(r.constants.clone()),
                     run_start,
                     "rig",
                 )
@@ -295,7 +311,12 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
                         tokio::time::sleep(due - now).await;
                     }
                 }
-                let (_, samples_pub, excitation_pub, parameters_pub, ..) = &rigs[rig];
+                let BenchRig {
+                    samples_pub,
+                    excitation_pub,
+                    parameters_pub,
+                    ..
+                } = &rigs[rig];
                 match m {
                     RigMessage::Sample(s) => {
                         let step = s.step;
@@ -323,10 +344,12 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         // Wait for every rig's last theta.
         let last_step = (args.steps - 1) as u32;
         let t1 = Instant::now();
-        while !rigs
-            .iter()
-            .all(|r| r.4.lock().expect("lock").contains_key(&last_step))
-        {
+        while !rigs.iter().all(|r| {
+            r.theta_arrivals
+                .lock()
+                .expect("lock")
+                .contains_key(&last_step)
+        }) {
             if t1.elapsed() > Duration::from_secs(60) {
                 break;
             }
@@ -338,7 +361,8 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
             .iter()
             .enumerate()
             .flat_map(|(rig, r)| {
-                r.4.lock()
+                r.theta_arrivals
+                    .lock()
                     .expect("lock")
                     .iter()
                     .map(|(step, at)| ((rig, *step), *at))
