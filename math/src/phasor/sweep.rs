@@ -158,7 +158,8 @@ pub fn analyse_sweep(
     law.check(record.step)?;
     let len = checked_length(record)?;
     let fs = record.sample_rate_hz;
-    let per = options.periods_per_window.max(1) as f64 * 2.0 * PI;
+    let periods = options.periods_per_window.max(1);
+    let per = periods as f64 * 2.0 * PI;
     let mut out = Vec::new();
     let mut k = 0usize;
     loop {
@@ -184,8 +185,7 @@ pub fn analyse_sweep(
         let phase_a = law.phase_rad(first as f64 / fs);
         let t_centre = 0.5 * (first + end - 1) as f64 / fs;
         let basis = design(law, fs, first, end, phase_a, t_centre, harmonics);
-        let normal = basis.transpose() * &basis;
-        let Some(chol) = normal.clone().cholesky() else {
+        let Some(chol) = (basis.transpose() * &basis).cholesky() else {
             return Err(PhasorError::InvalidFit {
                 reason: format!("step {}: sweep window {k}: singular fit", record.step),
             });
@@ -217,8 +217,8 @@ pub fn analyse_sweep(
             frequency_hz: law.frequency_hz(t_centre),
             amplitude: law.amplitude,
             t_ref_s: record.start_time_s + first as f64 / fs,
-            periods_used: options.periods_per_window.max(1),
-            periods_available: options.periods_per_window.max(1),
+            periods_used: periods,
+            periods_available: periods,
             first_settled_sample: first,
             samples_used: samples,
             settled: true,
