@@ -242,20 +242,11 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
 
         let run_start = Time::from_nanos(now_ns());
         // Every rig plays the same run; its messages differ only by the constants' node name.
-        let messages: Vec<Vec<RigMessage>> = rigs
-            .iter()
-            .map(|r| {
-                rig_messages(
-                    &records,
-                    spec.driven_channel(),
-                    Some(r.constants.clone()),
-                    run_start,
-                    "rig",
-                )
-                .collect()
-            })
-            .collect();
-        let first_stamp = messages[0].iter().find_map(|m| match m {
+        // One run for every rig: the messages differ only in the constants' node name, which
+        // each rig's own constants supply when they are published.
+        let messages: Vec<RigMessage> =
+            rig_messages(&records, spec.driven_channel(), None, run_start, "rig").collect();
+        let first_stamp = messages.iter().find_map(|m| match m {
             RigMessage::Sample(s) => Some(s.header.stamp),
             _ => None,
         });
@@ -286,56 +277,53 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         // (rig, step) -> when the publish of the step's last sample returned.
         let mut last_sample_at: BTreeMap<(usize, u32), i64> = BTreeMap::new();
         let mut rig_published = vec![0usize; rigs.len()];
-        let per_rig_samples = messages[0]
+        let per_rig_samples = messages
             .iter()
             .filter(|m| matches!(m, RigMessage::Sample(_)))
             .count();
         let bar = indicatif::ProgressBar::new((per_rig_samples * rigs.len()) as u64);
-        // The rigs' messages interleaved one by one, paced by the first rig's stamps.
-        let mut streams: Vec<_> = messages.into_iter().map(Vec::into_iter).collect();
-        loop {
-            let mut any = false;
-            for (rig, stream) in streams.iter_mut().enumerate() {
-                let Some(m) = stream.next() else { continue };
-                any = true;
-                if rig == 0
-                    && args.rate_factor > 0.0
-                    && let (Some(t0s), RigMessage::Sample(s)) = (first_stamp, &m)
-                {
-                    let due = wall0
-                        + Duration::from_secs_f64(
-                            (s.header.stamp.secs_since(t0s) / args.rate_factor).max(0.0),
-                        );
-                    let now = Instant::now();
-                    if due > now {
-                        tokio::time::sleep(due - now).await;
-                    }
+        // Each message to every rig in turn (the rigs interleaved sample by sample), paced by
+        // the run's stamps; each rig's constants first.
+        for r in &rigs {
+            publish_blocking(&r.parameters_pub, r.constants.clone()).await?;
+        }
+        for m in messages {
+            if args.rate_factor > 0.0
+                && let (Some(t0s), RigMessage::Sample(s)) = (first_stamp, &m)
+            {
+                let due = wall0
+                    + Duration::from_secs_f64(
+                        (s.header.stamp.secs_since(t0s) / args.rate_factor).max(0.0),
+                    );
+                let now = Instant::now();
+                if due > now {
+                    tokio::time::sleep(due - now).await;
                 }
-                let BenchRig {
-                    samples_pub,
-                    excitation_pub,
-                    parameters_pub,
-                    ..
-                } = &rigs[rig];
+            }
+            let mut m = Some(m);
+            for (rig, r) in rigs.iter().enumerate() {
+                // The last rig takes the message itself; the others a copy.
+                let m = if rig + 1 == rigs.len() {
+                    m.take().expect("one message per rig")
+                } else {
+                    m.clone().expect("one message per rig")
+                };
                 match m {
                     RigMessage::Sample(s) => {
                         let step = s.step;
-                        publish_blocking(samples_pub, s).await?;
+                        publish_blocking(&r.samples_pub, s).await?;
                         rig_published[rig] += 1;
                         if rig_published[rig].is_multiple_of(samples_per_step.max(1)) {
                             last_sample_at.insert((rig, step), now_ns());
                         }
                     }
-                    RigMessage::Excitation(e) => publish_blocking(excitation_pub, e).await?,
-                    RigMessage::Parameters(p) => publish_blocking(parameters_pub, p).await?,
+                    RigMessage::Excitation(e) => publish_blocking(&r.excitation_pub, e).await?,
+                    RigMessage::Parameters(p) => publish_blocking(&r.parameters_pub, p).await?,
                 }
             }
             let published: usize = rig_published.iter().sum();
             if published.is_multiple_of(1000) {
                 bar.set_position(published as u64);
-            }
-            if !any {
-                break;
             }
         }
         let published: usize = rig_published.iter().sum();
