@@ -50,6 +50,9 @@ impl HtmlReport {
     pub fn verdict(&mut self, f: &Findings) {
         let verdict = match (f.verdict, f.top_effect) {
             (Verdict::Explained, Some(e)) => format!("explained by <b>{}</b>", e.name()),
+            (Verdict::ExplainedInPart, Some(e)) => {
+                format!("explained in part by <b>{}</b>", e.name())
+            }
             (v, _) => v.name().to_string(),
         };
         let best = f.best_candidate.map_or(String::new(), |e| {

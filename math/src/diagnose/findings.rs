@@ -15,6 +15,9 @@ use super::effects::Effect;
 pub enum Verdict {
     Adequate,
     Explained,
+    /// The top candidate removes a significant share of the gap but leaves more than half of
+    /// its excess over the floor: a real effect, and something else besides.
+    ExplainedInPart,
     Unexplained,
 }
 
@@ -23,6 +26,7 @@ impl Verdict {
         match self {
             Verdict::Adequate => "adequate",
             Verdict::Explained => "explained",
+            Verdict::ExplainedInPart => "explained_in_part",
             Verdict::Unexplained => "unexplained",
         }
     }
@@ -42,7 +46,11 @@ pub enum Evidence {
 }
 
 /// The part of the rule every evidence shares.
-const SHARED_RULE: &str = "explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor); unexplained: gap_before > max(3 floor, 1 %) and not explained; adequate: otherwise";
+const SHARED_RULE: &str = "explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor); explained in part: gap_before > max(3 floor, 1 %), the top candidate is significant and gap_after - floor <= 0.75 (gap_before - floor), but not explained; unexplained: gap_before > max(3 floor, 1 %) and neither; adequate: otherwise";
+
+/// A top candidate that removes at least this share of the gap's excess over the floor (but
+/// not the half that explains it) explains the gap in part.
+pub const IN_PART_SHARE: f64 = 0.25;
 
 impl Evidence {
     /// What the gap figures measure, for a sentence ("held-out NMSE").
@@ -124,10 +132,14 @@ pub fn verdict(gap_before: f64, floor: f64, top: Option<(f64, bool)>) -> Verdict
     {
         return Verdict::Explained;
     }
-    if gap_before > (3.0 * floor).max(1.0) {
-        Verdict::Unexplained
-    } else {
-        Verdict::Adequate
+    if gap_before <= (3.0 * floor).max(1.0) {
+        return Verdict::Adequate;
+    }
+    match top {
+        Some((after, true)) if gap_before - after >= IN_PART_SHARE * (gap_before - floor) => {
+            Verdict::ExplainedInPart
+        }
+        _ => Verdict::Unexplained,
     }
 }
 
@@ -143,7 +155,8 @@ pub struct TopCandidate {
 #[derive(Debug, Clone, Serialize)]
 pub struct Findings {
     pub verdict: Verdict,
-    /// The effect that explains the gap (only when explained).
+    /// The effect that explains the gap, or part of it (only when explained, or explained in
+    /// part).
     pub top_effect: Option<Effect>,
     /// The best-ranked candidate, explained or not.
     pub best_candidate: Option<Effect>,
@@ -172,7 +185,7 @@ impl Findings {
         Findings {
             verdict,
             top_effect: top
-                .filter(|_| verdict == Verdict::Explained)
+                .filter(|_| matches!(verdict, Verdict::Explained | Verdict::ExplainedInPart))
                 .map(|t| t.effect),
             best_candidate: top.map(|t| t.effect),
             gap_before_percent,
@@ -200,6 +213,14 @@ impl Findings {
                 self.gap_before_percent,
                 self.gap_after_percent
             ),
+            (Verdict::ExplainedInPart, Some(e)) => format!(
+                "explained in part by {}: {:.2} % -> {:.2} %, {:.2} %-points left above the floor of {:.2} %",
+                e.name(),
+                self.gap_before_percent,
+                self.gap_after_percent,
+                self.gap_after_percent - self.floor_percent,
+                self.floor_percent
+            ),
             (v, _) => format!(
                 "{} (gap {:.2} %, floor {:.2} %{})",
                 v.name(),
@@ -223,6 +244,13 @@ impl Findings {
                 e.name(),
                 self.gap_before_percent,
                 self.gap_after_percent
+            ),
+            (Verdict::ExplainedInPart, Some(e)) => format!(
+                "baseline '{baseline}' misses {} and more: gap {:.2} % -> {:.2} % (floor {:.2} %)",
+                e.name(),
+                self.gap_before_percent,
+                self.gap_after_percent,
+                self.floor_percent
             ),
             (Verdict::Adequate, _) => format!("baseline '{baseline}' is adequate"),
             _ => format!(
@@ -252,10 +280,20 @@ mod tests {
         assert_eq!(f.verdict, Verdict::Explained);
         assert_eq!(f.top_effect, Some(Effect::CoulombFriction));
         let f = Findings::decide(Evidence::HeldOutNmse, 10.0, 1.0, top(5.6, true));
+        assert_eq!(f.verdict, Verdict::ExplainedInPart);
+        assert_eq!(f.top_effect, Some(Effect::CoulombFriction));
+        assert_eq!(f.gap_after_percent, 5.6);
+        // In part down to a quarter of the excess removed (leaving 7.75); less is unexplained.
+        let f = Findings::decide(Evidence::HeldOutNmse, 10.0, 1.0, top(7.7, true));
+        assert_eq!(f.verdict, Verdict::ExplainedInPart);
+        let f = Findings::decide(Evidence::HeldOutNmse, 10.0, 1.0, top(7.8, true));
         assert_eq!(f.verdict, Verdict::Unexplained);
         assert_eq!(f.top_effect, None);
         assert_eq!(f.best_candidate, Some(Effect::CoulombFriction));
-        assert_eq!(f.gap_after_percent, 5.6);
+        assert_eq!(f.gap_after_percent, 7.8);
+        // A partial shrink of a gap the noise and the 1 % allow is no finding.
+        let f = Findings::decide(Evidence::HeldOutNmse, 2.9, 1.0, top(2.2, true));
+        assert_eq!(f.verdict, Verdict::Adequate);
         // Not significant: never explained.
         let f = Findings::decide(Evidence::HeldOutNmse, 10.0, 1.0, top(1.0, false));
         assert_eq!(f.verdict, Verdict::Unexplained);
@@ -299,6 +337,15 @@ mod tests {
         assert_eq!(
             f.status("linear"),
             "baseline 'linear' misses coulomb_friction: gap 14.80 % -> 0.96 %"
+        );
+        let f = Findings::decide(Evidence::HeldOutNmse, 14.8, 0.5, top(9.0, true));
+        assert_eq!(
+            f.headline(),
+            "explained in part by coulomb_friction: 14.80 % -> 9.00 %, 8.50 %-points left above the floor of 0.50 %"
+        );
+        assert_eq!(
+            f.status("linear"),
+            "baseline 'linear' misses coulomb_friction and more: gap 14.80 % -> 9.00 % (floor 0.50 %)"
         );
         let f = Findings::decide(Evidence::HeldOutNmse, 14.8, 0.5, top(12.0, true));
         assert_eq!(

@@ -40,6 +40,7 @@ pub mod effects;
 pub mod findings;
 pub mod fit;
 pub mod locate;
+pub mod output_error;
 pub mod phasor;
 pub mod score;
 pub mod search;
@@ -140,6 +141,9 @@ pub struct RankedEffect {
     pub score_percent: f64,
     /// Leave-one-step-out cross-validated element-force error on the sine steps [%].
     pub phasor_cv_percent: Option<f64>,
+    /// Output-error misfit on the sine steps (RMS in noise std) when the candidate was refitted
+    /// by output error ([`output_error`]); its held-out figures are then the refit's.
+    pub output_error_misfit: Option<f64>,
     pub extra_parameters: usize,
     pub added_parameters: Vec<ParameterValue>,
     pub significant: bool,
@@ -172,6 +176,9 @@ pub struct Diagnosis {
     pub best_pair: Option<PairResult>,
     pub located: Located,
     pub baseline_phasor_cv_percent: Option<f64>,
+    /// The baseline's output-error misfit on the sine steps (RMS in noise std), when a
+    /// candidate was refitted by output error.
+    pub baseline_output_error_misfit: Option<f64>,
     /// Exciter delay from the kinematic identity [s] and its standard deviation.
     pub kinematic_delay_s: Option<[f64; 2]>,
     /// What the user should know (candidates left out, ...).
@@ -379,6 +386,7 @@ pub fn diagnose(
             shrink_percent: gap_before - after,
             score_percent: score,
             phasor_cv_percent: c.cv_percent,
+            output_error_misfit: None,
             extra_parameters: extra,
             added_parameters: parameter_values(c.fitted.added_parameters()),
             significant: significant(gap_before, floor, after, score, baseline_score),
@@ -390,6 +398,27 @@ pub fn diagnose(
     }
     let mut order: Vec<usize> = (0..ranked.len()).collect();
     order.sort_by(|&a, &b| ranked[a].score_percent.total_cmp(&ranked[b].score_percent));
+    let baseline_output_error_misfit = if options.holdout_steps.is_empty() {
+        let context = output_error::Rescoring {
+            steps: output_error::SineSteps {
+                mass_kg,
+                records,
+                analyses: &analyses,
+            },
+            baseline,
+            baseline_theta: &search.baseline.theta,
+            heldout: &heldout,
+            gap_before,
+            floor,
+            n_eff,
+            baseline_score,
+        };
+        let base = output_error::rescore(&context, &mut ranked, &mut fits, &order, &mut notes);
+        order.sort_by(|&a, &b| ranked[a].score_percent.total_cmp(&ranked[b].score_percent));
+        base
+    } else {
+        None
+    };
     if let Some(k) = step_tie_break(&ranked, &order, gap_before, floor) {
         let i = order.remove(k);
         order.insert(0, i);
@@ -466,6 +495,7 @@ pub fn diagnose(
         best_pair,
         located,
         baseline_phasor_cv_percent: search.baseline_cv_percent,
+        baseline_output_error_misfit,
         kinematic_delay_s: search.exciter_delay.map(|(d, s)| [d, s]),
         notes,
     };

@@ -220,18 +220,25 @@ fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
         );
     }
     println!("candidates (held-out NMSE with the effect; score = NMSE with the BIC penalty):");
+    if let Some(m) = d.baseline_output_error_misfit {
+        println!(
+            "  (OE: output-error misfit on the sine steps in noise std, {m:.3} for the baseline; those candidates were refitted by output error and scored with the refit)"
+        );
+    }
     println!(
-        "  {:<20} {:>9} {:>9} {:>8} {:>4}  added parameters",
-        "effect", "after %", "score %", "CV %", "sig"
+        "  {:<20} {:>9} {:>9} {:>8} {:>6} {:>4}  added parameters",
+        "effect", "after %", "score %", "CV %", "OE", "sig"
     );
     for r in &d.ranked_effects {
         println!(
-            "  {:<20} {:>9.3} {:>9.3} {:>8} {:>4}  {}",
+            "  {:<20} {:>9.3} {:>9.3} {:>8} {:>6} {:>4}  {}",
             r.effect.name(),
             r.gap_after_percent,
             r.score_percent,
             r.phasor_cv_percent
                 .map_or("-".into(), |v| format!("{v:.2}")),
+            r.output_error_misfit
+                .map_or("-".into(), |v| format!("{v:.3}")),
             if r.significant { "yes" } else { "no" },
             parameters_text(&r.added_parameters)
         );
@@ -246,10 +253,24 @@ fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
         );
     }
     println!("verdict: {}", d.findings.headline());
-    if d.findings.verdict == Verdict::Explained
-        && let Some(r) = d.ranked_effects.first()
+    if matches!(
+        d.findings.verdict,
+        Verdict::Explained | Verdict::ExplainedInPart
+    ) && let Some(r) = d.ranked_effects.first()
     {
         println!("  signature: {}", r.signature);
+        println!("  found: {}", parameters_text(&r.added_parameters));
+    }
+    if d.findings.verdict == Verdict::ExplainedInPart
+        && let Some(left) = &detail.after_located
+    {
+        println!(
+            "  what is left, with {} added:",
+            d.ranked_effects[0].effect.name()
+        );
+        for s in &left.summary {
+            println!("    {s}");
+        }
     }
     for n in &d.notes {
         println!("note: {n}");
@@ -351,6 +372,8 @@ fn write_report(
                     format!("{:.3}", r.score_percent),
                     r.phasor_cv_percent
                         .map_or("-".into(), |v| format!("{v:.2}")),
+                    r.output_error_misfit
+                        .map_or("-".into(), |v| format!("{v:.3}")),
                     if r.significant { "yes" } else { "no" }.into(),
                     parameters_text(&r.added_parameters),
                     r.signature.clone(),
@@ -364,6 +387,7 @@ fn write_report(
                 "after [%]",
                 "score [%]",
                 "CV [%]",
+                "OE misfit",
                 "significant",
                 "added",
                 "signature",

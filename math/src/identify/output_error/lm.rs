@@ -98,10 +98,36 @@ pub(crate) fn jacobian(
     Ok(jac)
 }
 
+/// How far a fit may go: iterations and the trust region per iteration.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Limits {
+    pub iterations: usize,
+    /// Largest change of a parameter per iteration, relative to its scale at the start.
+    pub max_step: f64,
+    /// The fit stops when an iteration lowers the cost by less than this fraction of it.
+    pub relative_tolerance: f64,
+}
+
+/// The limits of a refinement from fd-multi's estimate, which is within a few %.
+pub(crate) const REFINE: Limits = Limits {
+    iterations: ITERATIONS,
+    max_step: MAX_STEP,
+    relative_tolerance: 1e-9,
+};
+
 /// Minimises the sum of squared residuals from `start` (steps in `p / Problem::scale`).
 pub(crate) fn levenberg_marquardt(
     problem: &impl Problem,
     start: Vec<f64>,
+) -> Result<Fit, IdentifyError> {
+    levenberg_marquardt_within(problem, start, REFINE)
+}
+
+/// [`levenberg_marquardt`] within `limits`.
+pub(crate) fn levenberg_marquardt_within(
+    problem: &impl Problem,
+    start: Vec<f64>,
+    limits: Limits,
 ) -> Result<Fit, IdentifyError> {
     let np = start.len();
     let scale = problem.scale(&start);
@@ -111,7 +137,7 @@ pub(crate) fn levenberg_marquardt(
     let mut c = cost(&r);
     let mut lambda = 1e-3;
     let mut jtj = DMatrix::zeros(np, np);
-    for _ in 0..ITERATIONS {
+    for _ in 0..limits.iterations {
         let jac = jacobian(problem, &p, &r, &scale)?;
         jtj = jac.transpose() * &jac;
         let jtr = jac.transpose() * DVector::from_column_slice(&r);
@@ -126,8 +152,8 @@ pub(crate) fn levenberg_marquardt(
                 continue;
             };
             // Trust region: the start is within a few % (fd-multi), so no parameter moves by
-            // more than `MAX_STEP` of its scale per iteration.
-            if step.amax() > MAX_STEP {
+            // more than `max_step` of its scale per iteration.
+            if step.amax() > limits.max_step {
                 lambda *= 10.0;
                 continue;
             }
@@ -135,7 +161,7 @@ pub(crate) fn levenberg_marquardt(
             let rn = problem.residual(&pn)?;
             let cn = cost(&rn);
             if cn < c {
-                improved = c - cn > 1e-9 * c && step.amax() > 1e-9;
+                improved = c - cn > limits.relative_tolerance * c && step.amax() > 1e-9;
                 (p, r, c) = (pn, rn, cn);
                 lambda = (lambda * 0.1).max(1e-9);
                 break;
@@ -153,4 +179,52 @@ pub(crate) fn levenberg_marquardt(
         information: jtj,
         scale,
     })
+}
+
+/// `inner` with only the parameters `free` fitted, the others held at their values in `full`
+/// (e.g. a rig's fitted-sine base parameters, known from the phasor fit far better than the
+/// model's, when output error only compares models).
+pub(crate) struct Partial<'a, P> {
+    pub inner: &'a P,
+    pub full: Vec<f64>,
+    pub free: Vec<usize>,
+}
+
+impl<P: Problem> Partial<'_, P> {
+    /// The inner problem's parameters with the free ones at `p`.
+    pub fn expand(&self, p: &[f64]) -> Vec<f64> {
+        let mut full = self.full.clone();
+        for (k, &j) in self.free.iter().enumerate() {
+            full[j] = p[k];
+        }
+        full
+    }
+}
+
+impl<P: Problem> Problem for Partial<'_, P> {
+    fn residual(&self, p: &[f64]) -> Result<Vec<f64>, IdentifyError> {
+        self.inner.residual(&self.expand(p))
+    }
+
+    fn column_groups(&self, _np: usize) -> Vec<Vec<usize>> {
+        self.inner
+            .column_groups(self.full.len())
+            .into_iter()
+            .map(|g| {
+                g.iter()
+                    .filter_map(|j| self.free.iter().position(|f| f == j))
+                    .collect::<Vec<usize>>()
+            })
+            .filter(|g| !g.is_empty())
+            .collect()
+    }
+
+    fn rows(&self, j: usize, n: usize) -> std::ops::Range<usize> {
+        self.inner.rows(self.free[j], n)
+    }
+
+    fn scale(&self, p: &[f64]) -> Vec<f64> {
+        let s = self.inner.scale(&self.expand(p));
+        self.free.iter().map(|&j| s[j]).collect()
+    }
 }

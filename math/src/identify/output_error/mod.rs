@@ -26,7 +26,7 @@ use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
 use crate::record::{Channel, Record};
 
-pub use rig::{RigDrive, RigOutputError};
+pub use rig::{RigDrive, RigMisfit, RigOutputError};
 
 /// Floor of each channel's noise std, relative to its fundamental.
 const NOISE_FLOOR: f64 = 1e-6;

@@ -24,7 +24,9 @@ use nalgebra::DMatrix;
 use num_complex::Complex64;
 
 use super::element::{ModelElement, check_model};
-use super::lm::{Problem, jacobian, levenberg_marquardt};
+use super::lm::{
+    Limits, Partial, Problem, jacobian, levenberg_marquardt, levenberg_marquardt_within,
+};
 use super::{channel_noise, identification, sine_records, unsupported};
 use crate::identify::{Identification, IdentifyError};
 use crate::model::Model;
@@ -45,6 +47,31 @@ pub enum RigDrive {
     /// `lowpass_hz` (None: the raw samples).
     MeasuredSpline { lowpass_hz: Option<f64> },
 }
+
+/// A fit of the model's parameters for comparing models on the same data
+/// ([`RigOutputError::compare`]).
+#[derive(Debug, Clone)]
+pub struct RigMisfit {
+    /// The model's parameters at the end of the fit.
+    pub theta: Vec<f64>,
+    /// RMS of the residual over the fitted samples, each channel in units of its measured noise
+    /// (1 when the model misses the samples by the noise alone).
+    pub misfit_rms: f64,
+    /// Samples fitted.
+    pub samples: usize,
+}
+
+/// Passes of [`RigOutputError::compare`] (each re-masks the samples next to the simulation's
+/// stick/slip events) and the limits of each: a start from the phasor fit of a model whose
+/// friction acts where that fit looks away may be off by a factor of three (a Stribeck excess of
+/// 5 N fitted for 14 N), so the trust region is wider than a refinement's.
+const COMPARE_PASSES: usize = 3;
+const COMPARE_LIMITS: Limits = Limits {
+    iterations: 6,
+    max_step: 1.0,
+    // Misfits are compared between models to a few parts in a thousand.
+    relative_tolerance: 1e-4,
+};
 
 /// The channels fitted, in the order of each step's residual block.
 const CHANNELS: [Channel; 3] = [
@@ -280,6 +307,41 @@ impl<'a> RigOutputError<'a> {
             self.records.iter().map(|r| r.step).collect(),
             note,
         ))
+    }
+
+    /// Fits the model's parameters from `theta`, the channels weighted by their measured noise
+    /// throughout (a refinement re-estimates the weights from its own misfit, which makes every
+    /// model's misfit about 1: no longer comparable between models). Each pass re-masks the
+    /// samples next to the simulation's events ([`RigOutputError::masked_at`]); the misfit is
+    /// that of the last pass's mask.
+    pub fn compare(&self, theta: &[f64]) -> Result<RigMisfit, IdentifyError> {
+        let p_model = self.model.terms.len();
+        let full = self.start(theta);
+        let mut problem = self.masked_at(&full)?;
+        let mut p = theta.to_vec();
+        let mut fit = None;
+        for _ in 0..COMPARE_PASSES {
+            let partial = Partial {
+                inner: &problem,
+                full: full.clone(),
+                free: (0..p_model).collect(),
+            };
+            let f = levenberg_marquardt_within(&partial, p, COMPARE_LIMITS)?;
+            p = f.p.clone();
+            fit = Some(f);
+            // Another pass only if the events moved across samples.
+            let next = self.masked_at(&partial.expand(&p))?;
+            if next.acceleration_kept == problem.acceleration_kept {
+                break;
+            }
+            problem = next;
+        }
+        let fit = fit.ok_or(IdentifyError::NoSteps)?;
+        Ok(RigMisfit {
+            theta: fit.p[..p_model].to_vec(),
+            misfit_rms: fit.rms(),
+            samples: fit.residual.len(),
+        })
     }
 
     /// The problem with each channel's noise per step re-estimated from the weighted residual
