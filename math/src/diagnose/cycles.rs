@@ -2,14 +2,11 @@
 //! the channel transformations of the candidate effects (the Bouc-Wen state over a cycle is
 //! [`crate::signal::bouc_wen::steady_cycle`]).
 
-use std::f64::consts::TAU;
-
 use num_complex::Complex64;
 
 use crate::identify::{IdentifyError, element_harmonics};
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
-use crate::record::Channel;
 
 /// One period of a settled sine step on a uniform grid.
 #[derive(Debug, Clone)]
@@ -152,51 +149,6 @@ pub fn step_cycle(
         force_harmonic_noise_n: eh.force_noise.iter().map(|s| s * mass_factor).collect(),
         stuck: false,
     })
-}
-
-/// Exciter delay estimated from the kinematic identity x_o - x = x_i on the first harmonic of
-/// each step (x_o from the mass acceleration, -A_1 / w^2): the element sees the base as
-/// X_i e^{-j w d}. Returns (delay [s], standard deviation [s]) from a weighted least-squares
-/// fit of the phases, or None without the base and mass-acceleration channels.
-pub fn estimate_exciter_delay(analyses: &[HarmonicAnalysis]) -> Option<(f64, f64)> {
-    let (mut swx, mut sww, mut count) = (0.0, 0.0, 0usize);
-    let mut terms = Vec::new();
-    for an in analyses {
-        let w = TAU * an.frequency_hz;
-        let xi = an.channel(Channel::BaseDisplacementM)?;
-        let rel = an.channel(Channel::RelativeDisplacementM)?;
-        let acc = an.channel(Channel::MassAccelerationMps2)?;
-        let (xi1, rel1, a1) = (xi.phasors[1], rel.phasors[1], acc.phasors[1]);
-        if xi1.norm() == 0.0 {
-            continue;
-        }
-        let xo1 = -a1 / (w * w);
-        let r = (xo1 - rel1) / xi1;
-        let noise = (acc.noise_std[1] / (w * w))
-            .hypot(rel.noise_std[1])
-            .hypot(xi.noise_std[1])
-            / xi1.norm();
-        // phase noise ~ noise / |r|; d = -arg(r) / w
-        let sd = (noise / r.norm().max(1e-12)).max(1e-9) / w;
-        let d = -r.arg() / w;
-        let wt = 1.0 / (sd * sd);
-        swx += wt * d;
-        sww += wt;
-        count += 1;
-        terms.push((d, wt));
-    }
-    if count == 0 || sww <= 0.0 {
-        return None;
-    }
-    let d = swx / sww;
-    // Scatter-based standard deviation when it exceeds the noise-based one (other effects).
-    let chi2: f64 = terms.iter().map(|(di, wt)| wt * (di - d).powi(2)).sum();
-    let scale = if count > 1 {
-        (chi2 / (count - 1) as f64).max(1.0)
-    } else {
-        1.0
-    };
-    Some((d, (scale / sww).sqrt()))
 }
 
 #[cfg(test)]

@@ -277,7 +277,7 @@ pub fn baseline_has(baseline: &Model, effect: Effect) -> bool {
 
 /// The structures to try for `effect` (one per value of its searched parameter) on the rig's
 /// grid. Exciter delay has a closed-form estimate instead (see
-/// `cycles::estimate_exciter_delay`), so it is built by the caller.
+/// `exciter::estimate_exciter_delay`), so it is built by the caller.
 pub fn structures(baseline: &Model, effect: Effect, scales: &Scales) -> Vec<Structure> {
     structures_on(baseline, effect, scales, &SearchGrid::RIG)
 }

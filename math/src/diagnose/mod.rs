@@ -37,6 +37,7 @@
 
 pub mod cycles;
 pub mod effects;
+pub mod exciter;
 pub mod findings;
 pub mod fit;
 pub mod locate;
@@ -366,6 +367,11 @@ pub fn diagnose(
     let mut ranked = Vec::new();
     let mut fits: Vec<(Fitted, Vec<HeldOut>)> = Vec::new();
     let mut notes = Vec::new();
+    if let Some((f, gain)) = search.amplified_base {
+        notes.push(format!(
+            "the kinematic identity (x_o - x = x_i) shows the base the rig receives amplified over the recorded one, by {gain:.3} at {f:.2} Hz: exciter dynamics with a gain above 1 (a resonance of the exciter, its mount or the fixture), which no delay or lag gives and no candidate describes; exciter_delay not offered"
+        ));
+    }
     let mut cand_idx = Vec::new();
     for (ci, c) in search.candidates.iter().enumerate() {
         // A candidate whose fitted model cannot be simulated (e.g. an unstable negative

@@ -3,8 +3,9 @@
 //! cross-validated error is kept.
 
 use super::DiagnoseError;
-use super::cycles::{STUCK_FRACTION, StepCycle, estimate_exciter_delay, step_cycle};
+use super::cycles::{STUCK_FRACTION, StepCycle, step_cycle};
 use super::effects::{Effect, Scales, Structure, Transform, baseline_has, structures};
+use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
 use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
@@ -33,8 +34,12 @@ pub struct PhasorSearch {
     /// Effective number of independent equations (sum of 2N+1 over steps).
     pub equations: f64,
     pub candidates: Vec<PhasorCandidate>,
-    /// (delay [s], std [s]) from the kinematic identity.
+    /// (delay [s], std [s]) from the kinematic identity; None when the identity shows the base
+    /// amplified ([`Self::amplified_base`]): no delay does that.
     pub exciter_delay: Option<(f64, f64)>,
+    /// (frequency [Hz], gain) where the kinematic identity shows the base the rig receives most
+    /// amplified over the recorded one, beyond noise and calibration ([`amplified_base`]).
+    pub amplified_base: Option<(f64, f64)>,
 }
 
 /// Cycles of every analysis under a transform.
@@ -97,7 +102,9 @@ pub fn search(
     let plain = Structure::default();
     let base_fit = fit(baseline, &plain, &cycles, None)?;
     let base_cv = cross_validated_percent(baseline, &plain, &cycles);
-    let exciter_delay = estimate_exciter_delay(analyses);
+    let ratios = kinematic_ratios(analyses).unwrap_or_default();
+    let amplified_base = amplified_base(&ratios);
+    let exciter_delay = estimate_exciter_delay(&ratios).filter(|_| amplified_base.is_none());
     let mut candidates = Vec::new();
     for &effect in effects {
         if baseline_has(baseline, effect) {
@@ -166,6 +173,7 @@ pub fn search(
         baseline_cv_percent: base_cv,
         candidates,
         exciter_delay,
+        amplified_base,
     })
 }
 
