@@ -196,15 +196,19 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
             "pairs" => {
                 println!("top effect one of the two: {}", pct(&s.pairs_one_named));
                 println!(
-                    "both among the two best-ranked: {}  (target >= 80 %)",
+                    "both among the top two (the pair the verdict names, else the two best-ranked): {}  (target >= 80 %)",
                     pct(&s.pairs_both_top_two)
                 );
                 for r in subset.iter().filter_map(|r| r.as_ref().ok()) {
                     let top: Vec<&str> = r.ranked.iter().take(2).map(|x| x.0.as_str()).collect();
+                    let named = match &r.second_named {
+                        Some(second) => format!("{} + {second}", r.named),
+                        None => r.named.clone(),
+                    };
                     println!(
-                        "  {:<40} -> {:<20} ranked {}",
+                        "  {:<40} -> {:<42} ranked {}",
                         r.label,
-                        r.named,
+                        named,
                         top.join(", ")
                     );
                 }

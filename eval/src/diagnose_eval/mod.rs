@@ -322,6 +322,8 @@ pub struct CaseResult {
     pub baseline_cv_percent: Option<f64>,
     /// The runner-up effect.
     pub second: Option<String>,
+    /// The second effect when the verdict names two fitted together (`named` is the first).
+    pub second_named: Option<String>,
     /// Every candidate, best first: (effect, held-out NMSE with it [%], penalised score [%],
     /// cross-validated force error on the sine steps [%]).
     pub ranked: Vec<(String, f64, f64, Option<f64>)>,
@@ -372,10 +374,8 @@ fn diagnose_case(
     let setup = Setup::BaseExcited {
         mass_kg: PAPER_RIG_MASS_KG,
     };
-    let options = DiagnoseOptions {
-        pairs: false,
-        ..DiagnoseOptions::default()
-    };
+    // Pairs fitted together, as `forcemap diagnose` does: a pair can be the verdict.
+    let options = DiagnoseOptions::default();
     let d = diagnose(&setup, &baseline, records, &[], &options)?.diagnosis;
     let f = &d.findings;
     let named = match (f.verdict, f.top_effect) {
@@ -394,6 +394,7 @@ fn diagnose_case(
         noise_floor_percent: f.floor_percent,
         baseline_cv_percent: d.baseline_phasor_cv_percent,
         second: d.ranked_effects.get(1).map(|r| r.effect.name().to_string()),
+        second_named: f.second_effect.map(|e| e.name().to_string()),
         ranked: d
             .ranked_effects
             .iter()

@@ -74,7 +74,8 @@ pub struct EvalSummary {
     pub below_threshold_wrong: Rate,
     /// Two-effect cases whose top effect is one of the two.
     pub pairs_one_named: Rate,
-    /// Two-effect cases whose two best-ranked candidates are the two effects.
+    /// Two-effect cases whose top two are the two effects: the pair the verdict names, or else
+    /// the two best-ranked candidates alone.
     pub pairs_both_top_two: Rate,
     /// Explained qualifying single effects whose predicted shrink is within 20 % of the true
     /// model's.
@@ -223,7 +224,11 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
             pairs
                 .iter()
                 .filter(|r| {
-                    let top: Vec<&str> = r.ranked.iter().take(2).map(|x| x.0.as_str()).collect();
+                    // The two the verdict names, or else the two best-ranked alone.
+                    let top: Vec<&str> = match &r.second_named {
+                        Some(second) => vec![r.named.as_str(), second.as_str()],
+                        None => r.ranked.iter().take(2).map(|x| x.0.as_str()).collect(),
+                    };
                     r.case
                         .planted
                         .pair_names()

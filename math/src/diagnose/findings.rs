@@ -46,7 +46,7 @@ pub enum Evidence {
 }
 
 /// The part of the rule every evidence shares.
-const SHARED_RULE: &str = "explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor); explained in part: gap_before > max(3 floor, 1 %), the top candidate is significant and gap_after - floor <= 0.75 (gap_before - floor), but not explained; unexplained: gap_before > max(3 floor, 1 %) and neither; adequate: otherwise";
+const SHARED_RULE: &str = "explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor), or else the best pair fitted together is, scores below the top candidate and leaves less than it by more than max(floor, 10 % of the gap, 0.2 %-points) (explained by the two); explained in part: gap_before > max(3 floor, 1 %), the top candidate is significant and gap_after - floor <= 0.75 (gap_before - floor), but not explained; unexplained: gap_before > max(3 floor, 1 %) and neither; adequate: otherwise";
 
 /// A top candidate that removes at least this share of the gap's excess over the floor (but
 /// not the half that explains it) explains the gap in part.
@@ -143,6 +143,29 @@ pub fn verdict(gap_before: f64, floor: f64, top: Option<(f64, bool)>) -> Verdict
     }
 }
 
+/// Two candidates fitted together, as the verdict sees them.
+#[derive(Debug, Clone, Copy)]
+pub struct PairEvidence {
+    /// The better-ranked alone first.
+    pub effects: [Effect; 2],
+    pub gap_after_percent: f64,
+    pub score_percent: f64,
+    /// Significant against the baseline ([`significant`]).
+    pub significant: bool,
+    /// The score of the best single candidate.
+    pub single_score_percent: f64,
+}
+
+/// Whether a pair explains a gap that the best single candidate (leaving `single_after`) does
+/// not: the pair explains it ([`explains`]), scores better than the single with its extra
+/// parameters, and its second effect removes a significant share of its own (beyond the floor,
+/// a tenth of the gap and 0.2 %-points, as [`significant`] asks of any candidate).
+pub fn pair_explains(gap_before: f64, floor: f64, single_after: f64, pair: &PairEvidence) -> bool {
+    explains(gap_before, floor, pair.gap_after_percent, pair.significant)
+        && pair.score_percent < pair.single_score_percent
+        && single_after - pair.gap_after_percent > floor.max(0.1 * gap_before).max(0.2)
+}
+
 /// The top-ranked candidate as the verdict sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct TopCandidate {
@@ -158,6 +181,9 @@ pub struct Findings {
     /// The effect that explains the gap, or part of it (only when explained, or explained in
     /// part).
     pub top_effect: Option<Effect>,
+    /// The second effect when the gap is explained by two effects fitted together and by no
+    /// one alone ([`Findings::explained_by_pair`]); `top_effect` is then the first.
+    pub second_effect: Option<Effect>,
     /// The best-ranked candidate, explained or not.
     pub best_candidate: Option<Effect>,
     pub gap_before_percent: f64,
@@ -187,6 +213,7 @@ impl Findings {
             top_effect: top
                 .filter(|_| matches!(verdict, Verdict::Explained | Verdict::ExplainedInPart))
                 .map(|t| t.effect),
+            second_effect: None,
             best_candidate: top.map(|t| t.effect),
             gap_before_percent,
             gap_after_percent: top.map_or(gap_before_percent, |t| t.gap_after_percent),
@@ -204,9 +231,36 @@ impl Findings {
         self
     }
 
+    /// Names two effects fitted together as the explanation when the best single candidate
+    /// does not explain the gap and the pair does ([`pair_explains`]); otherwise unchanged.
+    pub fn explained_by_pair(mut self, pair: &PairEvidence) -> Findings {
+        if self.verdict == Verdict::Explained
+            || !pair_explains(
+                self.gap_before_percent,
+                self.floor_percent,
+                self.gap_after_percent,
+                pair,
+            )
+        {
+            return self;
+        }
+        self.verdict = Verdict::Explained;
+        self.top_effect = Some(pair.effects[0]);
+        self.second_effect = Some(pair.effects[1]);
+        self.gap_after_percent = pair.gap_after_percent;
+        self
+    }
+
     /// The verdict in one line: "explained by coulomb_friction: 14.80 % -> 0.96 %".
     pub fn headline(&self) -> String {
         match (self.verdict, self.top_effect) {
+            (Verdict::Explained, Some(e)) if self.second_effect.is_some() => format!(
+                "explained by {} together with {}: {:.2} % -> {:.2} %",
+                e.name(),
+                self.second_effect.map_or("", Effect::name),
+                self.gap_before_percent,
+                self.gap_after_percent
+            ),
             (Verdict::Explained, Some(e)) => format!(
                 "explained by {}: {:.2} % -> {:.2} %",
                 e.name(),
@@ -240,8 +294,10 @@ impl Findings {
     pub fn status(&self, baseline: &str) -> String {
         match (self.verdict, self.top_effect) {
             (Verdict::Explained, Some(e)) => format!(
-                "baseline '{baseline}' misses {}: gap {:.2} % -> {:.2} %",
+                "baseline '{baseline}' misses {}{}: gap {:.2} % -> {:.2} %",
                 e.name(),
+                self.second_effect
+                    .map_or(String::new(), |s| format!(" and {}", s.name())),
                 self.gap_before_percent,
                 self.gap_after_percent
             ),
@@ -303,6 +359,39 @@ mod tests {
         assert_eq!(f.gap_after_percent, 2.9);
         let f = Findings::decide(Evidence::HeldOutNmse, 0.9, 0.1, None);
         assert_eq!(f.verdict, Verdict::Adequate);
+    }
+
+    #[test]
+    fn a_pair_explains_only_what_no_single_candidate_does() {
+        let pair = |after: f64, score: f64| PairEvidence {
+            effects: [Effect::QuadraticDamping, Effect::CoulombFriction],
+            gap_after_percent: after,
+            score_percent: score,
+            significant: true,
+            single_score_percent: 6.5,
+        };
+        // Gap 10 %, floor 1 %: the best single leaves 6 % (in part); the pair 2 %.
+        let single = Findings::decide(Evidence::HeldOutNmse, 10.0, 1.0, top(6.0, true));
+        assert_eq!(single.verdict, Verdict::ExplainedInPart);
+        let f = single.clone().explained_by_pair(&pair(2.0, 2.3));
+        assert_eq!(f.verdict, Verdict::Explained);
+        assert_eq!(f.top_effect, Some(Effect::QuadraticDamping));
+        assert_eq!(f.second_effect, Some(Effect::CoulombFriction));
+        assert_eq!(f.gap_after_percent, 2.0);
+        assert_eq!(
+            f.headline(),
+            "explained by quadratic_damping together with coulomb_friction: 10.00 % -> 2.00 %"
+        );
+        // Its penalised score no better than the single's: not the pair.
+        let f = single.clone().explained_by_pair(&pair(2.0, 6.6));
+        assert_eq!(f.verdict, Verdict::ExplainedInPart);
+        // Leaving more than half the excess: not explained by the pair either.
+        let f = single.clone().explained_by_pair(&pair(5.6, 5.7));
+        assert_eq!(f.second_effect, None);
+        // A single candidate that explains the gap keeps it.
+        let alone = Findings::decide(Evidence::HeldOutNmse, 10.0, 1.0, top(3.0, true));
+        let f = alone.explained_by_pair(&pair(1.0, 1.1));
+        assert_eq!((f.second_effect, f.gap_after_percent), (None, 3.0));
     }
 
     #[test]

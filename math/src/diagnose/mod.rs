@@ -51,7 +51,9 @@ use serde::Serialize;
 use thiserror::Error;
 
 pub use effects::Effect;
-pub use findings::{Evidence, Findings, TopCandidate, Verdict, explains, significant, verdict};
+pub use findings::{
+    Evidence, Findings, PairEvidence, TopCandidate, Verdict, explains, significant, verdict,
+};
 pub use locate::Located;
 pub use phasor::{PhasorDiagnosis, PhasorFindings};
 
@@ -470,7 +472,7 @@ pub fn diagnose(
         None
     };
 
-    let findings = Findings::decide(
+    let mut findings = Findings::decide(
         Evidence::HeldOutNmse,
         gap_before,
         floor,
@@ -480,6 +482,21 @@ pub fn diagnose(
             significant: r.significant,
         }),
     );
+    if let (Some(p), Some(top)) = (&best_pair, ranked.first()) {
+        findings = findings.explained_by_pair(&PairEvidence {
+            effects: p.effects,
+            gap_after_percent: p.gap_after_percent,
+            score_percent: p.score_percent,
+            significant: significant(
+                gap_before,
+                floor,
+                p.gap_after_percent,
+                p.score_percent,
+                baseline_score,
+            ),
+            single_score_percent: top.score_percent,
+        });
+    }
     let located = locate::locate(&search.baseline, &search.cycles);
     let diagnosis = Diagnosis {
         findings,
