@@ -1,9 +1,12 @@
 //! `forcemap diagnose-eval`: the gap diagnosis checked on seeded simulated cases whose planted
 //! effect it is not told (library: `forcemap_eval::diagnose_eval`).
 
-use forcemap_eval::diagnose_eval::{self as eval, CaseResult, EvalSummary};
+use forcemap_eval::diagnose_eval::{
+    self as eval, CaseResult, DIVERGED_BASELINE_PERCENT, EvalSummary,
+};
 
 use crate::cli::{DiagnoseEvalArgs, EvalForms};
+use forcemap_math::diagnose::findings::percent_text;
 
 pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
     if args.cases == 0 {
@@ -105,8 +108,11 @@ fn print_summary(args: &DiagnoseEvalArgs, s: &EvalSummary, results: &[Result<Cas
         pct(&s.pairs_one_named)
     );
     println!(
-        "shrink, explained single effects: mean |predicted - true| {:.2} %-points (mean true shrink {:.2} %-points)",
-        s.shrink_mean_abs_error_percent, s.shrink_mean_true_percent
+        "shrink, explained single effects: |predicted - true| mean {:.2}, median {:.2} %-points (mean true shrink {:.2} %-points){}",
+        s.shrink_mean_abs_error_percent,
+        s.shrink_median_abs_error_percent,
+        s.shrink_mean_true_percent,
+        diverged_note(s)
     );
     print_confusion(s);
     println!("confusable pairs (single effects, every SNR; planted as the one, named the other):");
@@ -236,10 +242,12 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
                     pct(&s.below_threshold_wrong)
                 );
                 println!(
-                    "shrink, explained (>= 2 %): within 20 % of the true model's {}  (mean |predicted - true| {:.2} %-points, mean true {:.2} %-points)",
+                    "shrink, explained (>= 2 %): within 20 % of the true model's {}  (|predicted - true| mean {:.2}, median {:.2} %-points, mean true {:.2} %-points{})",
                     pct(&s.shrink_within_20_percent),
                     s.shrink_mean_abs_error_percent,
-                    s.shrink_mean_true_percent
+                    s.shrink_median_abs_error_percent,
+                    s.shrink_mean_true_percent,
+                    diverged_note(&s)
                 );
             }
         }
@@ -253,22 +261,29 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
 /// One case in full: what was planted, what was named, and every candidate's figures.
 fn print_case(r: &CaseResult) {
     println!(
-        "case {} (seed {}, {} dB): planted {} -> {}; gap {:.2} % -> {:.2} %, true model {:.2} %, noise floor {:.2} %; baseline step CV {}",
+        "case {} (seed {}, {} dB): planted {} -> {}; gap {} -> {}, true model {}, noise floor {}; baseline step CV {}",
         r.case.index,
         r.case.seed,
         r.case.snr_db,
         r.label,
         r.named,
-        r.gap_before_percent,
-        r.gap_after_percent,
-        r.truth_nmse_percent,
-        r.noise_floor_percent,
+        percent_text(r.gap_before_percent),
+        percent_text(r.gap_after_percent),
+        percent_text(r.truth_nmse_percent),
+        percent_text(r.noise_floor_percent),
         r.baseline_cv_percent
             .map_or("-".to_string(), |v| format!("{v:.3} %"))
     );
     for (effect, after, score, cv) in &r.ranked {
         let cv = cv.map_or("-".to_string(), |v| format!("{v:.3} %"));
-        println!("    {effect:<22} held-out {after:>7.3} %  score {score:>7.3} %  step CV {cv:>9}");
+        let [after, score] = [after, score].map(|p| {
+            if p.abs() < 1e4 {
+                format!("{p:>7.3} %")
+            } else {
+                format!("{p:>7.2e} %")
+            }
+        });
+        println!("    {effect:<22} held-out {after}  score {score}  step CV {cv:>9}");
     }
 }
 
@@ -285,5 +300,15 @@ fn abbreviate(name: &str) -> String {
             .chars()
             .take(8)
             .collect(),
+    }
+}
+
+/// The cases left out of the shrink statistics because the baseline diverged, if any.
+fn diverged_note(s: &EvalSummary) -> String {
+    match s.shrink_baseline_diverged {
+        0 => String::new(),
+        n => format!(
+            "; {n} case(s) left out whose baseline's held-out NMSE is above {DIVERGED_BASELINE_PERCENT} % (its simulation diverges)"
+        ),
     }
 }

@@ -13,7 +13,8 @@ mod summary;
 pub mod world;
 
 pub use summary::{
-    CONFUSABLE_PAIRS, ConfusablePair, EvalSummary, QUALIFYING_GAP_PERCENT, Rate, summarise,
+    CONFUSABLE_PAIRS, ConfusablePair, DIVERGED_BASELINE_PERCENT, EvalSummary,
+    QUALIFYING_GAP_PERCENT, Rate, summarise,
 };
 
 use forcemap_math::diagnose::effects::{Effect, Transform};

@@ -28,6 +28,12 @@ fn rate(hits: usize, of: usize) -> Rate {
 /// ([`CaseResult::effect_gap_percent`]), so the noise, which no effect causes, is not counted.
 pub const QUALIFYING_GAP_PERCENT: f64 = 2.0;
 
+/// A baseline whose held-out NMSE is above this [%] predicts the held-out records worse than
+/// predicting zero: its simulation diverges or nearly so (a strong sensor filter can make the
+/// fitted baseline unstable), and the size of its gap says nothing about an effect's. Such
+/// cases are counted apart from the shrink statistics.
+pub const DIVERGED_BASELINE_PERCENT: f64 = forcemap_math::diagnose::findings::NO_PREDICTION_PERCENT;
+
 /// The effect pairs that look alike and must be told apart (each shows something the other
 /// cannot: see [`Effect::signature`]).
 pub const CONFUSABLE_PAIRS: [[Effect; 2]; 6] = [
@@ -80,10 +86,15 @@ pub struct EvalSummary {
     /// Explained qualifying single effects whose predicted shrink is within 20 % of the true
     /// model's.
     pub shrink_within_20_percent: Rate,
-    /// Mean |predicted shrink - true shrink| over explained single-effect cases [%-points],
-    /// and the mean true shrink for scale.
+    /// Mean and median |predicted shrink - true shrink| over the explained qualifying
+    /// single-effect cases whose baseline did not diverge [%-points], and the mean true shrink
+    /// for scale.
     pub shrink_mean_abs_error_percent: f64,
+    pub shrink_median_abs_error_percent: f64,
     pub shrink_mean_true_percent: f64,
+    /// Explained qualifying single-effect cases left out of the shrink statistics because the
+    /// baseline's held-out NMSE is above [`DIVERGED_BASELINE_PERCENT`].
+    pub shrink_baseline_diverged: usize,
     /// Rows: planted; columns: named ("adequate", "unexplained" or an effect); counts.
     pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
     /// The pairs the issue names as confusable, over single-effect cases at every SNR.
@@ -136,17 +147,28 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
         .iter()
         .filter(|r| r.verdict == Verdict::Explained)
         .collect();
-    let (mut err, mut tru, mut within) = (0.0, 0.0, 0);
+    let (mut errors, mut tru, mut within, mut diverged) = (Vec::new(), 0.0, 0, 0);
     for r in &explained {
         let predicted = r.gap_before_percent - r.gap_after_percent;
         let truth = r.gap_before_percent - r.truth_nmse_percent;
-        err += (predicted - truth).abs();
-        tru += truth;
         if (predicted - truth).abs() <= 0.2 * truth.abs() {
             within += 1;
         }
+        if r.gap_before_percent > DIVERGED_BASELINE_PERCENT {
+            diverged += 1;
+            continue;
+        }
+        errors.push((predicted - truth).abs());
+        tru += truth;
     }
-    let ne = explained.len().max(1) as f64;
+    let ne = errors.len().max(1) as f64;
+    let err: f64 = errors.iter().sum();
+    errors.sort_by(f64::total_cmp);
+    let median_err = match errors.len() {
+        0 => 0.0,
+        n if n % 2 == 1 => errors[n / 2],
+        n => 0.5 * (errors[n / 2 - 1] + errors[n / 2]),
+    };
     let mut confusion: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
     for r in &ok {
         if r.case.planted.pair_names().is_some() {
@@ -239,7 +261,9 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
         ),
         shrink_within_20_percent: rate(within, explained.len()),
         shrink_mean_abs_error_percent: err / ne,
+        shrink_median_abs_error_percent: median_err,
         shrink_mean_true_percent: tru / ne,
+        shrink_baseline_diverged: diverged,
         confusion,
         confusable_pairs: CONFUSABLE_PAIRS
             .iter()

@@ -46,11 +46,16 @@ pub enum Evidence {
 }
 
 /// The part of the rule every evidence shares.
-const SHARED_RULE: &str = "explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor), or else the best pair fitted together is, scores below the top candidate and leaves less than it by more than max(floor, 10 % of the gap, 0.2 %-points) (explained by the two); explained in part: gap_before > max(3 floor, 1 %), the top candidate is significant and gap_after - floor <= 0.75 (gap_before - floor), but not explained; unexplained: gap_before > max(3 floor, 1 %) and neither; adequate: otherwise";
+const SHARED_RULE: &str = "explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor), or else the best pair fitted together is, scores below the top candidate and leaves less than it by more than max(floor, 10 % of the gap, 0.2 %-points) (explained by the two); a candidate or pair that leaves 100 % or more (no better than predicting zero) explains nothing; explained in part: gap_before > max(3 floor, 1 %), the top candidate is significant and gap_after - floor <= 0.75 (gap_before - floor), but not explained; unexplained: gap_before > max(3 floor, 1 %) and neither; adequate: otherwise";
 
 /// A top candidate that removes at least this share of the gap's excess over the floor (but
 /// not the half that explains it) explains the gap in part.
 pub const IN_PART_SHARE: f64 = 0.25;
+
+/// A relative error at or above this [%] predicts no better than zero does (a fitted model
+/// whose simulation diverges on the held-out records lands here): a candidate that leaves this
+/// much explains nothing, however much more the baseline left.
+pub const NO_PREDICTION_PERCENT: f64 = 100.0;
 
 impl Evidence {
     /// What the gap figures measure, for a sentence ("held-out NMSE").
@@ -122,7 +127,9 @@ pub fn significant(
 /// Whether a candidate leaving `gap_after` would explain the gap: significant, and at most half
 /// of the excess over the floor left.
 pub fn explains(gap_before: f64, floor: f64, gap_after: f64, significant: bool) -> bool {
-    significant && gap_after - floor <= 0.5 * (gap_before - floor)
+    significant
+        && gap_after - floor <= 0.5 * (gap_before - floor)
+        && gap_after < NO_PREDICTION_PERCENT
 }
 
 /// The verdict from the gap, the floor and the top candidate (gap_after, significant).
@@ -136,7 +143,10 @@ pub fn verdict(gap_before: f64, floor: f64, top: Option<(f64, bool)>) -> Verdict
         return Verdict::Adequate;
     }
     match top {
-        Some((after, true)) if gap_before - after >= IN_PART_SHARE * (gap_before - floor) => {
+        Some((after, true))
+            if gap_before - after >= IN_PART_SHARE * (gap_before - floor)
+                && after < NO_PREDICTION_PERCENT =>
+        {
             Verdict::ExplainedInPart
         }
         _ => Verdict::Unexplained,
@@ -253,37 +263,34 @@ impl Findings {
 
     /// The verdict in one line: "explained by coulomb_friction: 14.80 % -> 0.96 %".
     pub fn headline(&self) -> String {
+        let before = percent_text(self.gap_before_percent);
+        let after = percent_text(self.gap_after_percent);
+        let floor = percent_text(self.floor_percent);
         match (self.verdict, self.top_effect) {
             (Verdict::Explained, Some(e)) if self.second_effect.is_some() => format!(
-                "explained by {} together with {}: {:.2} % -> {:.2} %",
+                "explained by {} together with {}: {before} -> {after}",
                 e.name(),
                 self.second_effect.map_or("", Effect::name),
-                self.gap_before_percent,
-                self.gap_after_percent
             ),
-            (Verdict::Explained, Some(e)) => format!(
-                "explained by {}: {:.2} % -> {:.2} %",
-                e.name(),
-                self.gap_before_percent,
-                self.gap_after_percent
-            ),
+            (Verdict::Explained, Some(e)) => {
+                format!("explained by {}: {before} -> {after}", e.name())
+            }
             (Verdict::ExplainedInPart, Some(e)) => format!(
-                "explained in part by {}: {:.2} % -> {:.2} %, {:.2} %-points left above the floor of {:.2} %",
+                "explained in part by {}: {before} -> {after}, {:.2} %-points left above the floor of {floor}",
                 e.name(),
-                self.gap_before_percent,
-                self.gap_after_percent,
                 self.gap_after_percent - self.floor_percent,
-                self.floor_percent
             ),
             (v, _) => format!(
-                "{} (gap {:.2} %, floor {:.2} %{})",
+                "{} (gap {before}{}, floor {floor}{})",
                 v.name(),
-                self.gap_before_percent,
-                self.floor_percent,
+                if self.gap_before_percent >= NO_PREDICTION_PERCENT {
+                    ": the baseline predicts no better than zero"
+                } else {
+                    ""
+                },
                 self.best_candidate.map_or(String::new(), |e| format!(
-                    ", best candidate {} leaves {:.2} %",
-                    e.name(),
-                    self.gap_after_percent
+                    ", best candidate {} leaves {after}",
+                    e.name()
                 ))
             ),
         }
@@ -292,28 +299,33 @@ impl Findings {
     /// The verdict as a status line about `baseline` (the diagnoser's /diagnostics message,
     /// the report's heading).
     pub fn status(&self, baseline: &str) -> String {
+        let before = percent_text(self.gap_before_percent);
+        let after = percent_text(self.gap_after_percent);
         match (self.verdict, self.top_effect) {
             (Verdict::Explained, Some(e)) => format!(
-                "baseline '{baseline}' misses {}{}: gap {:.2} % -> {:.2} %",
+                "baseline '{baseline}' misses {}{}: gap {before} -> {after}",
                 e.name(),
                 self.second_effect
                     .map_or(String::new(), |s| format!(" and {}", s.name())),
-                self.gap_before_percent,
-                self.gap_after_percent
             ),
             (Verdict::ExplainedInPart, Some(e)) => format!(
-                "baseline '{baseline}' misses {} and more: gap {:.2} % -> {:.2} % (floor {:.2} %)",
+                "baseline '{baseline}' misses {} and more: gap {before} -> {after} (floor {})",
                 e.name(),
-                self.gap_before_percent,
-                self.gap_after_percent,
-                self.floor_percent
+                percent_text(self.floor_percent)
             ),
             (Verdict::Adequate, _) => format!("baseline '{baseline}' is adequate"),
-            _ => format!(
-                "baseline '{baseline}' has a gap of {:.2} % that no candidate explains",
-                self.gap_before_percent
-            ),
+            _ => format!("baseline '{baseline}' has a gap of {before} that no candidate explains"),
         }
+    }
+}
+
+/// A gap for a sentence: two decimals ("14.80 %"), or three significant digits when it is
+/// beyond any meaning as a share ("5.19e20 %": a diverged simulation).
+pub fn percent_text(percent: f64) -> String {
+    if percent.abs() < 1e4 {
+        format!("{percent:.2} %")
+    } else {
+        format!("{percent:.2e} %")
     }
 }
 
@@ -327,6 +339,31 @@ mod tests {
             gap_after_percent: after,
             significant,
         })
+    }
+
+    #[test]
+    fn a_candidate_that_predicts_no_better_than_zero_explains_nothing() {
+        // A baseline whose simulation diverges (5e20 %) and a candidate that diverges less
+        // (8e17 %): more than half the excess removed, yet nothing explained.
+        let f = Findings::decide(Evidence::HeldOutNmse, 5.2e20, 2.0, top(8.0e17, true));
+        assert_eq!(f.verdict, Verdict::Unexplained);
+        assert_eq!(f.top_effect, None);
+        assert_eq!(
+            f.headline(),
+            "unexplained (gap 5.20e20 %: the baseline predicts no better than zero, floor 2.00 %, best candidate coulomb_friction leaves 8.00e17 %)"
+        );
+        // The same baseline with a candidate that predicts: explained.
+        let f = Findings::decide(Evidence::HeldOutNmse, 5.2e20, 2.0, top(2.5, true));
+        assert_eq!(f.verdict, Verdict::Explained);
+        assert_eq!(
+            f.headline(),
+            "explained by coulomb_friction: 5.20e20 % -> 2.50 %"
+        );
+        // Leaving 100 % or more cannot be "in part" either.
+        let f = Findings::decide(Evidence::HeldOutNmse, 400.0, 1.0, top(250.0, true));
+        assert_eq!(f.verdict, Verdict::Unexplained);
+        let f = Findings::decide(Evidence::HeldOutNmse, 400.0, 1.0, top(99.0, true));
+        assert_eq!(f.verdict, Verdict::Explained);
     }
 
     #[test]
