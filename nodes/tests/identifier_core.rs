@@ -21,7 +21,9 @@ use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
 use forcemap_msgs::std_msgs::Header;
-use forcemap_nodes::node::identifier::{IdentifierCore, Input, Output, RecipeParameters};
+use forcemap_nodes::node::identifier::{
+    IdentifierCore, IdentifierState, Input, Output, RecipeParameters, Setting,
+};
 
 const RUN_START: Time = DEFAULT_RUN_START;
 
@@ -370,4 +372,243 @@ fn a_forgetting_factor_outside_zero_to_one_is_refused() {
     let p = params(&[("forgetting_per_step", ParamValue::Double(1.5))]);
     let e = RecipeParameters::from_params(&p).unwrap_err().to_string();
     assert!(e.contains("forgetting_per_step = 1.5"), "{e}");
+}
+
+/// The identifier fed every phasor message, returning the last theta it published.
+fn fed(c: &mut IdentifierCore, messages: &[HarmonicPhasors]) -> Option<IdentifiedParameters> {
+    let mut last = None;
+    for ph in messages {
+        let o = c
+            .handle(Input::Phasors(Box::new(ph.clone())), RUN_START)
+            .unwrap();
+        last = thetas(&o).last().map(|t| (*t).clone()).or(last);
+    }
+    last
+}
+
+fn assert_same_values(a: &IdentifiedParameters, b: &IdentifiedParameters, rel: f64) {
+    assert_eq!(a.parameter_names, b.parameter_names);
+    for ((n, x), y) in a.parameter_names.iter().zip(&a.values).zip(&b.values) {
+        let d = (x - y).abs() / y.abs().max(f64::MIN_POSITIVE);
+        assert!(d <= rel, "{n}: {x} vs {y} (relative {d:e})");
+    }
+}
+
+fn rig_params(extra: &[(&str, ParamValue)]) -> Params {
+    let mut entries = vec![
+        ("model", ParamValue::String("coulomb".into())),
+        ("mass_kg", ParamValue::Double(36.0)),
+    ];
+    entries.extend(extra.iter().cloned());
+    params(&entries)
+}
+
+fn setting(name: &str, value: &str) -> Setting {
+    Setting::parse(name, &ParamValue::String(value.into())).unwrap()
+}
+
+/// Parameter names and values.
+type Entries = Vec<(&'static str, ParamValue)>;
+
+/// A new model, method, weighting or forgetting factor set live re-solves the kept phasors and
+/// gives what a fresh identifier started with those values gives on the same steps (and, for
+/// the model, what `forcemap identify --model NEW` gives).
+#[test]
+fn reconfigure_equals_a_fresh_identifier_with_the_new_values() {
+    let messages = phasor_messages();
+    let cases: Vec<(Entries, Vec<Setting>, Entries)> = vec![
+        (
+            vec![],
+            vec![setting("model", "coulomb-cubic")],
+            vec![("model", ParamValue::String("coulomb-cubic".into()))],
+        ),
+        (
+            vec![],
+            vec![setting("method", "fd"), setting("model", "linear")],
+            vec![
+                ("method", ParamValue::String("fd".into())),
+                ("model", ParamValue::String("linear".into())),
+            ],
+        ),
+        // Tracking: the re-solve applies the same per-step weights.
+        (
+            vec![("forgetting_per_step", ParamValue::Double(0.7))],
+            vec![setting("weighting", "uniform"), setting("model", "cubic")],
+            vec![
+                ("forgetting_per_step", ParamValue::Double(0.7)),
+                ("weighting", ParamValue::String("uniform".into())),
+                ("model", ParamValue::String("cubic".into())),
+            ],
+        ),
+        (
+            vec![],
+            vec![Setting::parse("forgetting_per_step", &ParamValue::Double(0.8)).unwrap()],
+            vec![("forgetting_per_step", ParamValue::Double(0.8))],
+        ),
+    ];
+    for (start, settings, fresh_params) in cases {
+        let mut c = core(&rig_params(&start));
+        fed(&mut c, &messages).unwrap();
+        let out = c.reconfigure(&settings, RUN_START).unwrap();
+        let th = thetas(&out);
+        assert_eq!(th.len(), 1, "{settings:?}: theta at once: {out:?}");
+        assert!(out.contains(&Output::Persist));
+        let status = statuses(&out).last().copied().unwrap();
+        assert_eq!(status.level, DiagnosticStatus::OK, "{status:?}");
+        let mut fresh = core(&rig_params(&fresh_params));
+        let expected = fed(&mut fresh, &messages).unwrap();
+        assert_same_values(th[0], &expected, 1e-12);
+        assert_eq!(c.recipe(), fresh.recipe(), "{settings:?}");
+        // The next step goes on with the new recipe as the fresh identifier does.
+        let more = fed(&mut c, &messages[..1]);
+        assert!(more.is_none(), "a replayed step is skipped");
+    }
+
+    // Independently of the node: the model set live equals the offline identification.
+    let mut c = core(&rig_params(&[]));
+    fed(&mut c, &messages).unwrap();
+    let out = c
+        .reconfigure(&[setting("model", "coulomb-cubic")], RUN_START)
+        .unwrap();
+    let bag = read_rig_bag(&rig_bag()).unwrap();
+    let model = Model::by_name("coulomb-cubic", &ModelOptions::default()).unwrap();
+    let offline = identify_records(
+        &model,
+        &Setup::BaseExcited { mass_kg: 36.0 },
+        Method::FdMulti,
+        &bag.records,
+        &PhasorOptions::for_identification(),
+        &FdMultiOptions::default(),
+    )
+    .unwrap();
+    let live = thetas(&out)[0];
+    assert_eq!(live.parameter_names, vec!["k", "c", "fd", "s"]);
+    for (l, o) in live.values.iter().zip(offline.theta()) {
+        assert!(((l - o) / o).abs() < 1e-9, "live {l} offline {o}");
+    }
+}
+
+/// What cannot be applied is refused with a reason naming the parameter and value, and the
+/// identifier stays as it was (same state, no theta).
+#[test]
+fn a_set_that_cannot_be_applied_is_refused_and_changes_nothing() {
+    for (name, value, expect) in [
+        (
+            "model",
+            ParamValue::String("quadratic".into()),
+            "model = 'quadratic': unknown model",
+        ),
+        (
+            "method",
+            ParamValue::String("output-error".into()),
+            "method = 'output-error': output error refits",
+        ),
+        (
+            "method",
+            ParamValue::String("td".into()),
+            "method = 'td': the time-domain FSM needs the samples",
+        ),
+        (
+            "weighting",
+            ParamValue::String("equal".into()),
+            "weighting = 'equal'",
+        ),
+        (
+            "model",
+            ParamValue::Double(3.0),
+            "model must be a string (got a double)",
+        ),
+        (
+            "forgetting_per_step",
+            ParamValue::String("0.9".into()),
+            "forgetting_per_step must be a double (got a string)",
+        ),
+        (
+            "forgetting_per_step",
+            ParamValue::Double(0.0),
+            "forgetting_per_step = 0",
+        ),
+        (
+            "mass_kg",
+            ParamValue::Double(40.0),
+            "parameter 'mass_kg' cannot change while the identifier runs",
+        ),
+    ] {
+        let e = Setting::parse(name, &value).unwrap_err();
+        assert!(e.reason.contains(expect), "{name} = {value:?}: {e}");
+    }
+    // A model that needs an option the node was not started with.
+    let mut c = core(&rig_params(&[]));
+    fed(&mut c, &phasor_messages()).unwrap();
+    let before = c.state().cloned();
+    let recipe = c.recipe().cloned();
+    let e = c
+        .reconfigure(&[setting("model", "coulomb-atan")], RUN_START)
+        .unwrap_err();
+    assert!(e.reason.starts_with("model = 'coulomb-atan': "), "{e}");
+    assert!(e.reason.contains("atan slope M"), "{e}");
+    assert_eq!(c.state().cloned(), before);
+    assert_eq!(c.recipe().cloned(), recipe);
+    assert_eq!(c.parameters().model.name, "coulomb");
+}
+
+/// Set before the first step: nothing to re-solve, the steps are taken with the new recipe.
+#[test]
+fn a_set_before_the_first_step_applies_to_the_steps_to_come() {
+    let messages = phasor_messages();
+    let mut c = core(&rig_params(&[]));
+    let out = c
+        .reconfigure(&[setting("model", "linear")], RUN_START)
+        .unwrap();
+    assert!(thetas(&out).is_empty());
+    let live = fed(&mut c, &messages).unwrap();
+    let mut fresh = core(&rig_params(&[(
+        "model",
+        ParamValue::String("linear".into()),
+    )]));
+    assert_same_values(&live, &fed(&mut fresh, &messages).unwrap(), 0.0);
+}
+
+/// The kept phasors survive the state file, so a resumed identifier re-solves as one that ran
+/// the steps itself; a version-1 file (no phasors) resumes but refuses a re-solve by name.
+#[test]
+fn a_resumed_state_re_solves_from_its_file_and_a_version_one_file_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("state.json");
+    let messages = phasor_messages();
+    let mut c = core(&rig_params(&[]));
+    fed(&mut c, &messages).unwrap();
+    c.state().unwrap().save(&path).unwrap();
+    let resume = |path: &Path| {
+        let st = IdentifierState::load(path).unwrap().unwrap();
+        let rp = RecipeParameters::from_params(&rig_params(&[])).unwrap();
+        IdentifierCore::new(rp, "x", Some((st, "file".into())), RUN_START)
+            .unwrap()
+            .0
+    };
+    let mut resumed = resume(&path);
+    let out = resumed
+        .reconfigure(&[setting("model", "coulomb-cubic")], RUN_START)
+        .unwrap();
+    let mut fresh = core(&rig_params(&[(
+        "model",
+        ParamValue::String("coulomb-cubic".into()),
+    )]));
+    assert_same_values(thetas(&out)[0], &fed(&mut fresh, &messages).unwrap(), 1e-12);
+
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let obj = v.as_object_mut().unwrap();
+    obj.remove("phasors");
+    obj.remove("setup_spec");
+    obj.insert("version".into(), 1.into());
+    std::fs::write(&path, v.to_string()).unwrap();
+    let mut old = resume(&path);
+    let before = old.state().cloned();
+    let e = old
+        .reconfigure(&[setting("model", "coulomb-cubic")], RUN_START)
+        .unwrap_err();
+    assert!(e.reason.contains("version-1 state file"), "{e}");
+    assert_eq!(old.state().cloned(), before);
+    assert_eq!(old.parameters().model.name, "coulomb");
 }

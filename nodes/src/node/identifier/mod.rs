@@ -16,10 +16,12 @@
 //!   persisted). A restarted identifier resumes from it and skips the steps it already has.
 
 mod core;
+mod reconfigure;
 mod state;
 
 pub use crate::node::setup_gate::Input;
 pub use core::{IdentifierCore, Output, RecipeParameters, theta_line};
+pub use reconfigure::{Refusal, SETTABLE, Setting};
 pub use state::{Admit, IdentifierState, admit};
 
 use std::path::PathBuf;
