@@ -612,3 +612,61 @@ fn a_resumed_state_re_solves_from_its_file_and_a_version_one_file_refuses() {
     assert_eq!(old.state().cloned(), before);
     assert_eq!(old.parameters().model.name, "coulomb");
 }
+
+/// A set as the parameter services deliver it: each value on its own, or all or nothing.
+#[test]
+fn parameter_sets_apply_each_value_or_all_together() {
+    let messages = phasor_messages();
+    let set = vec![
+        (
+            "model".to_string(),
+            ParamValue::String("coulomb-cubic".into()),
+        ),
+        (
+            "method".to_string(),
+            ParamValue::String("output-error".into()),
+        ),
+        ("forgetting_per_step".to_string(), ParamValue::Integer(1)),
+    ];
+    let mut c = core(&rig_params(&[]));
+    fed(&mut c, &messages).unwrap();
+    let before = c.state().cloned();
+    let (done, out) = c.apply_parameters(&set, true, RUN_START);
+    assert_eq!(done.results.len(), 1);
+    assert!(
+        done.results[0]
+            .as_ref()
+            .unwrap_err()
+            .contains("method = 'output-error'")
+    );
+    assert!(done.applied.is_empty());
+    assert!(thetas(&out).is_empty(), "a refused set publishes no theta");
+    assert_eq!(c.state().cloned(), before);
+
+    let (done, out) = c.apply_parameters(&set, false, RUN_START);
+    assert!(done.results[0].is_ok());
+    assert!(
+        done.results[1]
+            .as_ref()
+            .unwrap_err()
+            .contains("output error refits")
+    );
+    assert!(done.results[2].is_ok());
+    assert_eq!(
+        done.applied,
+        vec![
+            (
+                "model".to_string(),
+                ParamValue::String("coulomb-cubic".into())
+            ),
+            ("forgetting_per_step".to_string(), ParamValue::Double(1.0)),
+        ]
+    );
+    // One theta per applied value, the last of the new model.
+    let th = thetas(&out);
+    assert_eq!(th.len(), 2);
+    assert_eq!(th[1].parameter_names, vec!["k", "c", "fd", "s"]);
+    assert!(out.iter().any(
+        |o| matches!(o, Output::Log(l) if l.starts_with("parameter set refused: method = 'output-error'"))
+    ));
+}

@@ -203,6 +203,65 @@ impl IdentifierCore {
     }
 }
 
+impl IdentifierCore {
+    /// A parameter set as the parameter services deliver it: `atomically`, all values in one
+    /// reconfiguration (one result); otherwise each on its own, in order (one result each).
+    /// Returns the results (`Err` holds the reason), the values to store for what was applied
+    /// (as the parameter table keeps them) and the outputs to publish.
+    pub fn apply_parameters(
+        &mut self,
+        params: &[(String, ParamValue)],
+        atomically: bool,
+        now: Time,
+    ) -> (ParameterSetResults, Vec<Output>) {
+        let mut results = Vec::new();
+        let mut stored = Vec::new();
+        let mut out = Vec::new();
+        let groups: Vec<&[(String, ParamValue)]> = if atomically {
+            vec![params]
+        } else {
+            params.chunks(1).collect()
+        };
+        for group in groups {
+            let parsed: Result<Vec<Setting>, Refusal> = group
+                .iter()
+                .map(|(name, value)| Setting::parse(name, value))
+                .collect();
+            match parsed.and_then(|settings| self.reconfigure(&settings, now)) {
+                Ok(o) => {
+                    out.extend(o);
+                    stored.extend(group.iter().map(|(name, value)| match value {
+                        // Declared as a double, whatever number was sent.
+                        ParamValue::Integer(i) => (name.clone(), ParamValue::Double(*i as f64)),
+                        v => (name.clone(), v.clone()),
+                    }));
+                    results.push(Ok(()));
+                }
+                Err(e) => {
+                    out.push(Output::Log(format!("parameter set refused: {e}")));
+                    results.push(Err(e.reason));
+                }
+            }
+        }
+        (
+            ParameterSetResults {
+                results,
+                applied: stored,
+            },
+            out,
+        )
+    }
+}
+
+/// What [`IdentifierCore::apply_parameters`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParameterSetResults {
+    /// One per parameter, or one for an atomic set; `Err` holds the reason.
+    pub results: Vec<Result<(), String>>,
+    /// The values applied, to store in the parameter table.
+    pub applied: Vec<(String, ParamValue)>,
+}
+
 /// `model 'coulomb' by fd-multi, noise weighting, forgetting 1`.
 fn describe(p: &RecipeParameters) -> String {
     format!(
