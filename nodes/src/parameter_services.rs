@@ -84,7 +84,9 @@ impl ParameterTable {
 
     fn lock(&self) -> std::sync::MutexGuard<'_, BTreeMap<String, Declared>> {
         // A panicked holder cannot leave the map half-written (every change is one insert).
-        self.entries.lock().unwrap_or_else(|e| e.into_inner())
+        self.entries
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
     /// Why `name` cannot be set here (undeclared or read-only), checked before the node's loop
@@ -187,7 +189,7 @@ fn list(names: Vec<String>, prefixes: &[String], depth: u64) -> ListParametersRe
                     || name
                         .strip_prefix(p.as_str())
                         .and_then(|r| r.strip_prefix('.'))
-                        .is_some_and(|r| within(r))
+                        .is_some_and(&within)
             })
         };
         if listed {
