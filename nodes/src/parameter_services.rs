@@ -462,6 +462,29 @@ mod tests {
         }
     }
 
+    /// A node whose parameters cannot change declares what it was given, read-only, with
+    /// where each value came from.
+    #[test]
+    fn a_node_declares_the_parameters_it_was_given_read_only() {
+        let mut params = Params::new();
+        params.set_from_override("bag:=bags/rig_40db").unwrap();
+        params.set_with_origin("rate_factor", ParamValue::Double(0.0), "rig.params.yaml");
+        let t = ParameterTable::read_only(&params);
+        assert_eq!(t.names(), vec!["bag", "rate_factor"]);
+        let d = t.get("rate_factor").unwrap();
+        assert!(d.read_only);
+        assert_eq!(d.value, ParamValue::Double(0.0));
+        assert!(
+            d.description.contains("rig.params.yaml"),
+            "{}",
+            d.description
+        );
+        let w = describe("bag", t.get("bag"));
+        assert_eq!(w.r#type, raw::ParameterType::STRING);
+        assert!(w.read_only);
+        assert_eq!(describe("nope", None).r#type, raw::ParameterType::NOT_SET);
+    }
+
     #[tokio::test]
     async fn read_only_and_undeclared_parameters_are_refused_by_name() {
         let t = ParameterTable::default();
