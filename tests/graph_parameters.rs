@@ -180,7 +180,7 @@ fn parameters_are_listed_described_and_a_model_set_live_gives_its_theta_at_once(
             assert!(names.iter().any(|x| x == n), "{n} not in {names:?}");
         }
         let get_values = |names: &[&str]| GetParametersRequest {
-            names: names.iter().map(|s| s.to_string()).collect(),
+            names: names.iter().map(ToString::to_string).collect(),
         };
         let values = call(&node, &get, get_values(&["model", "method", "weighting"]))
             .await
