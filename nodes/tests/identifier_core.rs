@@ -670,3 +670,25 @@ fn parameter_sets_apply_each_value_or_all_together() {
         |o| matches!(o, Output::Log(l) if l.starts_with("parameter set refused: method = 'output-error'"))
     ));
 }
+
+/// With forgetting, the phasors of steps whose weight F^age fell below 1e-16 are let go: the
+/// state stays small, and a re-solve from the rest still gives the full track's theta.
+#[test]
+fn a_tracking_identifier_keeps_only_the_phasors_that_still_weigh() {
+    let messages = phasor_messages();
+    // ln(1e-16) / ln(0.001) = 5.3: the newest step and 5 before it weigh at least 1e-16.
+    let forgetting = ("forgetting_per_step", ParamValue::Double(0.001));
+    let mut c = core(&rig_params(&[forgetting.clone()]));
+    fed(&mut c, &messages).unwrap();
+    let st = c.state().unwrap();
+    assert_eq!(st.phasors.len(), 6);
+    assert_eq!(st.phasors[0].step, messages[4].step);
+    let out = c
+        .reconfigure(&[setting("model", "linear")], RUN_START)
+        .unwrap();
+    let mut fresh = core(&rig_params(&[
+        forgetting,
+        ("model", ParamValue::String("linear".into())),
+    ]));
+    assert_same_values(thetas(&out)[0], &fed(&mut fresh, &messages).unwrap(), 1e-12);
+}
