@@ -78,7 +78,7 @@ fn theta_of(msg: &IdentifiedParameters) -> Theta {
 
 #[test]
 fn parameters_are_listed_described_and_a_model_set_live_gives_its_theta_at_once() {
-    let d = domain(17);
+    let d = domain(31);
     let bag = repo().join("bags/rig_40db");
     let dir = tempfile::tempdir().unwrap();
     let state_file = dir.path().join("identifier.json");
