@@ -692,3 +692,28 @@ fn a_tracking_identifier_keeps_only_the_phasors_that_still_weigh() {
     ]));
     assert_same_values(thetas(&out)[0], &fed(&mut fresh, &messages).unwrap(), 1e-12);
 }
+
+/// Restarted with another model on a state file of the old one, the identifier re-solves the
+/// file's phasors for the new model instead of starting afresh.
+#[test]
+fn a_restart_with_another_model_re_solves_the_state_files_phasors() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("state.json");
+    let messages = phasor_messages();
+    let mut c = core(&rig_params(&[]));
+    fed(&mut c, &messages).unwrap();
+    c.state().unwrap().save(&path).unwrap();
+    let cubic = rig_params(&[("model", ParamValue::String("coulomb-cubic".into()))]);
+    let st = IdentifierState::load(&path).unwrap().unwrap();
+    let rp = RecipeParameters::from_params(&cubic).unwrap();
+    let (mut resumed, out) =
+        IdentifierCore::new(rp, "x", Some((st, "the file".into())), RUN_START).unwrap();
+    assert!(out.iter().any(|o| matches!(o, Output::Log(l)
+        if l.contains("the file holds equations of model 'coulomb'") && l.contains("re-solving the phasors of its 10 steps"))));
+    let mut fresh = core(&cubic);
+    let expected = fed(&mut fresh, &messages).unwrap();
+    assert_same_values(thetas(&out)[0], &expected, 1e-12);
+    // The steps it has are skipped when the phasor history is replayed to it.
+    assert!(fed(&mut resumed, &messages).is_none());
+    assert_eq!(resumed.state().unwrap().phasors.len(), 10);
+}

@@ -113,7 +113,8 @@ pub struct IdentifierCore {
 
 impl IdentifierCore {
     /// A core for `parameters`, reporting its status as `status_name`, resuming from `resumed`
-    /// when that holds equations of this model, method and weighting. Returns the log lines
+    /// when that holds equations of this model, method and weighting, or else re-solving the
+    /// phasors it keeps for them (a version-1 state without phasors is not resumed then). Returns the log lines
     /// and, for a resumed state, its theta (a control node may have missed the last one).
     pub fn new(
         parameters: RecipeParameters,
@@ -145,12 +146,40 @@ impl IdentifierCore {
                 }
                 state = Some(s);
             } else {
-                out.push(Output::Log(format!(
-                    "{source} holds equations of model '{}' by {} ({} weighting): not this identifier's; starting afresh",
+                let held = format!(
+                    "{source} holds equations of model '{}' by {} ({} weighting)",
                     s.accumulator.model,
                     s.accumulator.method,
                     s.weighting.name()
-                )));
+                );
+                // The kept phasors give this identifier's equations for the same steps.
+                if s.keeps_all_phasors() && !s.phasors.is_empty() {
+                    let steps = s.phasors.len();
+                    let old = IdentifierCore {
+                        gate: SetupGate::new(parameters.constants.clone()),
+                        parameters: parameters.clone(),
+                        model: model.clone(),
+                        state: Some(s),
+                        recipe: None,
+                        status_name: status_name.to_string(),
+                    };
+                    match old.rebuilt(parameters.clone(), now) {
+                        Ok((core, said)) => {
+                            out.push(Output::Log(format!(
+                                "{held}: re-solving the phasors of its {steps} steps for this identifier"
+                            )));
+                            out.extend(said);
+                            return Ok((core, out));
+                        }
+                        Err(e) => out.push(Output::Log(format!(
+                            "{held}, which cannot be re-solved ({e}); starting afresh"
+                        ))),
+                    }
+                } else {
+                    out.push(Output::Log(format!(
+                        "{held}, without the phasors to re-solve them: not this identifier's; starting afresh"
+                    )));
+                }
             }
         }
         Ok((

@@ -135,6 +135,18 @@ impl IdentifierCore {
     /// value cannot be applied or the state keeps no phasors to rebuild from.
     pub fn reconfigure(&mut self, settings: &[Setting], now: Time) -> Result<Vec<Output>, Refusal> {
         let parameters = self.parameters.with_settings(settings)?;
+        let (fresh, out) = self.rebuilt(parameters, now)?;
+        *self = fresh;
+        Ok(out)
+    }
+
+    /// A core running `parameters` whose equations are rebuilt from this one's kept phasors,
+    /// with what it says (theta and status included, stamped `now`); this one is untouched.
+    pub(super) fn rebuilt(
+        &self,
+        parameters: RecipeParameters,
+        now: Time,
+    ) -> Result<(IdentifierCore, Vec<Output>), Refusal> {
         let model = parameters
             .model
             .build()
@@ -152,8 +164,7 @@ impl IdentifierCore {
         let Some(st) = &self.state else {
             // No step yet: the next one is taken with the new recipe.
             out.push(Output::Log(format!("now identifying {described}")));
-            *self = fresh;
-            return Ok(out);
+            return Ok((fresh, out));
         };
         if !st.keeps_all_phasors() {
             return Err(refuse(format!(
@@ -198,8 +209,7 @@ impl IdentifierCore {
             .publish_solution(&what, &what, now, &frame, &mut out)
             .map_err(|e| refuse(format!("re-solving: {e:#}")))?;
         out.push(Output::Persist);
-        *self = fresh;
-        Ok(out)
+        Ok((fresh, out))
     }
 }
 
