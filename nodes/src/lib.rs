@@ -3,4 +3,5 @@
 //! shells on ros2-client and tokio around `forcemap_math` and `forcemap_io`.
 pub mod launch;
 pub mod node;
+pub mod parameter_services;
 pub mod ros;

@@ -14,6 +14,7 @@ use ros2_client::{
 };
 use tokio::sync::mpsc;
 
+use crate::parameter_services::{self, ParameterTable, SetRequest};
 use forcemap_io::params::{Params, read_params};
 
 /// QoS per topic. Samples: reliable with a deep queue (a step's samples must all arrive).
@@ -251,15 +252,35 @@ pub struct RosNode {
 }
 
 impl RosNode {
-    /// Creates the node on `ROS_DOMAIN_ID` and starts its spinner (inside tokio).
+    /// Creates the node on `ROS_DOMAIN_ID` and starts its spinner (inside tokio), with the
+    /// parameters it was started with served read-only on the parameter services.
     pub fn start(setup: NodeSetup) -> anyhow::Result<RosNode> {
+        let table = ParameterTable::read_only(&setup.params);
+        Self::start_with_parameters(setup, table, None)
+    }
+
+    /// [`RosNode::start`] serving `table` on the parameter services, the sets of its writable
+    /// parameters sent into `sets` for the node's loop to apply.
+    pub fn start_with_parameters(
+        setup: NodeSetup,
+        table: ParameterTable,
+        sets: Option<mpsc::UnboundedSender<SetRequest>>,
+    ) -> anyhow::Result<RosNode> {
         let context = Context::with_options(ContextOptions::new().domain_id(domain_id()?))
             .map_err(|e| anyhow::anyhow!("creating the DDS participant: {e:?}"))?;
         let name = NodeName::new(&setup.namespace, &setup.name)
             .map_err(|e| anyhow::anyhow!("node name: {e:?}"))?;
+        // ros2-client's own parameter services are off: forcemap serves them
+        // (parameter_services says why).
         let mut node = context
-            .new_node(name, NodeOptions::new().enable_rosout(true))
+            .new_node(
+                name,
+                NodeOptions::new()
+                    .enable_rosout(true)
+                    .start_parameter_services(false),
+            )
             .map_err(|e| anyhow::anyhow!("creating node {}: {e:?}", setup.name))?;
+        parameter_services::serve(&mut node, &setup.fully_qualified_name(), table, sets)?;
         let spinner = node
             .spinner()
             .map_err(|e| anyhow::anyhow!("starting the node's spinner: {e:?}"))?;

@@ -6,10 +6,8 @@
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
 )]
 
-use std::path::Path;
-
-use forcemap_io::params::{ParamValue, Params};
-use forcemap_io::rig_bag::{DEFAULT_RUN_START, read_rig_bag};
+use forcemap_io::params::ParamValue;
+use forcemap_io::rig_bag::read_rig_bag;
 use forcemap_math::identify::{FdMultiOptions, Method, Weighting};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
@@ -17,65 +15,13 @@ use forcemap_math::pipeline::identify_records;
 use forcemap_math::recipe::Setup;
 use forcemap_math::recipe::{Recipe, SetupSpec};
 use forcemap_math::record::Excitation;
-use forcemap_msgs::builtin_interfaces::Time;
-use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
-use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
+use forcemap_msgs::msg::HarmonicPhasors;
 use forcemap_msgs::std_msgs::Header;
-use forcemap_nodes::node::identifier::{IdentifierCore, Input, Output, RecipeParameters};
+use forcemap_nodes::node::identifier::{Input, Output, RecipeParameters};
 
-const RUN_START: Time = DEFAULT_RUN_START;
+mod common;
 
-fn rig_bag() -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../bags/rig_40db")
-}
-
-/// The phasor messages the harmonic node publishes for the bag's sine steps.
-fn phasor_messages() -> Vec<HarmonicPhasors> {
-    let bag = read_rig_bag(&rig_bag()).unwrap();
-    bag.records
-        .iter()
-        .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
-        .map(|r| {
-            let a = analyse_record(r, &PhasorOptions::for_identification()).unwrap();
-            HarmonicPhasors::from_analysis(&a, RUN_START, Header::new(RUN_START, "rig"))
-        })
-        .collect()
-}
-
-fn params(entries: &[(&str, ParamValue)]) -> Params {
-    let mut p = Params::new();
-    for (k, v) in entries {
-        p.set(k, v.clone());
-    }
-    p
-}
-
-fn core(p: &Params) -> IdentifierCore {
-    let rp = RecipeParameters::from_params(p).unwrap();
-    IdentifierCore::new(rp, "/rig/identifier: identification", None, RUN_START)
-        .unwrap()
-        .0
-}
-
-fn thetas(outputs: &[Output]) -> Vec<&IdentifiedParameters> {
-    outputs
-        .iter()
-        .filter_map(|o| match o {
-            Output::Theta(t) => Some(t),
-            _ => None,
-        })
-        .collect()
-}
-
-fn statuses(outputs: &[Output]) -> Vec<&DiagnosticStatus> {
-    outputs
-        .iter()
-        .filter_map(|o| match o {
-            Output::Status(s) => Some(s),
-            _ => None,
-        })
-        .collect()
-}
+use common::*;
 
 #[test]
 fn live_theta_equals_the_offline_identification() {

@@ -12,7 +12,7 @@ use forcemap_math::recipe::{
 };
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
-use forcemap_msgs::msg::IdentifiedParameters;
+use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
 use forcemap_msgs::std_msgs::Header;
 
 use super::state::{Admit, IdentifierState, admit};
@@ -102,18 +102,19 @@ pub enum Output {
 
 /// The identifier's state machine.
 pub struct IdentifierCore {
-    parameters: RecipeParameters,
-    model: Model,
-    gate: SetupGate,
-    state: Option<IdentifierState>,
+    pub(super) parameters: RecipeParameters,
+    pub(super) model: Model,
+    pub(super) gate: SetupGate,
+    pub(super) state: Option<IdentifierState>,
     /// The recipe of the steps so far, published with every status.
-    recipe: Option<Recipe>,
-    status_name: String,
+    pub(super) recipe: Option<Recipe>,
+    pub(super) status_name: String,
 }
 
 impl IdentifierCore {
     /// A core for `parameters`, reporting its status as `status_name`, resuming from `resumed`
-    /// when that holds equations of this model, method and weighting. Returns the log lines
+    /// when that holds equations of this model, method and weighting, or else re-solving the
+    /// phasors it keeps for them (a version-1 state without phasors is not resumed then). Returns the log lines
     /// and, for a resumed state, its theta (a control node may have missed the last one).
     pub fn new(
         parameters: RecipeParameters,
@@ -145,12 +146,40 @@ impl IdentifierCore {
                 }
                 state = Some(s);
             } else {
-                out.push(Output::Log(format!(
-                    "{source} holds equations of model '{}' by {} ({} weighting): not this identifier's; starting afresh",
+                let held = format!(
+                    "{source} holds equations of model '{}' by {} ({} weighting)",
                     s.accumulator.model,
                     s.accumulator.method,
                     s.weighting.name()
-                )));
+                );
+                // The kept phasors give this identifier's equations for the same steps.
+                if s.keeps_all_phasors() && !s.phasors.is_empty() {
+                    let steps = s.phasors.len();
+                    let old = IdentifierCore {
+                        gate: SetupGate::new(parameters.constants.clone()),
+                        parameters: parameters.clone(),
+                        model: model.clone(),
+                        state: Some(s),
+                        recipe: None,
+                        status_name: status_name.to_string(),
+                    };
+                    match old.rebuilt(parameters.clone(), now) {
+                        Ok((core, said)) => {
+                            out.push(Output::Log(format!(
+                                "{held}: re-solving the phasors of its {steps} steps for this identifier"
+                            )));
+                            out.extend(said);
+                            return Ok((core, out));
+                        }
+                        Err(e) => out.push(Output::Log(format!(
+                            "{held}, which cannot be re-solved ({e}); starting afresh"
+                        ))),
+                    }
+                } else {
+                    out.push(Output::Log(format!(
+                        "{held}, without the phasors to re-solve them: not this identifier's; starting afresh"
+                    )));
+                }
             }
         }
         Ok((
@@ -197,6 +226,24 @@ impl IdentifierCore {
     }
 
     fn step(&mut self, ready: Ready, now: Time, out: &mut Vec<Output>) -> anyhow::Result<()> {
+        let step = ready.phasors.step;
+        let frame = ready.phasors.header.frame_id.clone();
+        if self.add_step(ready, out)? {
+            self.publish_solution(
+                &format!("step {step}"),
+                &format!("theta after step {step}"),
+                now,
+                &frame,
+                out,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Admits one step into the state and adds its equations; true when it added equations
+    /// (then theta is solved). The same path serves live steps and the replay of the kept
+    /// phasors by [`IdentifierCore::reconfigure`], so both give the same equations.
+    pub(super) fn add_step(&mut self, ready: Ready, out: &mut Vec<Output>) -> anyhow::Result<bool> {
         let Ready {
             phasors: ph,
             analysis,
@@ -207,6 +254,7 @@ impl IdentifierCore {
         let step_setup = recipe.setup.setup()?;
         let options = recipe.fd_options();
         let setup_text = recipe.setup.to_string();
+        let spec = recipe.setup.clone();
         if self.recipe.as_ref() != Some(&recipe) {
             out.push(Output::Log(format!(
                 "recipe: {}",
@@ -220,7 +268,7 @@ impl IdentifierCore {
             self.parameters.weighting,
         );
         let st = self.state.get_or_insert_with(|| {
-            IdentifierState::new(model, method, weighting, &step_setup, &setup_text)
+            IdentifierState::new(model, method, weighting, &step_setup, &spec)
         });
         if st.setup != setup_text {
             // E.g. an element test's moving mass arrived after its first steps: the equations
@@ -229,24 +277,26 @@ impl IdentifierCore {
                 "step {step}: the setup is now {setup_text} (was {}): starting the equations afresh",
                 st.setup
             )));
-            *st = IdentifierState::new(model, method, weighting, &step_setup, &setup_text);
+            *st = IdentifierState::new(model, method, weighting, &step_setup, &spec);
         }
         match admit(st, step, ph.t_ref) {
             Admit::Duplicate => {
                 out.push(Output::Log(format!(
                     "step {step}: already in the accumulated equations; skipped"
                 )));
-                return Ok(());
+                return Ok(false);
             }
             Admit::NewRun => {
                 out.push(Output::Log(format!(
                     "step {step} again, later in time: a new run; starting the equations afresh"
                 )));
-                *st = IdentifierState::new(model, method, weighting, &step_setup, &setup_text);
+                *st = IdentifierState::new(model, method, weighting, &step_setup, &spec);
             }
             Admit::Add => {}
         }
         let forgetting = self.parameters.tracking.factor_per_step();
+        st.phasors.push(ph.clone());
+        prune_forgotten(&mut st.phasors, forgetting);
         let added = step_equations(model, &step_setup, method, &analysis, &options)
             .map_err(|e| e.to_string())
             .and_then(|blk| {
@@ -260,39 +310,54 @@ impl IdentifierCore {
                 DiagnosticStatus::WARN,
                 &format!("step {step} gave no equations: {e}"),
             )?);
-            return Ok(());
+            return Ok(false);
         }
         st.last_step = Some(step);
         st.last_t_ref = Some(ph.t_ref);
         out.push(Output::Persist);
-        let solved = st.accumulator.solve_with_flags();
-        match solved {
+        Ok(true)
+    }
+
+    /// Solves the equations so far and says so: a log line headed `what`, theta (stamped `now`
+    /// in `frame`) and the status, OK with `ok_message` unless a flag or an error says more.
+    pub(super) fn publish_solution(
+        &self,
+        what: &str,
+        ok_message: &str,
+        now: Time,
+        frame: &str,
+        out: &mut Vec<Output>,
+    ) -> anyhow::Result<()> {
+        let Some(st) = &self.state else {
+            return Ok(());
+        };
+        match st.accumulator.solve_with_flags() {
             Ok((id, flags)) => {
                 out.push(Output::Log(format!(
-                    "step {step}: {} ({} equations, cond {:.2e})",
+                    "{what}: {} ({} equations, cond {:.2e})",
                     theta_line(&id),
                     id.equations,
                     id.condition_number
                 )));
                 out.push(Output::Theta(IdentifiedParameters::from_identification(
                     &id,
-                    Header::new(now, &ph.header.frame_id),
+                    Header::new(now, frame),
                 )));
                 // Each flag (badly conditioned, few equations) is a WARN; the first is the
                 // message.
                 let (level, message) = match flags.first() {
                     Some(w) => (DiagnosticStatus::WARN, w.to_string()),
-                    None => (DiagnosticStatus::OK, format!("theta after step {step}")),
+                    None => (DiagnosticStatus::OK, ok_message.to_string()),
                 };
                 out.push(self.status(level, &message)?);
             }
             Err(IdentifyError::Lstsq(e @ LstsqError::Underdetermined { .. }))
             | Err(IdentifyError::Lstsq(e @ LstsqError::IllConditioned { .. })) => {
-                out.push(Output::Log(format!("step {step}: no theta yet: {e}")));
+                out.push(Output::Log(format!("{what}: no theta yet: {e}")));
                 out.push(self.status(DiagnosticStatus::WARN, &e.to_string())?);
             }
             Err(e) => {
-                out.push(Output::Log(format!("step {step}: {e}")));
+                out.push(Output::Log(format!("{what}: {e}")));
                 out.push(self.status(DiagnosticStatus::ERROR, &e.to_string())?);
             }
         }
@@ -301,7 +366,7 @@ impl IdentifierCore {
 
     /// The status for /diagnostics, with the recipe it runs (JSON, as `forcemap identify
     /// --json` prints it) so that a recorded bag keeps it.
-    fn status(&self, level: u8, message: &str) -> anyhow::Result<Output> {
+    pub(super) fn status(&self, level: u8, message: &str) -> anyhow::Result<Output> {
         let mut status = DiagnosticStatus::new(level, &self.status_name, message, "identifier")
             .with_value("recipe", serde_json::to_string(&self.recipe)?);
         if let Some(st) = &self.state {
@@ -312,6 +377,21 @@ impl IdentifierCore {
                 .with_value("equations", st.accumulator.equations());
         }
         Ok(Output::Status(status))
+    }
+}
+
+/// Below this weight a step no longer changes theta in double precision: with forgetting, the
+/// phasors of older steps are let go, so that a tracking identifier's memory stays flat.
+const NEGLIGIBLE_STEP_WEIGHT: f64 = 1e-16;
+
+/// Drops the kept phasors of the steps whose weight `factor`^age has fallen below
+/// [`NEGLIGIBLE_STEP_WEIGHT`] (none when converged).
+fn prune_forgotten(phasors: &mut Vec<HarmonicPhasors>, factor: f64) {
+    if factor < 1.0 {
+        let keep = (NEGLIGIBLE_STEP_WEIGHT.ln() / factor.ln()).floor() as usize + 1;
+        if phasors.len() > keep {
+            phasors.drain(..phasors.len() - keep);
+        }
     }
 }
 

@@ -1,8 +1,9 @@
 //! The identifier node: accumulates the equations of every step's phasors and publishes theta
 //! with its standard deviations after each new step, plus its health on /diagnostics.
 //!
-//! Memory is constant in the number of samples: only the triangular factor of the stacked
-//! equations is kept ([`EquationAccumulator`]), never samples or phasors. The same
+//! Memory is constant in the number of samples: the triangular factor of the stacked
+//! equations ([`EquationAccumulator`]) and each step's phasors (a few kilobytes, for a live
+//! change of model) are kept, never samples. The same
 //! accumulator stacks the steps of `forcemap identify`, so the live theta equals the offline
 //! one on the same data.
 //!
@@ -12,14 +13,22 @@
 //! - `mass_kg`: the rig's mass; without it the value on the rig's `parameters` topic is used;
 //! - `substructure...`: the linear substructure of a drive-point setup (see
 //!   launch_configs/three_dof.params.yaml);
-//! - `state_file`: where the accumulated equations are persisted after every step (empty: not
-//!   persisted). A restarted identifier resumes from it and skips the steps it already has.
+//! - `state_file`: where the accumulated equations and the kept phasors are persisted after
+//!   every step (empty: not persisted). A restarted identifier resumes from it and skips the
+//!   steps it already has.
+//!
+//! The parameter services answer list/get/describe for all of them; `model`, `method`,
+//! `weighting` and `forgetting_per_step` can be set while it runs (the kept phasors of every
+//! step are re-solved and theta is published before the set is answered), the others are
+//! read-only.
 
 mod core;
+mod reconfigure;
 mod state;
 
 pub use crate::node::setup_gate::Input;
 pub use core::{IdentifierCore, Output, RecipeParameters, theta_line};
+pub use reconfigure::{ParameterSetResults, Refusal, SETTABLE, Setting};
 pub use state::{Admit, IdentifierState, admit};
 
 use std::path::PathBuf;
@@ -31,8 +40,11 @@ use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
 use crate::log_line;
+use crate::parameter_services::{ParameterTable, SetRequest};
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg};
+use forcemap_io::params::ParamValue;
 use forcemap_io::topics;
+use forcemap_math::model::MODEL_NAMES;
 
 /// The node: [`IdentifierCore`] behind its subscriptions and publishers.
 pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
@@ -50,7 +62,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let status_name = format!("{fq}: identification");
     let (mut core, startup) = IdentifierCore::new(parameters, &status_name, resumed, now_time())?;
 
-    let mut ros = RosNode::start(setup.clone())?;
+    let table = declared_parameters(&setup, &core);
+    let (sets_tx, mut sets) = mpsc::unbounded_channel::<SetRequest>();
+    let mut ros = RosNode::start_with_parameters(setup.clone(), table.clone(), Some(sets_tx))?;
     let phasors = ros.subscription::<HarmonicPhasors>(topics::PHASORS, qos::phasors())?;
     let rig = ros.subscription::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
     let theta_pub = ros.publisher::<IdentifiedParameters>(topics::THETA, qos::theta())?;
@@ -80,16 +94,66 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     };
     shell.apply(&core, startup).await?;
     loop {
-        let input = tokio::select! {
-            i = rx.recv() => match i { Some(i) => i, None => break },
+        tokio::select! {
+            i = rx.recv() => match i {
+                Some(input) => {
+                    let outputs = core.handle(input, now_time())?;
+                    shell.apply(&core, outputs).await?;
+                }
+                None => break,
+            },
+            Some(request) = sets.recv() => {
+                let (done, outputs) =
+                    core.apply_parameters(&request.params, request.atomically, now_time());
+                // Theta and status are out before the caller hears the set succeeded.
+                shell.apply(&core, outputs).await?;
+                for (name, value) in done.applied {
+                    table.store(&name, value);
+                }
+                request.reply(done.results);
+            }
             () = crate::ros::shutdown_signal() => break,
-        };
-        let outputs = core.handle(input, now_time())?;
-        shell.apply(&core, outputs).await?;
+        }
     }
     // Give the last messages a moment to leave.
     tokio::time::sleep(Duration::from_millis(200)).await;
     Ok(())
+}
+
+/// The identifier's parameters for the parameter services: the settable ones with the values
+/// it runs with, and every other one it was given, read-only.
+fn declared_parameters(setup: &NodeSetup, core: &IdentifierCore) -> ParameterTable {
+    let table = ParameterTable::read_only(&setup.params);
+    let p = core.parameters();
+    let settable = "; settable while running: the equations are re-solved from the kept phasors and theta is published at once";
+    let models: Vec<&str> = MODEL_NAMES.iter().map(|(n, _)| *n).collect();
+    for (name, value, description) in [
+        (
+            "model",
+            ParamValue::String(p.model.name.clone()),
+            format!("element model, one of {}{settable}", models.join(", ")),
+        ),
+        (
+            "method",
+            ParamValue::String(p.method.name()),
+            format!("fd-multi or fd (output-error and td need the samples: refused){settable}"),
+        ),
+        (
+            "weighting",
+            ParamValue::String(p.weighting.name().to_string()),
+            format!("noise or uniform weighting of fd-multi's equations{settable}"),
+        ),
+        (
+            "forgetting_per_step",
+            ParamValue::Double(p.tracking.factor_per_step()),
+            format!(
+                "weight of the steps so far against each new one, in (0, 1]; 1 converges{settable}"
+            ),
+        ),
+    ] {
+        table.declare(name, value, &description, false);
+    }
+    table
 }
 
 /// Where the core's outputs go.

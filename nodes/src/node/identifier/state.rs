@@ -5,8 +5,9 @@ use std::path::Path;
 use anyhow::{Context as _, bail};
 use forcemap_math::identify::{EquationAccumulator, Method, Weighting};
 use forcemap_math::model::Model;
-use forcemap_math::recipe::Setup;
+use forcemap_math::recipe::{Setup, SetupSpec};
 use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::msg::HarmonicPhasors;
 use serde::{Deserialize, Serialize};
 
 /// What the identifier persists.
@@ -21,9 +22,22 @@ pub struct IdentifierState {
     /// (replayed history after a restart) and to notice a new run.
     pub last_step: Option<u32>,
     pub last_t_ref: Option<Time>,
+    /// The setup itself, to rebuild the equations for another model, method or weighting
+    /// (absent in version-1 files).
+    #[serde(default)]
+    pub setup_spec: Option<SetupSpec>,
+    /// The phasors of every step admitted since the state began, in order (absent in version-1
+    /// files): a few kilobytes a step, kept so that a new model, method or weighting can be
+    /// solved from the same steps without the samples.
+    #[serde(default)]
+    pub phasors: Vec<HarmonicPhasors>,
 }
 
-const STATE_VERSION: u32 = 1;
+/// Version 2 added `setup_spec` and `phasors`. A version-1 file still resumes (its equations
+/// are whole) but keeps the version, which says its phasors are incomplete: such a state
+/// cannot be re-solved for another model.
+const STATE_VERSION: u32 = 2;
+const OLDEST_READABLE_VERSION: u32 = 1;
 
 impl IdentifierState {
     /// A fresh state for `model` by `method` on `setup` (described as `setup_text`).
@@ -32,16 +46,24 @@ impl IdentifierState {
         method: Method,
         weighting: Weighting,
         setup: &Setup,
-        setup_text: &str,
+        spec: &SetupSpec,
     ) -> Self {
         IdentifierState {
             version: STATE_VERSION,
             weighting,
-            setup: setup_text.to_string(),
+            setup: spec.to_string(),
             accumulator: EquationAccumulator::new(model, setup, method),
             last_step: None,
             last_t_ref: None,
+            setup_spec: Some(spec.clone()),
+            phasors: Vec::new(),
         }
+    }
+
+    /// Whether the state holds the phasors of every step in its equations (not so for a state
+    /// resumed from a version-1 file).
+    pub fn keeps_all_phasors(&self) -> bool {
+        self.version >= 2 && self.setup_spec.is_some()
     }
 
     /// Reads a persisted state; `None` when there is no file.
@@ -53,9 +75,9 @@ impl IdentifierState {
         };
         let s: IdentifierState = serde_json::from_str(&text)
             .with_context(|| format!("{}: not an identifier state file", path.display()))?;
-        if s.version != STATE_VERSION {
+        if !(OLDEST_READABLE_VERSION..=STATE_VERSION).contains(&s.version) {
             bail!(
-                "{}: state version {} (this identifier writes version {STATE_VERSION})",
+                "{}: state version {} (this identifier reads versions {OLDEST_READABLE_VERSION} to {STATE_VERSION})",
                 path.display(),
                 s.version
             );
@@ -115,11 +137,13 @@ mod tests {
     use forcemap_math::model::ModelOptions;
 
     const RIG: Setup = Setup::BaseExcited { mass_kg: 36.0 };
+    const RIG_SPEC: SetupSpec = SetupSpec::BaseExcited { mass_kg: 36.0 };
 
     #[test]
     fn steps_are_added_once_and_a_new_run_starts_over() {
         let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
-        let mut s = IdentifierState::new(&model, Method::FdMulti, Weighting::Noise, &RIG, "x");
+        let mut s =
+            IdentifierState::new(&model, Method::FdMulti, Weighting::Noise, &RIG, &RIG_SPEC);
         let t = |s: i64| Time::from_nanos(s * 1_000_000_000);
         assert_eq!(admit(&s, 0, t(10)), Admit::Add);
         s.last_step = Some(3);
@@ -135,7 +159,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("sub/state.json");
         let model = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
-        let mut s = IdentifierState::new(&model, Method::FdMulti, Weighting::Uniform, &RIG, "rig");
+        let mut s =
+            IdentifierState::new(&model, Method::FdMulti, Weighting::Uniform, &RIG, &RIG_SPEC);
         s.last_step = Some(7);
         s.last_t_ref = Some(Time::from_nanos(123_456_789));
         s.save(&path).unwrap();
@@ -151,5 +176,31 @@ mod tests {
             IdentifierState::load(&dir.path().join("none.json")).unwrap(),
             None
         );
+    }
+
+    /// A version-1 file (before the phasors were kept) still resumes, but says it cannot be
+    /// re-solved; a version from the future is refused by name.
+    #[test]
+    fn version_one_files_resume_without_phasors_and_newer_ones_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("state.json");
+        let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
+        let s = IdentifierState::new(&model, Method::FdMulti, Weighting::Noise, &RIG, &RIG_SPEC);
+        assert!(s.keeps_all_phasors());
+        let mut v: serde_json::Value = serde_json::to_value(&s).unwrap();
+        let obj = v.as_object_mut().unwrap();
+        obj.remove("phasors");
+        obj.remove("setup_spec");
+        obj.insert("version".into(), 1.into());
+        std::fs::write(&path, v.to_string()).unwrap();
+        let old = IdentifierState::load(&path).unwrap().unwrap();
+        assert_eq!(old.version, 1);
+        assert!(old.phasors.is_empty());
+        assert!(!old.keeps_all_phasors());
+        assert_eq!(old.accumulator, s.accumulator);
+        v["version"] = 3.into();
+        std::fs::write(&path, v.to_string()).unwrap();
+        let e = IdentifierState::load(&path).unwrap_err();
+        assert!(format!("{e:#}").contains("state version 3"), "{e:#}");
     }
 }
