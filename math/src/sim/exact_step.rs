@@ -100,7 +100,7 @@ pub(crate) fn slip_holds(
 ) -> bool {
     let (a, b) = (sys.stiffness_per_kg, sys.damping_per_kg);
     let low = (dir * v0).min(dir * v1);
-    if !(low > 0.0) {
+    if low.is_nan() || low <= 0.0 {
         return false;
     }
     let acc0 = -a * x0 - b * v0 + u0;
