@@ -91,9 +91,12 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-/// One identification as `forcemap identify` does it, timed by stage; returns the stages and
-/// theta.
-fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Vec<(String, f64)>)> {
+/// The parameters found, by name.
+type Theta = Vec<(String, f64)>;
+
+/// One identification as `forcemap identify` does it, timed by stage; returns the stages' wall
+/// and CPU seconds and theta.
+fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Theta)> {
     let a = &args.identify;
     let file = a.file.display().to_string();
     let t0 = Clocks::start();
