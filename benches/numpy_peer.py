@@ -6,7 +6,8 @@ displacement and of the mass acceleration on the second half of each sine step (
 on cos, sin and a constant), and solve the paper's first-harmonic force-state equations
 G = k X + c jw X + fd (4/pi) jw X / |w X| (G = -m A, the element force) over the steps for
 k, c, fd. `forcemap bench identify` runs it and compares medians; it prints one JSON object:
-parse and fit times in seconds per repeat, and the parameters.
+parse and fit times in seconds per repeat (wall, and CPU time of the process), and the
+parameters.
 
 Usage: numpy_peer.py FILE --mass-kg M [--repeats N]
 """
@@ -57,18 +58,22 @@ def main():
     ap.add_argument("--mass-kg", type=float, required=True)
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
-    parse_s, fit_s = [], []
+    parse_s, fit_s, parse_cpu_s, fit_cpu_s = [], [], [], []
     for _ in range(args.repeats):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         cols = parse(args.file)
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         theta = fit(cols, args.mass_kg)
-        t2 = time.perf_counter()
+        t2, c2 = time.perf_counter(), time.process_time()
         parse_s.append(t1 - t0)
         fit_s.append(t2 - t1)
+        parse_cpu_s.append(c1 - c0)
+        fit_cpu_s.append(c2 - c1)
     print(json.dumps({
         "parse_s": parse_s,
         "fit_s": fit_s,
+        "parse_cpu_s": parse_cpu_s,
+        "fit_cpu_s": fit_cpu_s,
         "k": theta[0],
         "c": theta[1],
         "fd": theta[2],

@@ -3,6 +3,10 @@
 //! through the numpy peer a user would write (benches/numpy_peer.py: parse with numpy, fit the
 //! first harmonic of each step, solve the paper's equations) as a ratio. A benchmark, not a
 //! test: figures go in docs/benchmarks.md with the command that produced them.
+//!
+//! Each stage is timed twice: wall time, and the CPU time of the process (both forcemap and
+//! the peer run on one thread). On a shared machine the wall time of a stage is mostly waiting
+//! for a core; the CPU times compare the work.
 
 use std::io::Write as _;
 use std::process::{Command, Stdio};
@@ -36,6 +40,45 @@ impl Stages {
     }
 }
 
+/// CPU seconds used by this process so far (`CLOCK_PROCESS_CPUTIME_ID`); NaN if the clock
+/// cannot be read.
+fn process_cpu_s() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `clock_gettime` writes one `timespec` through a valid, exclusive pointer.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
+    if rc == 0 {
+        ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+    } else {
+        f64::NAN
+    }
+}
+
+/// A wall clock and the process's CPU clock started together.
+struct Clocks {
+    wall: Instant,
+    cpu_s: f64,
+}
+
+impl Clocks {
+    fn start() -> Clocks {
+        Clocks {
+            wall: Instant::now(),
+            cpu_s: process_cpu_s(),
+        }
+    }
+
+    /// (wall, CPU) seconds since [`Clocks::start`].
+    fn elapsed(&self) -> (f64, f64) {
+        (
+            self.wall.elapsed().as_secs_f64(),
+            process_cpu_s() - self.cpu_s,
+        )
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
@@ -48,22 +91,25 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-/// One identification as `forcemap identify` does it, timed by stage; returns the stages and
-/// theta.
-fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Vec<(String, f64)>)> {
+/// The parameters found, by name.
+type Theta = Vec<(String, f64)>;
+
+/// One identification as `forcemap identify` does it, timed by stage; returns the stages' wall
+/// and CPU seconds and theta.
+fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Theta)> {
     let a = &args.identify;
     let file = a.file.display().to_string();
-    let t0 = Instant::now();
+    let t0 = Clocks::start();
     let import = forcemap_io::input::load(&a.file)?;
-    let csv_s = t0.elapsed().as_secs_f64();
+    let (csv_s, csv_cpu_s) = t0.elapsed();
     let recipe = super::identify::recipe(a, import.kind, &import.parameters, &file)?;
     let setup = recipe.setup.setup()?;
     let model = recipe.model.build()?;
-    let t1 = Instant::now();
+    let t1 = Clocks::start();
     let (analyses, _) = pipeline::analyse_sine_steps(&import.records, &recipe.phasor)
         .with_context(|| format!("{file}: harmonic analysis"))?;
-    let phasors_s = t1.elapsed().as_secs_f64();
-    let t2 = Instant::now();
+    let (phasors_s, phasors_cpu_s) = t1.elapsed();
+    let t2 = Clocks::start();
     let id = identify::identify(
         &model,
         &setup,
@@ -73,8 +119,8 @@ fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Vec<(Strin
         &recipe.fd_options(),
     )
     .with_context(|| format!("{file}: identifying model '{}'", model.name))?;
-    let fit_s = t2.elapsed().as_secs_f64();
-    let t3 = Instant::now();
+    let (fit_s, fit_cpu_s) = t2.elapsed();
+    let t3 = Clocks::start();
     if let Setup::BaseExcited { mass_kg } = setup {
         let fitted = IdentifiedModel::new(model.clone(), id.theta());
         for rec in import
@@ -86,7 +132,7 @@ fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Vec<(Strin
                 .with_context(|| format!("{file}: validating on random record {}", rec.step))?;
         }
     }
-    let validation_s = t3.elapsed().as_secs_f64();
+    let (validation_s, validation_cpu_s) = t3.elapsed();
     let theta = id
         .parameters
         .iter()
@@ -98,6 +144,12 @@ fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Vec<(Strin
             phasors_s,
             fit_s,
             validation_s,
+        },
+        Stages {
+            csv_s: csv_cpu_s,
+            phasors_s: phasors_cpu_s,
+            fit_s: fit_cpu_s,
+            validation_s: validation_cpu_s,
         },
         theta,
     ))
@@ -146,10 +198,15 @@ fn run_peer(
     };
     let (parse, fit) = (times("parse_s")?, times("fit_s")?);
     let total: Vec<f64> = parse.iter().zip(&fit).map(|(p, f)| p + f).collect();
+    let (parse_cpu, fit_cpu) = (times("parse_cpu_s")?, times("fit_cpu_s")?);
+    let total_cpu: Vec<f64> = parse_cpu.iter().zip(&fit_cpu).map(|(p, f)| p + f).collect();
     Ok(json!({
         "parse_s": median(parse),
         "fit_s": median(fit),
         "total_s": median(total),
+        "parse_cpu_s": median(parse_cpu),
+        "fit_cpu_s": median(fit_cpu),
+        "total_cpu_s": median(total_cpu),
         "k": v["k"], "c": v["c"], "fd": v["fd"], "rows": v["rows"],
     }))
 }
@@ -159,19 +216,27 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
         bail!("--repeats must be at least 1");
     }
     let mut runs = Vec::with_capacity(args.repeats);
+    let mut cpu_runs = Vec::with_capacity(args.repeats);
     let mut theta = Vec::new();
     for _ in 0..args.repeats {
-        let (stages, th) = identify_once(args)?;
+        let (stages, cpu, th) = identify_once(args)?;
         runs.push(stages);
+        cpu_runs.push(cpu);
         theta = th;
     }
     let med = |f: fn(&Stages) -> f64| median(runs.iter().map(f).collect());
+    let med_cpu = |f: fn(&Stages) -> f64| median(cpu_runs.iter().map(f).collect());
     let ours = json!({
         "csv_s": med(|s| s.csv_s),
         "phasors_s": med(|s| s.phasors_s),
         "fit_s": med(|s| s.fit_s),
         "validation_s": med(|s| s.validation_s),
         "total_s": med(Stages::total_s),
+        "csv_cpu_s": med_cpu(|s| s.csv_s),
+        "phasors_cpu_s": med_cpu(|s| s.phasors_s),
+        "fit_cpu_s": med_cpu(|s| s.fit_s),
+        "validation_cpu_s": med_cpu(|s| s.validation_s),
+        "total_cpu_s": med_cpu(Stages::total_s),
         "theta": theta.iter().map(|(n, v)| (n.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
     });
     let file = args.identify.file.display().to_string();
@@ -179,16 +244,19 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
         "{file}: forcemap identify, medians of {} runs",
         args.repeats
     );
+    println!("  {:<12} {:>10} {:>10}", "stage", "wall", "CPU");
     for (label, key) in [
-        ("CSV parsing", "csv_s"),
-        ("phasors", "phasors_s"),
-        ("fit", "fit_s"),
-        ("validation", "validation_s"),
-        ("total", "total_s"),
+        ("CSV parsing", "csv"),
+        ("phasors", "phasors"),
+        ("fit", "fit"),
+        ("validation", "validation"),
+        ("total", "total"),
     ] {
+        let ms = |k: String| ours[k].as_f64().unwrap_or(f64::NAN) * 1e3;
         println!(
-            "  {label:<12} {:>10.2} ms",
-            ours[key].as_f64().unwrap_or(f64::NAN) * 1e3
+            "  {label:<12} {:>7.2} ms {:>7.2} ms",
+            ms(format!("{key}_s")),
+            ms(format!("{key}_cpu_s"))
         );
     }
     println!("  theta        {}", ours["theta"]);
@@ -209,19 +277,23 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
         }
     };
     let peer = run_peer(python, args, mass_kg)?;
-    let peer_total = peer["total_s"].as_f64().unwrap_or(f64::NAN);
-    let ratio = peer_total / ours["total_s"].as_f64().unwrap_or(f64::NAN);
+    let num = |v: &serde_json::Value, key: &str| v[key].as_f64().unwrap_or(f64::NAN);
+    let ratio = num(&peer, "total_s") / num(&ours, "total_s");
+    let cpu_ratio = num(&peer, "total_cpu_s") / num(&ours, "total_cpu_s");
     println!(
-        "numpy peer ({}), medians of {} runs: parse {:.2} ms, fit {:.2} ms, total {:.2} ms; k {:.6e}, c {:.6e}, fd {:.6e}",
+        "numpy peer ({}), medians of {} runs: parse {:.2} ms (CPU {:.2}), fit {:.2} ms (CPU {:.2}), total {:.2} ms (CPU {:.2}); k {:.6e}, c {:.6e}, fd {:.6e}",
         python.display(),
         args.repeats,
-        peer["parse_s"].as_f64().unwrap_or(f64::NAN) * 1e3,
-        peer["fit_s"].as_f64().unwrap_or(f64::NAN) * 1e3,
-        peer_total * 1e3,
-        peer["k"].as_f64().unwrap_or(f64::NAN),
-        peer["c"].as_f64().unwrap_or(f64::NAN),
-        peer["fd"].as_f64().unwrap_or(f64::NAN),
+        num(&peer, "parse_s") * 1e3,
+        num(&peer, "parse_cpu_s") * 1e3,
+        num(&peer, "fit_s") * 1e3,
+        num(&peer, "fit_cpu_s") * 1e3,
+        num(&peer, "total_s") * 1e3,
+        num(&peer, "total_cpu_s") * 1e3,
+        num(&peer, "k"),
+        num(&peer, "c"),
+        num(&peer, "fd"),
     );
-    println!("ratio numpy peer / forcemap (total): {ratio:.1}x");
+    println!("ratio numpy peer / forcemap (total): {ratio:.1}x wall, {cpu_ratio:.1}x CPU");
     Ok(())
 }

@@ -19,7 +19,7 @@ use crate::steps::{
     AssembledStep, StepAssembler, StepError, StepFault, StepPlan, StepRules, StepSample,
     estimated_excitation, rms_about_mean,
 };
-use forcemap_math::record::Excitation;
+use forcemap_math::record::{Channel, Excitation};
 use forcemap_math::segment::SegmentOptions;
 
 /// Reads a test-bench CSV export (see the module documentation for the contract).
@@ -48,7 +48,8 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
     let prepared = dialect::prepare(&bytes, path)?;
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
-        .trim(csv::Trim::All)
+        // Cells are trimmed as they are read (`cell` below), not record by record.
+        .trim(csv::Trim::Headers)
         .flexible(false)
         .delimiter(prepared.dialect.separator)
         .from_reader(&prepared.text[..]);
@@ -64,13 +65,17 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
     let mut steps: Vec<ReadStep> = Vec::new();
     let mut current: Option<StepRows> = None;
     let mut prev_time: Option<(f64, u64)> = None;
-    let mut row = csv::StringRecord::new();
+    // Rows as bytes: the numbers are parsed from the bytes of their cells (a fast,
+    // correctly rounded parser: the same values as `str::parse`), each row checked to be UTF-8
+    // once; the values' buffer is reused from row to row.
+    let mut row = csv::ByteRecord::new();
+    let mut values: Vec<(Channel, f64)> = Vec::with_capacity(layout.channel_cols.len());
     // Without labels every row is of one step 0, cut into steps once read (the rows' times
     // kept for the records' start times).
     let labelled = layout.step_col.is_some();
     let mut unlabelled_times: Vec<f64> = Vec::new();
     loop {
-        match rdr.read_record(&mut row) {
+        match rdr.read_byte_record(&mut row) {
             Ok(true) => {}
             Ok(false) => break,
             Err(e) => return Err(csv_error(path, e)),
@@ -79,7 +84,8 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
             continue;
         }
         let line = row.position().map_or(0, csv::Position::line);
-        let cell = |col: usize| row.get(col).unwrap_or("");
+        check_utf8(path, line, &row)?;
+        let cell = |col: usize| row.get(col).unwrap_or(b"").trim_ascii();
 
         let time_text = cell(layout.time_col);
         let time = parse_number(path, line, TIME_COLUMN, time_text)?;
@@ -87,7 +93,7 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
             Some(col) => parse_step(path, line, cell(col))?,
             None => 0,
         };
-        let freq_text = layout.freq_col.map_or("", cell);
+        let freq_text = layout.freq_col.map_or(&b""[..], cell);
         if !labelled {
             unlabelled_times.push(time);
         }
@@ -100,16 +106,20 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
                     path: p(),
                     line,
                     column: FREQUENCY_COLUMN.to_string(),
-                    cell: freq_text.to_string(),
+                    cell: String::from_utf8_lossy(freq_text).into_owned(),
                     reason: "a frequency must not be negative",
                 });
             }
             (f != 0.0).then_some(f)
         };
         let multisine = match layout.multisine_cols {
-            Some((base_col, lines_col)) => {
-                multisine::parse_row(path, line, cell(base_col), cell(lines_col), freq)?
-            }
+            Some((base_col, lines_col)) => multisine::parse_row(
+                path,
+                line,
+                text(cell(base_col)),
+                text(cell(lines_col)),
+                freq,
+            )?,
             None => None,
         };
 
@@ -178,21 +188,21 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
                 ),
             });
         }
-        let values = layout
-            .channel_cols
-            .iter()
-            .map(|&(c, col)| parse_number(path, line, c.name(), cell(col)).map(|v| (c, v)))
-            .collect::<Result<Vec<_>, _>>()?;
+        values.clear();
+        for &(c, col) in &layout.channel_cols {
+            values.push((c, parse_number(path, line, c.name(), cell(col))?));
+        }
         cur.lines.push(line);
         let sample = StepSample {
             t_s: time,
             t_resolution_s: decimal_resolution(time_text),
             step,
-            values,
+            values: std::mem::take(&mut values),
         };
         for result in assembler.push_sample(&sample, Some(&cur.plan)) {
             steps.extend(cur.completed(path, Some(result))?);
         }
+        values = sample.values;
     }
     match current {
         Some(done) => {
@@ -408,7 +418,28 @@ fn common_sample_rate(path: &Path, steps: &[ReadStep]) -> Result<f64, CsvError> 
     Ok(sample_rate_hz)
 }
 
-fn parse_number(path: &Path, line: u64, column: &str, cell: &str) -> Result<f64, CsvError> {
+/// A row that is not UTF-8 refused as the `csv` crate's string records refuse it.
+fn check_utf8(path: &Path, line: u64, row: &csv::ByteRecord) -> Result<(), CsvError> {
+    let Err(e) = std::str::from_utf8(row.as_slice()) else {
+        return Ok(());
+    };
+    let at = e.valid_up_to();
+    let field = (0..row.len())
+        .find(|&i| row.range(i).is_some_and(|r| r.end > at))
+        .unwrap_or(0);
+    Err(CsvError::Malformed {
+        path: path.to_path_buf(),
+        line: Some(line),
+        message: format!("invalid UTF-8 in field {}", field + 1),
+    })
+}
+
+/// A cell of a row [`check_utf8`] accepted, as text.
+fn text(cell: &[u8]) -> &str {
+    std::str::from_utf8(cell).unwrap_or_default()
+}
+
+fn parse_number(path: &Path, line: u64, column: &str, cell: &[u8]) -> Result<f64, CsvError> {
     if cell.is_empty() {
         return Err(CsvError::EmptyCell {
             path: path.to_path_buf(),
@@ -416,26 +447,43 @@ fn parse_number(path: &Path, line: u64, column: &str, cell: &str) -> Result<f64,
             column: column.to_string(),
         });
     }
-    let v: f64 = cell.parse().map_err(|_| CsvError::NonNumeric {
-        path: path.to_path_buf(),
-        line,
-        column: column.to_string(),
-        cell: cell.to_string(),
-    })?;
+    let lossy = || String::from_utf8_lossy(cell).into_owned();
+    // What the fast parser refuses goes through `str::parse` trimmed of any Unicode
+    // whitespace (as string records were; `cell` trims ASCII only), so that the same cells
+    // are numbers, empty or refused as before.
+    let v: f64 = match fast_float2::parse(cell) {
+        Ok(v) => v,
+        Err(_) => {
+            let trimmed = text(cell).trim();
+            if trimmed.is_empty() {
+                return Err(CsvError::EmptyCell {
+                    path: path.to_path_buf(),
+                    line,
+                    column: column.to_string(),
+                });
+            }
+            trimmed.parse().map_err(|_| CsvError::NonNumeric {
+                path: path.to_path_buf(),
+                line,
+                column: column.to_string(),
+                cell: lossy(),
+            })?
+        }
+    };
     if !v.is_finite() {
         return Err(CsvError::NonFinite {
             path: path.to_path_buf(),
             line,
             column: column.to_string(),
-            cell: cell.to_string(),
+            cell: lossy(),
         });
     }
     Ok(v)
 }
 
 /// A step index: a non-negative integer (an integral float such as `3.0` is accepted).
-fn parse_step(path: &Path, line: u64, cell: &str) -> Result<usize, CsvError> {
-    if let Ok(s) = cell.parse::<usize>() {
+fn parse_step(path: &Path, line: u64, cell: &[u8]) -> Result<usize, CsvError> {
+    if let Ok(s) = text(cell).parse::<usize>() {
         return Ok(s);
     }
     let v = parse_number(path, line, STEP_COLUMN, cell)?;
@@ -446,22 +494,25 @@ fn parse_step(path: &Path, line: u64, cell: &str) -> Result<usize, CsvError> {
             path: path.to_path_buf(),
             line,
             column: STEP_COLUMN.to_string(),
-            cell: cell.to_string(),
+            cell: String::from_utf8_lossy(cell).into_owned(),
             reason: "a step index must be a non-negative integer",
         })
     }
 }
 
 /// The decimal resolution a number was written with: `0.000100` -> 1e-6, `1.5e-3` -> 1e-4.
-fn decimal_resolution(text: &str) -> f64 {
-    let (mantissa, exponent) = match text.find(['e', 'E']) {
-        Some(i) => (&text[..i], text[i + 1..].parse::<i32>().unwrap_or(0)),
+fn decimal_resolution(text: &[u8]) -> f64 {
+    let (mantissa, exponent) = match text.iter().position(|&b| b == b'e' || b == b'E') {
+        Some(i) => (
+            &text[..i],
+            self::text(&text[i + 1..]).parse::<i32>().unwrap_or(0),
+        ),
         None => (text, 0),
     };
-    let decimals = mantissa.find('.').map_or(0, |i| {
+    let decimals = mantissa.iter().position(|&b| b == b'.').map_or(0, |i| {
         mantissa[i + 1..]
-            .chars()
-            .filter(char::is_ascii_digit)
+            .iter()
+            .filter(|b| b.is_ascii_digit())
             .count()
     });
     10f64.powi(exponent - decimals as i32)

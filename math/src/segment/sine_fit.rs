@@ -154,6 +154,10 @@ impl SineFitter {
 }
 
 /// Gauss-Newton from `omega0` (time centred on the stretch for conditioning).
+///
+/// The sines and cosines of a frequency are computed once and shared by the linear fit, the
+/// cost and the normal equations at that frequency (the accepted trial's are the next
+/// iteration's): the same operations as evaluating them in each, half the `sin_cos`.
 pub(crate) fn fit_from(
     x: &[f64],
     first_index: usize,
@@ -163,20 +167,39 @@ pub(crate) fn fit_from(
     let n = x.len();
     let centre = (n as f64 - 1.0) / 2.0;
     let mut omega = omega0;
-    let (mut dc, mut a, mut b) = linear_fit(x, centre, omega)?;
-    let mut cost = cost_of(x, centre, [dc, a, b, omega]);
+    let mut phases = Vec::with_capacity(n);
+    let mut trial_phases = Vec::with_capacity(n);
+    fill_phases(n, centre, omega, &mut phases);
+    let (mut dc, mut a, mut b) = linear_fit(x, &phases)?;
+    let mut cost = cost_of(x, &phases, [dc, a, b]);
     let mut normal = Matrix4::zeros();
     for _ in 0..max_iterations {
-        let mut rhs = Vector4::zeros();
-        normal = Matrix4::zeros();
-        for (j, &v) in x.iter().enumerate() {
+        // The upper triangle of `sum g g^T` and `sum g r`, each entry summed in sample order
+        // as `normal += g * g.transpose()` sums it (the lower triangle is the same products).
+        let mut upper = [0.0; 10];
+        let mut rhs_sum = [0.0; 4];
+        for (j, (&v, &(s, c))) in x.iter().zip(&phases).enumerate() {
             let t = j as f64 - centre;
-            let (s, c) = (omega * t).sin_cos();
             let r = v - (dc + a * c + b * s);
-            let g = Vector4::new(1.0, c, s, t * (b * c - a * s));
-            normal += g * g.transpose();
-            rhs += g * r;
+            let g = [1.0, c, s, t * (b * c - a * s)];
+            let mut k = 0;
+            for p in 0..4 {
+                for q in p..4 {
+                    upper[k] += g[p] * g[q];
+                    k += 1;
+                }
+                rhs_sum[p] += g[p] * r;
+            }
         }
+        let mut k = 0;
+        for p in 0..4 {
+            for q in p..4 {
+                normal[(p, q)] = upper[k];
+                normal[(q, p)] = upper[k];
+                k += 1;
+            }
+        }
+        let rhs = Vector4::from(rhs_sum);
         let step = normal.cholesky()?.solve(&rhs);
         // Halve the step until the cost does not grow (Gauss-Newton is undamped otherwise).
         let mut scale = 1.0;
@@ -188,10 +211,12 @@ pub(crate) fn fit_from(
                 b + scale * step[2],
                 omega + scale * step[3],
             ];
-            let c = cost_of(x, centre, trial);
+            fill_phases(n, centre, trial[3], &mut trial_phases);
+            let c = cost_of(x, &trial_phases, [trial[0], trial[1], trial[2]]);
             if c <= cost {
                 [dc, a, b, omega] = trial;
                 cost = c;
+                std::mem::swap(&mut phases, &mut trial_phases);
                 accepted = true;
                 break;
             }
@@ -226,12 +251,28 @@ pub(crate) fn fit_from(
     })
 }
 
-/// The DC, cosine and sine coefficients at a fixed `omega` (time centred at `centre`).
-fn linear_fit(x: &[f64], centre: f64, omega: f64) -> Option<(f64, f64, f64)> {
+/// `(sin, cos)` of `omega (j - centre)` for the samples `j` of a stretch of `n`. The times are
+/// symmetric about the centre (`j - centre` is exactly `-(n - 1 - j - centre)`), so the first
+/// half is the second's with the sine negated: sine is odd and cosine even, and the C
+/// library's `sin_cos` is too (the test against per-sample `sin_cos` checks it bit for bit).
+fn fill_phases(n: usize, centre: f64, omega: f64, out: &mut Vec<(f64, f64)>) {
+    out.clear();
+    out.resize(n, (0.0, 0.0));
+    let half = n / 2;
+    for (j, p) in out.iter_mut().enumerate().skip(half) {
+        *p = (omega * (j as f64 - centre)).sin_cos();
+    }
+    for j in 0..half {
+        let (s, c) = out[n - 1 - j];
+        out[j] = (-s, c);
+    }
+}
+
+/// The DC, cosine and sine coefficients at the frequency of `phases`.
+fn linear_fit(x: &[f64], phases: &[(f64, f64)]) -> Option<(f64, f64, f64)> {
     let mut normal = nalgebra::Matrix3::zeros();
     let mut rhs = nalgebra::Vector3::zeros();
-    for (j, &v) in x.iter().enumerate() {
-        let (s, c) = (omega * (j as f64 - centre)).sin_cos();
+    for (&v, &(s, c)) in x.iter().zip(phases) {
         let g = nalgebra::Vector3::new(1.0, c, s);
         normal += g * g.transpose();
         rhs += g * v;
@@ -240,12 +281,99 @@ fn linear_fit(x: &[f64], centre: f64, omega: f64) -> Option<(f64, f64, f64)> {
     Some((p[0], p[1], p[2]))
 }
 
-fn cost_of(x: &[f64], centre: f64, [dc, a, b, omega]: [f64; 4]) -> f64 {
+fn cost_of(x: &[f64], phases: &[(f64, f64)], [dc, a, b]: [f64; 3]) -> f64 {
     x.iter()
-        .enumerate()
-        .map(|(j, &v)| {
-            let (s, c) = (omega * (j as f64 - centre)).sin_cos();
-            (v - (dc + a * c + b * s)).powi(2)
-        })
+        .zip(phases)
+        .map(|(&v, &(s, c))| (v - (dc + a * c + b * s)).powi(2))
         .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fit as it was written before the phases were shared: every linear fit, cost and
+    /// normal matrix computes its own `sin_cos` of every sample.
+    fn reference_fit(x: &[f64], omega0: f64, max_iterations: usize) -> Option<[f64; 6]> {
+        let n = x.len();
+        let centre = (n as f64 - 1.0) / 2.0;
+        let phases = |omega: f64| -> Vec<(f64, f64)> {
+            (0..n)
+                .map(|j| (omega * (j as f64 - centre)).sin_cos())
+                .collect()
+        };
+        let mut omega = omega0;
+        let (mut dc, mut a, mut b) = linear_fit(x, &phases(omega))?;
+        let mut cost = cost_of(x, &phases(omega), [dc, a, b]);
+        for _ in 0..max_iterations {
+            let mut rhs = Vector4::zeros();
+            let mut normal = Matrix4::zeros();
+            for (j, &v) in x.iter().enumerate() {
+                let t = j as f64 - centre;
+                let (s, c) = (omega * t).sin_cos();
+                let r = v - (dc + a * c + b * s);
+                let g = Vector4::new(1.0, c, s, t * (b * c - a * s));
+                normal += g * g.transpose();
+                rhs += g * r;
+            }
+            let step = normal.cholesky()?.solve(&rhs);
+            let mut scale = 1.0;
+            let mut accepted = false;
+            for _ in 0..20 {
+                let trial = [
+                    dc + scale * step[0],
+                    a + scale * step[1],
+                    b + scale * step[2],
+                    omega + scale * step[3],
+                ];
+                let c = cost_of(x, &phases(trial[3]), [trial[0], trial[1], trial[2]]);
+                if c <= cost {
+                    [dc, a, b, omega] = trial;
+                    cost = c;
+                    accepted = true;
+                    break;
+                }
+                scale *= 0.5;
+            }
+            if !accepted || (scale * step[3]).abs() <= CONVERGED_REL * omega.abs() {
+                break;
+            }
+        }
+        Some([omega, dc, a, b, cost, 0.0])
+    }
+
+    #[test]
+    fn shared_phases_give_the_fit_bit_for_bit() {
+        // Noisy sines (a deterministic pseudo-random sequence), started off the true frequency.
+        let mut state = 12345u64;
+        let mut noise = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for (n, omega, offset) in [
+            (200, 0.31, 0.01),
+            (651, 0.0503, -0.002),
+            (1300, 1.7, 0.004),
+            (97, 2.9, -0.02),
+        ] {
+            let x: Vec<f64> = (0..n)
+                .map(|j| 0.3 + 2.0 * (omega * j as f64 + 0.7).sin() + 0.05 * noise())
+                .collect();
+            let fit = fit_from(&x, 17, omega + offset, 50).expect("a sine");
+            let [w, dc, a, b, cost, _] = reference_fit(&x, omega + offset, 50).expect("a sine");
+            assert_eq!(fit.omega.to_bits(), w.abs().to_bits(), "n {n}");
+            assert_eq!(fit.dc.to_bits(), dc.to_bits());
+            assert_eq!(fit.cos_coef.to_bits(), a.to_bits());
+            assert_eq!(
+                fit.sin_coef.to_bits(),
+                (if w < 0.0 { -b } else { b }).to_bits()
+            );
+            assert_eq!(
+                fit.residual_rms.to_bits(),
+                (cost / n as f64).sqrt().to_bits()
+            );
+        }
+    }
 }

@@ -12,6 +12,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::SimError;
+use super::exact_step::{ExactStep, slip_holds};
 use super::linear_step::{Linear2, LinearStep};
 use crate::element::Friction;
 
@@ -96,6 +97,12 @@ pub(crate) trait Hybrid {
     fn same_inputs(&self, _t_ref: f64, _other: f64) -> bool {
         false
     }
+    /// True when [`Hybrid::forcing`] with inputs from the piece at `t_ref` is affine in time
+    /// (a spline's second derivative): an interval of [`Hybrid::linear`] dynamics then has an
+    /// exact step (`exact_step.rs`).
+    fn forcing_affine(&self, _t_ref: f64) -> bool {
+        false
+    }
     /// True when no state moves while stuck (every rate is exactly zero), so that a stuck
     /// sub-step leaves the state as it is.
     fn static_when_stuck(&self) -> bool {
@@ -126,6 +133,8 @@ pub(crate) struct Integrator<'a, H: Hybrid> {
     linear_step: Option<(f64, Linear2, LinearStep)>,
     /// Its forcing at the end of the last linear sub-step (the start of the next one).
     last_forcing: Option<LastForcing>,
+    /// The exact step for (interval length, system) last used.
+    exact_step: Option<(f64, Linear2, ExactStep)>,
 }
 
 impl<'a, H: Hybrid> Integrator<'a, H> {
@@ -140,6 +149,7 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
             substep_s: opts.max_substep_s,
             linear_step: None,
             last_forcing: None,
+            exact_step: None,
         }
     }
 
@@ -173,6 +183,40 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         let [x, v] = step.apply([y[0], y[1]], u0, uh, u1);
         out[0] = x;
         out[1] = v;
+    }
+
+    /// The state at `t1` from `y` at `t0` in one exact step, when the system is linear in
+    /// `mode`, its forcing affine over the interval and no stick-slip event can happen inside
+    /// (free, or a slip whose velocity keeps its sign with a margin: see [`slip_holds`]);
+    /// `None` otherwise, and the interval is sub-stepped.
+    fn exact_interval(
+        &mut self,
+        t0: f64,
+        t1: f64,
+        t_ref: f64,
+        y: &[f64],
+        mode: Mode,
+    ) -> Option<[f64; 2]> {
+        if mode == Mode::Stick || !self.sys.forcing_affine(t_ref) {
+            return None;
+        }
+        let lin = self.sys.linear(mode)?;
+        let h = t1 - t0;
+        let step = match self.exact_step {
+            Some((hh, l, s)) if hh == h && l == lin => s,
+            _ => {
+                let s = ExactStep::new(lin, h);
+                self.exact_step = Some((h, lin, s));
+                s
+            }
+        };
+        let u = self.sys.forcing_pair([t0, t1], t_ref, mode);
+        let y0 = [y[0], y[1]];
+        let y1 = step.apply(y0, u[0], u[1]);
+        match mode {
+            Mode::Slip(dir) if !slip_holds(lin, h, dir, y0, y1, u) => None,
+            _ => Some(y1),
+        }
     }
 
     /// One classic RK4 step of length `dt` from `y` into `out`.
@@ -379,6 +423,13 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
                 on_sample(i, t, t_ref, y, mode);
             }
             let Some(tn) = t_next else { break };
+            if let Some(next) = self.exact_interval(t, tn, t_ref, y, mode) {
+                y[..2].copy_from_slice(&next);
+                if !next.iter().all(|v| v.is_finite()) {
+                    return Err(SimError::NonFinite { time_s: tn });
+                }
+                continue;
+            }
             let n = ((tn - t) / self.opts.max_substep_s).ceil().max(1.0) as usize;
             let h = (tn - t) / n as f64;
             self.substep_s = h;

@@ -7,6 +7,7 @@
 
 pub mod bench_runs;
 pub mod element;
+mod exact_step;
 pub mod excitation;
 mod hybrid;
 mod input_window;

@@ -260,6 +260,12 @@ impl Hybrid for RigSystem<'_> {
         [f - a, f - b]
     }
 
+    fn forcing_affine(&self, t_ref: f64) -> bool {
+        // A spline piece's second derivative is linear in time on the interval of `t_ref`.
+        let j = self.base_true_index(t_ref);
+        matches!(self.base_true.pieces[j], Piece::Spline(_))
+    }
+
     fn same_inputs(&self, t_ref: f64, other: f64) -> bool {
         // The true base alone drives the forcing.
         self.base_true_index(t_ref) == self.base_true_index(other)
