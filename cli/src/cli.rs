@@ -237,10 +237,20 @@ pub enum ExcitationArg {
     Stepped,
     /// Periodic multisines (random-odd lines), then a band-random validation record.
     Multisine,
-    /// Not simulated yet: refused with a message.
+    /// One sine sweep over the stepped sine's band and time (rig, shaker-sdof; the law by
+    /// --sweep-kind), then (rig, unless --no-random) the two band-random validation records.
     Sweep,
-    /// Not simulated yet as a drive of its own: refused with a message.
+    /// Rig: one band-random record over the stepped sine's band and time as the identification
+    /// record (identified in the time domain: `forcemap identify --method td-all`).
     Random,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SweepKindArg {
+    /// f(t) = f0 + (f1 - f0) t / T.
+    Linear,
+    /// f(t) = f0 (f1 / f0)^(t / T): equal time per octave.
+    Log,
 }
 
 #[derive(Debug, Args)]
@@ -255,10 +265,13 @@ pub struct SimulateArgs {
     pub snr_db: Option<f64>,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// The drive: stepped sines, or (shaker-sdof only) two periodic multisines and a
-    /// band-random validation record.
+    /// The drive: stepped sines; (shaker-sdof only) two periodic multisines and a band-random
+    /// validation record; (rig, shaker-sdof) one sine sweep; (rig) one band-random record.
     #[arg(long, value_enum, default_value_t = ExcitationArg::Stepped)]
     pub excitation: ExcitationArg,
+    /// The law of --excitation sweep.
+    #[arg(long, value_enum, default_value_t = SweepKindArg::Linear)]
+    pub sweep_kind: SweepKindArg,
     /// Rig: skip the two band-random validation records.
     #[arg(long)]
     pub no_random: bool,

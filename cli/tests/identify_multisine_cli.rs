@@ -3,7 +3,7 @@
 //! of a force-driven single-DOF system with cubic stiffness at 30 dB, and `forcemap identify`
 //! gets every parameter, the moving mass among them, within 1 % of the simulator's truth; a
 //! record shorter than the periods it needs is refused naming its step; an excitation not
-//! simulated yet is refused naming it.
+//! simulated for a system is refused naming it.
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
@@ -68,13 +68,17 @@ fn an_excitation_not_simulated_yet_is_refused_by_name() {
     let o = forcemap(&[
         "simulate",
         "--system",
-        "shaker-sdof",
+        "rig",
         "--excitation",
-        "sweep",
+        "multisine",
         "--csv",
         csv.to_str().unwrap(),
     ]);
     assert!(!o.status.success());
-    assert!(stderr(&o).contains("--excitation sweep"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--excitation multisine"),
+        "{}",
+        stderr(&o)
+    );
     assert!(!csv.exists(), "nothing written");
 }

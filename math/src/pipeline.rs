@@ -14,6 +14,9 @@ use crate::recipe::Setup;
 use crate::record::{Channel, Excitation, Record};
 use crate::sim::{ReplayOptions, RigInitial, SimError, ZeroPhaseLowpass, simulate_on_sampled_base};
 
+mod broadband;
+pub use broadband::{SWEEP_TRANSIENT_WINDOWS, analyse_sweep_records, identify_random_records};
+
 #[derive(Debug, Error)]
 pub enum PipelineError {
     #[error(transparent)]
@@ -63,7 +66,9 @@ pub fn analyse_multisine_records(
         .collect()
 }
 
-/// Identifies `model` on the sine steps and the periodic multisine records of `records`.
+/// Identifies `model` on the sine steps, the sweep records (their windows) and the periodic
+/// multisine records of `records`; when there are none of these, on the band-random records by
+/// time-domain FSM (the random records are otherwise left for validation).
 pub fn identify_records(
     model: &Model,
     setup: &Setup,
@@ -76,7 +81,8 @@ pub fn identify_records(
         .map(|(id, _)| id)
 }
 
-/// [`identify_records`], also returning the harmonic analyses of the sine steps.
+/// [`identify_records`], also returning the harmonic analyses of the sine steps and the sweep
+/// windows.
 pub fn identify_records_with_analyses(
     model: &Model,
     setup: &Setup,
@@ -85,8 +91,26 @@ pub fn identify_records_with_analyses(
     phasor_options: &PhasorOptions,
     fd_options: &FdMultiOptions,
 ) -> Result<(Identification, Vec<HarmonicAnalysis>), PipelineError> {
-    let (analyses, notes) = analyse_sine_steps(records, phasor_options)?;
+    let (mut analyses, notes) = analyse_sine_steps(records, phasor_options)?;
+    let sweeps = analyse_sweep_records(records)?;
+    if let (Some(w), Method::OutputError) = (sweeps.first(), method) {
+        return Err(PipelineError::Identify(identify::IdentifyError::Step {
+            step: w.step,
+            problem: "output-error refinement simulates sine steps; a sweep record is identified by fd, fd-multi or td".into(),
+        }));
+    }
+    analyses.extend(sweeps);
     let multisines = analyse_multisine_records(records, &MultisineOptions::default())?;
+    if analyses.is_empty()
+        && multisines.is_empty()
+        && records
+            .iter()
+            .any(|r| matches!(r.excitation, Excitation::Random { .. }))
+    {
+        let mut id = identify_random_records(model, setup, method, records)?;
+        id.warnings.splice(0..0, notes);
+        return Ok((id, analyses));
+    }
     let mut id = if multisines.is_empty() {
         identify::identify(model, setup, method, records, &analyses, fd_options)?
     } else {
@@ -116,14 +140,16 @@ pub fn track_records_with_analyses(
     fd_options: &FdMultiOptions,
     factor_per_step: f64,
 ) -> Result<(Vec<Identification>, Vec<HarmonicAnalysis>), PipelineError> {
-    if let Some(r) = records
-        .iter()
-        .find(|r| matches!(r.excitation, Excitation::Multisine { .. }))
-    {
+    if let Some(r) = records.iter().find(|r| {
+        matches!(
+            r.excitation,
+            Excitation::Multisine { .. } | Excitation::Sweep { .. }
+        )
+    }) {
         return Err(PipelineError::Identify(identify::IdentifyError::Step {
             step: r.step,
             problem:
-                "tracking forgets per sine step; a periodic multisine record cannot be tracked"
+                "tracking forgets per sine step; a periodic multisine or sweep record cannot be tracked"
                     .into(),
         }));
     }

@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::phasor::SweepLaw;
+
 /// A measured channel. The names are the CSV column names of the test-bench export (SI units).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -70,13 +72,18 @@ pub enum Excitation {
         lines: Vec<usize>,
         rms: f64,
     },
+    /// A sine sweep `amplitude sin(phi(t))` from the record's first sample (phase 0 there) over
+    /// `law.duration_s`; `law.amplitude` is in the unit of the driven quantity.
+    Sweep { law: SweepLaw },
 }
 
 impl Excitation {
     pub fn frequency_hz(&self) -> Option<f64> {
         match self {
             Excitation::Sine { frequency_hz, .. } => Some(*frequency_hz),
-            Excitation::Random { .. } | Excitation::Multisine { .. } => None,
+            Excitation::Random { .. } | Excitation::Multisine { .. } | Excitation::Sweep { .. } => {
+                None
+            }
         }
     }
 }

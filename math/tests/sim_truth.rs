@@ -308,6 +308,7 @@ fn r_amp(e: &forcemap_math::record::Excitation) -> f64 {
         forcemap_math::record::Excitation::Sine { amplitude, .. } => *amplitude,
         forcemap_math::record::Excitation::Random { rms, .. }
         | forcemap_math::record::Excitation::Multisine { rms, .. } => *rms,
+        forcemap_math::record::Excitation::Sweep { law } => law.amplitude,
     }
 }
 

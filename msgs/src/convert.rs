@@ -100,6 +100,17 @@ impl ExcitationState {
                 };
                 (Self::RANDOM, 0.0, *rms, band)
             }
+            // No sweep kind either: a sweep travels as a random record over its band, with
+            // the RMS of a sine of its amplitude.
+            Excitation::Sweep { law } => {
+                let (a, b) = (law.start_frequency_hz, law.end_frequency_hz);
+                (
+                    Self::RANDOM,
+                    0.0,
+                    law.amplitude / 2f64.sqrt(),
+                    [a.min(b), a.max(b)],
+                )
+            }
         };
         ExcitationState {
             header,

@@ -2,12 +2,13 @@
 //! planted in the truth model if asked.
 
 use anyhow::bail;
+use forcemap_math::phasor::SweepKind;
 use forcemap_math::record::Record;
 use forcemap_math::sim::{
     AsymmetricDamping, BoucWen, FreePlay, RigEffects, RunSpec, ThreeDofCase, TruthElement,
 };
 
-use crate::cli::{CaseArg, EffectArgs, ExcitationArg, SimulateArgs, SystemArg};
+use crate::cli::{CaseArg, EffectArgs, ExcitationArg, SimulateArgs, SweepKindArg, SystemArg};
 use forcemap_io::csv_export::write_csv;
 use forcemap_io::rig_bag::{DEFAULT_RUN_START, write_rig_bag};
 
@@ -232,37 +233,53 @@ fn planted_rig_effects(e: &EffectArgs) -> anyhow::Result<RigEffects> {
     Ok(fx)
 }
 
-pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
-    match (args.excitation, args.system) {
-        (ExcitationArg::Stepped, _) => {}
-        (ExcitationArg::Multisine, SystemArg::ShakerSdof) => {
-            if args.bag.is_some() {
-                bail!(
-                    "--excitation multisine cannot be written to a bag yet: the ExcitationState \
-                     message has no multisine kind (a multisine would read back as a random \
-                     record); write --csv instead"
-                );
-            }
-        }
-        (ExcitationArg::Multisine, _) => {
-            bail!("--excitation multisine is simulated for --system shaker-sdof only")
-        }
-        (ExcitationArg::Sweep | ExcitationArg::Random, _) => bail!(
-            "--excitation {} is not simulated yet (stepped, and multisine for --system \
-             shaker-sdof, are)",
-            if args.excitation == ExcitationArg::Sweep {
-                "sweep"
-            } else {
-                "random"
-            }
-        ),
+/// The excitations `forcemap simulate` knows for `system`, refused by name otherwise (and a
+/// bag refused for the kinds the ExcitationState message cannot carry).
+fn check_excitation(args: &SimulateArgs) -> anyhow::Result<()> {
+    let name = match args.excitation {
+        ExcitationArg::Stepped => return Ok(()),
+        ExcitationArg::Multisine => "multisine",
+        ExcitationArg::Sweep => "sweep",
+        ExcitationArg::Random => "random",
+    };
+    let systems = match args.excitation {
+        ExcitationArg::Multisine => "--system shaker-sdof",
+        ExcitationArg::Sweep => "--system rig and shaker-sdof",
+        _ => "--system rig",
+    };
+    let known = matches!(
+        (args.excitation, args.system),
+        (ExcitationArg::Multisine, SystemArg::ShakerSdof)
+            | (ExcitationArg::Sweep, SystemArg::Rig | SystemArg::ShakerSdof)
+            | (ExcitationArg::Random, SystemArg::Rig)
+    );
+    if !known {
+        bail!("--excitation {name} is simulated for {systems} only");
     }
+    if args.bag.is_some() && args.excitation != ExcitationArg::Random {
+        bail!(
+            "--excitation {name} cannot be written to a bag yet: the ExcitationState message \
+             has no {name} kind (it would read back as a random record); write --csv instead"
+        );
+    }
+    Ok(())
+}
+
+pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
+    check_excitation(args)?;
+    let sweep_kind = match args.sweep_kind {
+        SweepKindArg::Linear => SweepKind::Linear,
+        SweepKindArg::Log => SweepKind::Logarithmic,
+    };
     let spec = match args.system {
         SystemArg::Rig => {
-            let spec = if args.no_random {
-                RunSpec::paper_rig_sine(args.snr_db, args.seed)
-            } else {
-                RunSpec::paper_rig(args.snr_db, args.seed)
+            let spec = match args.excitation {
+                ExcitationArg::Sweep => {
+                    RunSpec::rig_sweep(sweep_kind, !args.no_random, args.snr_db, args.seed)
+                }
+                ExcitationArg::Random => RunSpec::rig_random(args.snr_db, args.seed),
+                _ if args.no_random => RunSpec::paper_rig_sine(args.snr_db, args.seed),
+                _ => RunSpec::paper_rig(args.snr_db, args.seed),
             };
             let element = planted_element(spec.element.clone(), &args.effects)?;
             spec.with_element(element)
@@ -278,12 +295,15 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
                     "--exciter-delay-s, --sensor-lowpass-hz and --mass-factor apply to the rig (--system rig) only"
                 );
             }
-            let spec = match system {
-                SystemArg::DamperDyno => RunSpec::damper_dyno(args.snr_db, args.seed),
-                SystemArg::ShakerSdof if args.excitation == ExcitationArg::Multisine => {
+            let spec = match (system, args.excitation) {
+                (SystemArg::DamperDyno, _) => RunSpec::damper_dyno(args.snr_db, args.seed),
+                (SystemArg::ShakerSdof, ExcitationArg::Multisine) => {
                     RunSpec::shaker_sdof_multisine(args.snr_db, args.seed)
                 }
-                SystemArg::ShakerSdof => RunSpec::shaker_sdof(args.snr_db, args.seed),
+                (SystemArg::ShakerSdof, ExcitationArg::Sweep) => {
+                    RunSpec::shaker_sdof_sweep(sweep_kind, args.snr_db, args.seed)
+                }
+                (SystemArg::ShakerSdof, _) => RunSpec::shaker_sdof(args.snr_db, args.seed),
                 _ => {
                     let case = match args.case {
                         CaseArg::I => ThreeDofCase::I,

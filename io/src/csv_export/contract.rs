@@ -9,6 +9,7 @@ use forcemap_math::record::{Channel, Record};
 
 use super::error::CsvError;
 use super::multisine::{MULTISINE_BASE_COLUMN, MULTISINE_COLUMNS, MULTISINE_LINES_COLUMN};
+use super::sweep::SWEEP_COLUMNS;
 use crate::steps::WRITTEN_INTERVAL_REL_TOL;
 
 /// Column names of the fixed (non-channel) columns.
@@ -59,6 +60,9 @@ pub(super) struct Layout {
     /// The multisine label columns (base frequency, lines), both present or both absent, only
     /// with the label columns.
     pub multisine_cols: Option<(usize, usize)>,
+    /// The sweep label columns (law, start, end), all present or all absent, only with the
+    /// label columns.
+    pub sweep_cols: Option<[usize; 3]>,
     /// The channel columns present, in [`Channel::ALL`] order.
     pub channel_cols: Vec<(Channel, usize)>,
     pub ignored_columns: Vec<String>,
@@ -158,6 +162,30 @@ impl Layout {
                 });
             }
         };
+        let sweep_found: Vec<Option<usize>> = SWEEP_COLUMNS
+            .iter()
+            .map(|c| index.get(c).copied())
+            .collect();
+        let sweep_cols = match sweep_found[..] {
+            [Some(l), Some(a), Some(b)] if step_col.is_some() => Some([l, a, b]),
+            [None, None, None] => None,
+            _ => {
+                let all = SWEEP_COLUMNS.join("', '");
+                let message = if sweep_found.iter().any(Option::is_none) {
+                    format!("the sweep columns '{all}' go together; the header has only some")
+                } else {
+                    format!(
+                        "the sweep columns '{all}' label steps, so they need the \
+                         '{STEP_COLUMN}' and '{FREQUENCY_COLUMN}' columns too"
+                    )
+                };
+                return Err(CsvError::Malformed {
+                    path: path.to_path_buf(),
+                    line: Some(1),
+                    message,
+                });
+            }
+        };
         let channel_cols: Vec<(Channel, usize)> = Channel::ALL
             .into_iter()
             .filter_map(|c| index.get(c.name()).map(|&i| (c, i)))
@@ -167,6 +195,7 @@ impl Layout {
                 || name == STEP_COLUMN
                 || name == FREQUENCY_COLUMN
                 || (multisine_cols.is_some() && MULTISINE_COLUMNS.contains(&name))
+                || (sweep_cols.is_some() && SWEEP_COLUMNS.contains(&name))
                 || Channel::from_name(name).is_some()
         };
         let ignored_columns: Vec<String> = header
@@ -180,6 +209,7 @@ impl Layout {
             step_col,
             freq_col,
             multisine_cols,
+            sweep_cols,
             channel_cols,
             ignored_columns,
         })

@@ -109,6 +109,27 @@ pub enum CsvError {
         cell: String,
         reason: String,
     },
+    #[error("{}: line {line}, column '{column}': '{cell}': {reason}", path.display())]
+    BadSweepCell {
+        path: PathBuf,
+        line: u64,
+        column: &'static str,
+        cell: String,
+        reason: String,
+    },
+    #[error(
+        "{}: line {line}, columns 'sweep_law'/'sweep_start_hz'/'sweep_end_hz': the sweep of \
+         step {step} changes inside the step ({change})",
+        path.display()
+    )]
+    SweepChanged {
+        path: PathBuf,
+        step: usize,
+        first_line: u64,
+        line: u64,
+        /// What the step's first line has and what this line has.
+        change: String,
+    },
     #[error(
         "{}: line {line}, columns 'multisine_base_hz'/'multisine_lines': the multisine of \
          step {step} changes inside the step ({change})",

@@ -12,6 +12,8 @@
 //!   requires `relative_displacement_m`, `drive_point_displacement_m`, `force_n`.
 //! * Optional, both or neither, with the labels: `multisine_base_hz` and `multisine_lines`,
 //!   which label a periodic multisine step ([`multisine`] says how).
+//! * Optional, all three or none, with the labels: `sweep_law`, `sweep_start_hz` and
+//!   `sweep_end_hz`, which label a sine-sweep step ([`sweep`] says how).
 //! * Any other [`Channel::name`] column is optional and read when present. Every cell of a
 //!   present channel column must hold a finite number.
 //! * Columns with other names are ignored and returned in [`CsvImport::ignored_columns`].
@@ -32,6 +34,7 @@
 //! The excitation amplitude is not part of the export, so it is *estimated* on import: for a
 //! sine step, `amplitude = sqrt(2) * RMS` of the driven channel (base displacement for the rig,
 //! force for the drive-point profile) over the whole step after removing its mean; for a
+//! sweep step, its amplitude likewise; for a
 //! random record, `rms` is the RMS of the driven channel after removing its mean. Both include
 //! the transient at the start of the step, so they are estimates, not the commanded values.
 //!
@@ -43,7 +46,8 @@
 //! ([`dialect`]); [`CsvImport::notices`] says what was found.
 //!
 //! Files: `contract` (column names, required columns, the header's layout), `dialect`,
-//! `multisine` (the multisine label columns), `read`, `write`, `error`.
+//! `multisine` (the multisine label columns), `sweep` (the sweep label columns), `read`,
+//! `write`, `error`.
 //!
 //! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
 //! [`SetupKind::DrivePoint`]: forcemap_math::recipe::SetupKind::DrivePoint
@@ -54,6 +58,7 @@ pub mod dialect;
 mod error;
 pub mod multisine;
 mod read;
+pub mod sweep;
 mod write;
 
 pub use contract::{
@@ -63,5 +68,6 @@ pub use contract::{
 pub use error::CsvError;
 pub use multisine::{MULTISINE_BASE_COLUMN, MULTISINE_LINES_COLUMN};
 pub use read::{read_csv, read_csv_from};
+pub use sweep::{SWEEP_END_COLUMN, SWEEP_LAW_COLUMN, SWEEP_START_COLUMN};
 pub(crate) use write::fmt_f64;
 pub use write::write_csv;

@@ -14,11 +14,13 @@ use super::contract::{
 use super::dialect;
 use super::error::{CsvError, csv_error};
 use super::multisine::{self, MultisineLabel};
+use super::sweep::{self, SweepLabel};
 use crate::steps::unlabelled::{StepWithFrequency, check_labels, split_run};
 use crate::steps::{
     AssembledStep, StepAssembler, StepError, StepFault, StepPlan, StepRules, StepSample,
     estimated_excitation, rms_about_mean,
 };
+use forcemap_math::phasor::SweepLaw;
 use forcemap_math::record::{Channel, Excitation};
 use forcemap_math::segment::SegmentOptions;
 
@@ -122,6 +124,19 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
             )?,
             None => None,
         };
+        let swept = match layout.sweep_cols {
+            Some(cols) => {
+                let other = if freq.is_some() {
+                    Some("a sine step")
+                } else if multisine.is_some() {
+                    Some("a multisine")
+                } else {
+                    None
+                };
+                sweep::parse_row(path, line, cols.map(|c| text(cell(c))), other)?
+            }
+            None => None,
+        };
 
         if let Some((t0, l0)) = prev_time
             && time <= t0
@@ -152,7 +167,7 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
                 let result = assembler.finish_step();
                 steps.extend(done.completed(path, result)?);
             }
-            current = Some(StepRows::new(step, freq, multisine.clone()));
+            current = Some(StepRows::new(step, freq, multisine.clone(), swept));
         }
         let cur = current.as_mut().expect("current step exists");
         if cur.frequency != freq {
@@ -188,6 +203,30 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
                 ),
             });
         }
+        if cur.sweep != swept {
+            let text = |s: &Option<SweepLabel>| {
+                s.map_or("no sweep".to_string(), |s| {
+                    format!(
+                        "{} {} -> {} Hz",
+                        sweep::law_name(s.kind),
+                        s.start_frequency_hz,
+                        s.end_frequency_hz
+                    )
+                })
+            };
+            return Err(CsvError::SweepChanged {
+                path: p(),
+                step,
+                first_line: cur.lines[0],
+                line,
+                change: format!(
+                    "line {} has {}, this line {}",
+                    cur.lines[0],
+                    text(&cur.sweep),
+                    text(&swept)
+                ),
+            });
+        }
         values.clear();
         for &(c, col) in &layout.channel_cols {
             values.push((c, parse_number(path, line, c.name(), cell(col))?));
@@ -219,6 +258,7 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
     let driven = layout.profile.driven_channel();
     let multisines: Vec<Option<MultisineLabel>> =
         steps.iter().map(|s| s.multisine.clone()).collect();
+    let sweeps: Vec<Option<SweepLabel>> = steps.iter().map(|s| s.sweep).collect();
     let mut found: Vec<StepWithFrequency> = steps
         .into_iter()
         .map(|s| (s.assembled.record, s.frequency))
@@ -228,11 +268,12 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
     }
     let options = SegmentOptions::default();
     let warnings = if labelled {
-        // The segmenter knows sines and the rest: a multisine label is not checked by it.
+        // The segmenter knows sines and the rest: a multisine or sweep label is not checked by
+        // it.
         let checkable: Vec<StepWithFrequency> = found
             .iter()
-            .zip(&multisines)
-            .filter(|(_, m)| m.is_none())
+            .zip(multisines.iter().zip(&sweeps))
+            .filter(|(_, (m, s))| m.is_none() && s.is_none())
             .map(|(s, _)| s.clone())
             .collect();
         check_labels(&checkable, driven, &options)
@@ -253,13 +294,22 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
         .enumerate()
         .map(|(k, (mut record, frequency))| {
             let level = rms_about_mean(record.channel(driven).expect("a required channel"));
-            record.excitation = match multisines.get(k).cloned().flatten() {
-                Some(m) => Excitation::Multisine {
+            record.excitation = match (multisines.get(k).cloned().flatten(), sweeps.get(k)) {
+                (Some(m), _) => Excitation::Multisine {
                     base_frequency_hz: m.base_frequency_hz,
                     lines: m.lines,
                     rms: level,
                 },
-                None => estimated_excitation(frequency, level),
+                (None, Some(Some(s))) => Excitation::Sweep {
+                    law: SweepLaw {
+                        kind: s.kind,
+                        amplitude: std::f64::consts::SQRT_2 * level,
+                        start_frequency_hz: s.start_frequency_hz,
+                        end_frequency_hz: s.end_frequency_hz,
+                        duration_s: record.len() as f64 / record.sample_rate_hz,
+                    },
+                },
+                _ => estimated_excitation(frequency, level),
             };
             record
         })
@@ -280,6 +330,7 @@ struct StepRows {
     /// `None` stands for random excitation (0 or empty).
     frequency: Option<f64>,
     multisine: Option<MultisineLabel>,
+    sweep: Option<SweepLabel>,
     lines: Vec<u64>,
     plan: StepPlan,
 }
@@ -289,13 +340,19 @@ struct ReadStep {
     step: usize,
     frequency: Option<f64>,
     multisine: Option<MultisineLabel>,
+    sweep: Option<SweepLabel>,
     first_line: u64,
     last_line: u64,
     assembled: AssembledStep,
 }
 
 impl StepRows {
-    fn new(step: usize, frequency: Option<f64>, multisine: Option<MultisineLabel>) -> StepRows {
+    fn new(
+        step: usize,
+        frequency: Option<f64>,
+        multisine: Option<MultisineLabel>,
+        sweep: Option<SweepLabel>,
+    ) -> StepRows {
         // The export carries no amplitude: it is estimated once the step is complete.
         let excitation = match &multisine {
             Some(m) => Excitation::Multisine {
@@ -305,10 +362,12 @@ impl StepRows {
             },
             None => estimated_excitation(frequency, f64::NAN),
         };
+        // A sweep step is planned as random until its length (and so its law) is known.
         StepRows {
             step,
             frequency,
             multisine,
+            sweep,
             lines: Vec::new(),
             plan: StepPlan {
                 excitation,
@@ -337,6 +396,7 @@ impl StepRows {
                 step: self.step,
                 frequency: self.frequency,
                 multisine: self.multisine.clone(),
+                sweep: self.sweep,
                 first_line: self.line(0),
                 last_line: self.last_line(),
                 assembled,

@@ -11,11 +11,14 @@ use forcemap_math::record::{Channel, Excitation, Record};
 use super::contract::{FREQUENCY_COLUMN, SAMPLE_INTERVAL_REL_TOL, STEP_COLUMN, TIME_COLUMN};
 use super::error::{CsvError, csv_error};
 use super::multisine::{MULTISINE_COLUMNS, format_lines, lines_fault};
+use super::sweep::{SWEEP_COLUMNS, law_name};
 
 /// Writes `records` in the CSV contract of this module for `profile`, atomically.
 ///
 /// Columns: `time_s, step, frequency_hz`, then `multisine_base_hz, multisine_lines` when a
-/// record is a periodic multisine (0 and empty on the other records), then every channel of the records in
+/// record is a periodic multisine (0 and empty on the other records), `sweep_law,
+/// sweep_start_hz, sweep_end_hz` when a record is a sweep (empty and 0 on the others; the
+/// record must be the whole sweep, from phase 0), then every channel of the records in
 /// [`Channel::ALL`] order. Time of sample `i` is [`Record::time_s`]; random records write
 /// frequency `0`. Numbers use Rust's shortest round-trip formatting, so reading the file back
 /// gives the same f64 values bit for bit.
@@ -52,6 +55,12 @@ pub fn write_csv(
         if multisine {
             header.extend(MULTISINE_COLUMNS);
         }
+        let sweep = records
+            .iter()
+            .any(|r| matches!(r.excitation, Excitation::Sweep { .. }));
+        if sweep {
+            header.extend(SWEEP_COLUMNS);
+        }
         header.extend(channels.iter().map(|c| c.name()));
         wtr.write_record(&header).map_err(|e| csv_error(path, e))?;
         let mut fields: Vec<String> = Vec::with_capacity(header.len());
@@ -59,7 +68,17 @@ pub fn write_csv(
             let step = r.step.to_string();
             let freq = match r.excitation {
                 Excitation::Sine { frequency_hz, .. } => fmt_f64(frequency_hz),
-                Excitation::Random { .. } | Excitation::Multisine { .. } => "0".to_string(),
+                Excitation::Random { .. }
+                | Excitation::Multisine { .. }
+                | Excitation::Sweep { .. } => "0".to_string(),
+            };
+            let sweep_cells = match &r.excitation {
+                Excitation::Sweep { law } => [
+                    law_name(law.kind).to_string(),
+                    fmt_f64(law.start_frequency_hz),
+                    fmt_f64(law.end_frequency_hz),
+                ],
+                _ => [String::new(), "0".to_string(), "0".to_string()],
             };
             let (base, lines) = match &r.excitation {
                 Excitation::Multisine {
@@ -81,6 +100,9 @@ pub fn write_csv(
                 if multisine {
                     fields.push(base.clone());
                     fields.push(lines.clone());
+                }
+                if sweep {
+                    fields.extend(sweep_cells.iter().cloned());
                 }
                 fields.extend(samples.iter().map(|x| fmt_f64(x[i])));
                 wtr.write_record(&fields).map_err(|e| csv_error(path, e))?;
@@ -208,6 +230,25 @@ fn validate_for_write(
                 }
             }
             Excitation::Random { .. } => {}
+            Excitation::Sweep { law } => {
+                let ok = |f: f64| f.is_finite() && f > 0.0;
+                let duration = n as f64 / rate;
+                if !(ok(law.start_frequency_hz) && ok(law.end_frequency_hz)) {
+                    return Err(bad(format!(
+                        "{what}: sweep {} -> {} Hz: frequencies must be positive numbers",
+                        law.start_frequency_hz, law.end_frequency_hz
+                    )));
+                }
+                // The contract's sweep lasts its record: a law of another duration would read
+                // back as a different sweep.
+                if (law.duration_s - duration).abs() > 0.5 / rate {
+                    return Err(bad(format!(
+                        "{what}: the sweep lasts {} s but the record {duration} s; the CSV \
+                         contract's sweep is the whole record",
+                        law.duration_s
+                    )));
+                }
+            }
             Excitation::Multisine {
                 base_frequency_hz,
                 ref lines,

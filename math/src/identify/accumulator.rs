@@ -102,7 +102,8 @@ impl EquationAccumulator {
         }
         self.blocks += 1;
         self.independent_equations += blk.independent_equations;
-        if blk.a.nrows() > 0 {
+        // A sweep record gives one block per window, all with the record's step.
+        if blk.a.nrows() > 0 && self.steps_used.last() != Some(&blk.step) {
             self.steps_used.push(blk.step);
         }
         for n in &blk.notes {

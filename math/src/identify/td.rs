@@ -59,6 +59,22 @@ pub fn td_step_equations(
     an: &HarmonicAnalysis,
     points: Option<usize>,
 ) -> Result<StepEquations, IdentifyError> {
+    let start = an.first_settled_sample.min(rec.len());
+    let len = an.samples_used.min(rec.len() - start);
+    td_range_equations(model, setup, rec, start, len, points)
+}
+
+/// Equations of TD-FSM over samples `start..start + len` of `rec` (any excitation: the
+/// equation of motion holds at every sample, transient or not), at `points` evenly spaced
+/// samples (None = every sample of the range).
+pub fn td_range_equations(
+    model: &Model,
+    setup: &Setup,
+    rec: &Record,
+    start: usize,
+    len: usize,
+    points: Option<usize>,
+) -> Result<StepEquations, IdentifyError> {
     let step = rec.step;
     let Setup::BaseExcited { mass_kg } = setup else {
         return Err(IdentifyError::Step {
@@ -74,8 +90,16 @@ pub fn td_step_equations(
     };
     let x = need(Channel::RelativeDisplacementM)?;
     let ao = need(Channel::MassAccelerationMps2)?;
-    let start = an.first_settled_sample;
-    let len = an.samples_used.min(rec.len() - start);
+    if len < 2 || start + len > rec.len() {
+        return Err(IdentifyError::Step {
+            step,
+            problem: format!(
+                "samples {start}..{} are not a range of the record's {} samples",
+                start + len,
+                rec.len()
+            ),
+        });
+    }
     let v = relative_velocity(rec, start, len).ok_or_else(|| IdentifyError::Step {
         step,
         problem: "no way to get the relative velocity: need base_acceleration_mps2 or relative_displacement_m".into(),

@@ -148,7 +148,7 @@ impl SineGrid {
                 frequency_hz,
                 amplitude,
             } => (frequency_hz, amplitude),
-            Excitation::Random { .. } | Excitation::Multisine { .. } => {
+            Excitation::Random { .. } | Excitation::Multisine { .. } | Excitation::Sweep { .. } => {
                 return Err(PhasorError::NotSine { step });
             }
         };

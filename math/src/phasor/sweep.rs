@@ -63,6 +63,19 @@ impl SweepLaw {
         }
     }
 
+    /// Rate of change of the frequency [Hz/s] at `t`.
+    pub fn frequency_rate_hz_per_s(&self, t: f64) -> f64 {
+        let (f0, f1, d) = (
+            self.start_frequency_hz,
+            self.end_frequency_hz,
+            self.duration_s,
+        );
+        match self.kind {
+            SweepKind::Linear => (f1 - f0) / d,
+            SweepKind::Logarithmic => self.frequency_hz(t) * (f1 / f0).ln() / d,
+        }
+    }
+
     /// Phase [rad] at `t`: the integral of `2 pi f`.
     pub fn phase_rad(&self, t: f64) -> f64 {
         let (f0, f1, d) = (

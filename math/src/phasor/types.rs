@@ -153,7 +153,7 @@ impl HarmonicAnalysis {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PhasorError {
     #[error(
-        "step {step}: not a stepped-sine record (random or multisine excitation); harmonic analysis needs a sine step (a periodic multisine has its own: phasor::multisine)"
+        "step {step}: not a stepped-sine record (random, multisine or sweep excitation); harmonic analysis needs a sine step (a periodic multisine has its own: phasor::multisine; a sweep: phasor::sweep)"
     )]
     NotSine { step: usize },
     #[error("step {step}: record has no channels")]

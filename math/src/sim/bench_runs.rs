@@ -4,10 +4,18 @@
 
 use super::element::ElementDrive;
 use super::excitation::StepSpec;
+use super::excitation::{
+    PAPER_RIG_FREQUENCIES_HZ, PAPER_RIG_SAMPLES_PER_RECORD, PAPER_RIG_SINE_AMPLITUDE_M,
+    paper_rig_random_steps,
+};
 use super::periodic_multisine::{MultisineDesign, MultisinePlan};
 use super::run::RunSpec;
 use super::truth::{AsymmetricDamping, TruthElement};
 use crate::element::Friction;
+use crate::phasor::SweepKind;
+
+/// Components of the band-random identification record of [`RunSpec::rig_random`].
+pub const RIG_RANDOM_COMPONENTS: usize = 256;
 
 /// A stepped-sine program over a grid: every frequency at the first amplitude, then at the
 /// next (amplitude in the driven channel's unit).
@@ -113,5 +121,62 @@ impl RunSpec {
             components: 64,
         });
         spec
+    }
+
+    /// The paper's rig driven by one sine sweep over the stepped sine's band and time: 1.6 to
+    /// 3.4 Hz at 6 mm in 130 s (the ten 13 s steps), `kind` linear or logarithmic; with
+    /// `validation`, then the two band-random validation records of the paper run (each as long
+    /// as the sweep: a run has one record length).
+    pub fn rig_sweep(kind: SweepKind, validation: bool, snr_db: Option<f64>, seed: u64) -> RunSpec {
+        let mut steps = vec![StepSpec::Sweep {
+            sweep: kind,
+            start_frequency_hz: PAPER_RIG_FREQUENCIES_HZ[0],
+            end_frequency_hz: PAPER_RIG_FREQUENCIES_HZ[PAPER_RIG_FREQUENCIES_HZ.len() - 1],
+            amplitude: PAPER_RIG_SINE_AMPLITUDE_M,
+        }];
+        if validation {
+            steps.extend(paper_rig_random_steps());
+        }
+        RunSpec {
+            snr_db,
+            seed,
+            samples_per_record: PAPER_RIG_SAMPLES_PER_RECORD * PAPER_RIG_FREQUENCIES_HZ.len(),
+            ..RunSpec::rig(steps)
+        }
+    }
+
+    /// The paper's rig driven by one band-random record as the identification record, over the
+    /// stepped sine's band and time: 1.6-3.4 Hz, 130 s, RMS 6 mm / sqrt 2 (the power of the
+    /// 6 mm sines), [`RIG_RANDOM_COMPONENTS`] components.
+    pub fn rig_random(snr_db: Option<f64>, seed: u64) -> RunSpec {
+        let steps = vec![StepSpec::Random {
+            low_hz: PAPER_RIG_FREQUENCIES_HZ[0],
+            high_hz: PAPER_RIG_FREQUENCIES_HZ[PAPER_RIG_FREQUENCIES_HZ.len() - 1],
+            rms: PAPER_RIG_SINE_AMPLITUDE_M / 2f64.sqrt(),
+            components: RIG_RANDOM_COMPONENTS,
+        }];
+        RunSpec {
+            snr_db,
+            seed,
+            samples_per_record: PAPER_RIG_SAMPLES_PER_RECORD * PAPER_RIG_FREQUENCIES_HZ.len(),
+            ..RunSpec::rig(steps)
+        }
+    }
+
+    /// The shaker's system ([`RunSpec::shaker_sdof`]) driven by one force sweep over its
+    /// stepped sine's band and time: 8 to 25 Hz at 40 N in 24 s, through its 16 Hz resonance
+    /// (settling time about 0.07 s, so the sweep stays settled), `kind` linear or logarithmic.
+    pub fn shaker_sdof_sweep(kind: SweepKind, snr_db: Option<f64>, seed: u64) -> RunSpec {
+        let stepped = RunSpec::shaker_sdof(snr_db, seed);
+        RunSpec {
+            steps: vec![StepSpec::Sweep {
+                sweep: kind,
+                start_frequency_hz: 8.0,
+                end_frequency_hz: 25.0,
+                amplitude: 40.0,
+            }],
+            samples_per_record: stepped.samples_per_record * stepped.steps.len(),
+            ..stepped
+        }
     }
 }

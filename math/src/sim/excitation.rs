@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 
 use super::periodic_multisine::{MultisineDesign, multisine_lines, periodic_multisine};
 pub use super::spline::{CubicSpline, SplineEnds};
+use crate::phasor::{SweepKind, SweepLaw};
 use crate::record::Excitation;
 
 /// Paper default sampling rate of the suspension rig [Hz].
@@ -148,6 +149,8 @@ pub enum Piece {
     Multisine { t0: f64, signal: Arc<Multisine> },
     /// An interpolating cubic spline (its interval is chosen by `t_ref`).
     Spline(Arc<CubicSpline>),
+    /// A sine sweep `law.amplitude sin(phi(t - t0))` (phase 0 at `t0`).
+    Sweep { t0: f64, law: SweepLaw },
 }
 
 impl Piece {
@@ -173,7 +176,22 @@ impl Piece {
             }
             Piece::Multisine { t0, signal } => signal.eval(t - t0),
             Piece::Spline(s) => s.eval(t, t_ref),
+            Piece::Sweep { t0, law } => sweep_derivs(law, t - t0),
         }
+    }
+}
+
+/// `A sin(phi)` of a sweep and its exact derivatives at local time `t`: `A w cos(phi)` and
+/// `A (w' cos(phi) - w^2 sin(phi))`, `w = 2 pi f(t)`.
+pub fn sweep_derivs(law: &SweepLaw, t: f64) -> Derivs {
+    let (s, c) = law.phase_rad(t).sin_cos();
+    let w = 2.0 * PI * law.frequency_hz(t);
+    let dw = 2.0 * PI * law.frequency_rate_hz_per_s(t);
+    let a = law.amplitude;
+    Derivs {
+        value: a * s,
+        d1: a * w * c,
+        d2: a * (dw * c - w * w * s),
     }
 }
 
@@ -269,6 +287,15 @@ pub enum StepSpec {
         #[serde(default)]
         design: MultisineDesign,
     },
+    /// A sine sweep over the whole record (`samples_per_record` at the sample rate), from
+    /// `start_frequency_hz` at its first sample to `end_frequency_hz` at its end, starting at
+    /// phase 0; `amplitude` in the unit of the driven quantity.
+    Sweep {
+        sweep: SweepKind,
+        start_frequency_hz: f64,
+        end_frequency_hz: f64,
+        amplitude: f64,
+    },
 }
 
 fn default_components() -> usize {
@@ -356,6 +383,23 @@ impl Program {
                             rms,
                         },
                     )
+                }
+                StepSpec::Sweep {
+                    sweep,
+                    start_frequency_hz,
+                    end_frequency_hz,
+                    amplitude,
+                } => {
+                    let law = SweepLaw {
+                        kind: sweep,
+                        amplitude,
+                        start_frequency_hz,
+                        end_frequency_hz,
+                        duration_s: duration,
+                    };
+                    // A sine step after the sweep goes on from the sweep's end phase.
+                    phase = law.phase_rad(duration).rem_euclid(2.0 * PI);
+                    (Piece::Sweep { t0, law }, Excitation::Sweep { law })
                 }
                 StepSpec::Multisine {
                     base_frequency_hz,

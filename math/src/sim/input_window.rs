@@ -45,7 +45,7 @@ fn components(piece: &Piece) -> Option<Vec<(f64, f64, f64)>> {
                 .map(|(&w, &p)| (signal.component_amplitude, w, p))
                 .collect(),
         ),
-        Piece::Const(_) | Piece::Spline(_) => None,
+        Piece::Const(_) | Piece::Spline(_) | Piece::Sweep { .. } => None,
     }
 }
 
@@ -122,7 +122,7 @@ impl InputWindow {
     ) -> Option<[f64; 2]> {
         let t0 = match piece {
             Piece::Sine { t0, .. } | Piece::Multisine { t0, .. } => *t0,
-            Piece::Const(_) | Piece::Spline(_) => return None,
+            Piece::Const(_) | Piece::Spline(_) | Piece::Sweep { .. } => return None,
         };
         let tau = [t[0] - t0, t[1] - t0];
         let covers = |w: &InputWindow| {

@@ -254,7 +254,9 @@ impl HarmonicState {
                     };
                     Outcome::Analyse(analysis, origin.unwrap_or(Time::ZERO))
                 }
-                Excitation::Random { .. } | Excitation::Multisine { .. } => Outcome::Skipped(
+                Excitation::Random { .. }
+                | Excitation::Multisine { .. }
+                | Excitation::Sweep { .. } => Outcome::Skipped(
                     rec.step,
                     format!(
                         "random record of {} samples: kept for validation, no phasors",

@@ -364,6 +364,15 @@ fn describe(e: &ExcitationState) -> String {
             e.driven_channel,
             e.sample_count
         ),
+        Ok(Excitation::Sweep { law }) => format!(
+            "{:?} sweep {}-{} Hz, amplitude {:.4} ({}), {} samples",
+            law.kind,
+            law.start_frequency_hz,
+            law.end_frequency_hz,
+            law.amplitude,
+            e.driven_channel,
+            e.sample_count
+        ),
         Err(err) => err.to_string(),
     }
 }
