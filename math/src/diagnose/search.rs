@@ -44,13 +44,9 @@ pub struct PhasorSearch {
     /// amplified over the recorded one, beyond noise and calibration ([`amplified_base`]).
     pub amplified_base: Option<(f64, f64)>,
     /// The best single-channel member of the sensor family by the channel identities (offered
-    /// as a candidate when its evidence exceeds [`SENSOR_EVIDENCE_MIN`]).
+    /// as a candidate when it explains them, [`SubsetMember::explains_identities`]).
     pub sensor_member: Option<SubsetMember>,
 }
-
-/// Evidence (chi-square drop of the channel identities less its BIC penalty) a single-channel
-/// sensor member needs to be offered as a candidate.
-pub const SENSOR_EVIDENCE_MIN: f64 = 0.0;
 
 /// Cycles of every analysis under a transform.
 pub fn cycles_for(
@@ -122,13 +118,6 @@ pub fn search(
     } else {
         None
     };
-    if std::env::var_os("FORCEMAP_DEBUG_SENSOR").is_some() {
-        eprintln!(
-            "DEBUG sensor member {:?} evidence {:?}",
-            sensor_member,
-            sensor_member.map(|m| m.evidence())
-        );
-    }
     let mut candidates = Vec::new();
     for &effect in effects {
         if baseline_has(baseline, effect) {
@@ -167,7 +156,7 @@ pub fn search(
         // The sensor family's single-channel member, when the channel identities show one: a
         // second sensor_lowpass candidate; the held-out ranking keeps the better of the two.
         if effect == Effect::SensorLowpass
-            && let Some(m) = sensor_member.filter(|m| m.evidence() > SENSOR_EVIDENCE_MIN)
+            && let Some(m) = sensor_member.filter(SubsetMember::explains_identities)
             && analyses.iter().all(|an| exact_for(an, &m.filter))
             && let Some(c) = evaluate(
                 setup,
