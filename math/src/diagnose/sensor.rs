@@ -640,7 +640,8 @@ mod tests {
             .collect();
         let y = apply_samples(&x, fs, &f);
         let h = f.response(fr);
-        for (i, yi) in y.iter().enumerate().skip(500) {
+        // The last samples lack the neighbours the interpolation and the delay need.
+        for (i, yi) in y.iter().enumerate().take(995).skip(500) {
             let t = i as f64 / fs;
             let want = h.norm() * (TAU * fr * t + h.arg()).sin();
             assert!((yi - want).abs() < 2e-3, "{i}: {yi} vs {want}");
