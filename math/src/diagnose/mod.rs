@@ -13,7 +13,8 @@
 //!    near zero velocity or large displacement).
 //! 3. **Which effect.** Every candidate of [`effects::Effect`] not already in the baseline is
 //!    added, its searched parameter (gap, yield, Stribeck velocity, cutoff, mass factor)
-//!    chosen by leave-one-step-out cross-validation on the sine steps, the exciter delay
+//!    chosen by leave-one-step-out cross-validation on the sine steps (the sensor family's
+//!    member on one channel by the channel identities, [`sensor`]), the exciter delay
 //!    estimated from the kinematic identity (a fit whose friction level, Stribeck excess,
 //!    free-play spring or hysteretic force comes out negative is not that effect and is
 //!    dropped); the model is refitted and simulated on the

@@ -1,6 +1,8 @@
 //! The phasor-domain search: every candidate structure fitted to the step cycles and scored by
 //! leave-one-step-out cross-validation; for each effect the searched parameter with the best
-//! cross-validated error is kept.
+//! cross-validated error is kept. The sensor family may add a second sensor_lowpass candidate,
+//! its single-channel member chosen on the channel identities ([`super::sensor`]); the held-out
+//! ranking keeps the better of the two.
 
 use super::DiagnoseError;
 use super::cycles::{STUCK_FRACTION, StepCycle, step_cycle};
