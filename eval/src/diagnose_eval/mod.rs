@@ -19,6 +19,7 @@ pub use summary::{
 
 use forcemap_math::diagnose::effects::{Effect, Transform};
 use forcemap_math::diagnose::score::predict_record;
+use forcemap_math::diagnose::sensor::SensorFilter;
 use forcemap_math::diagnose::{DiagnoseError, DiagnoseOptions, Verdict, diagnose};
 use forcemap_math::element::{Element, Friction};
 use forcemap_math::model::{Model, ModelOptions};
@@ -343,7 +344,10 @@ pub fn run_case(case: &CaseSpec) -> Result<CaseResult, DiagnoseError> {
     let element = truth_element(&truth);
     let transform = Transform {
         delay_s: truth.effects.exciter_delay_s,
-        lowpass_hz: truth.effects.sensor_lowpass_hz,
+        sensor: truth
+            .effects
+            .sensor_lowpass_hz
+            .map(SensorFilter::first_order_on_all),
         mass_factor: truth.effects.mass_factor,
     };
     let mut truth_nmse = 0.0;

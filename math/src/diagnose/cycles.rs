@@ -4,6 +4,7 @@
 
 use num_complex::Complex64;
 
+use super::sensor::{self, SensorFilter};
 use crate::identify::{IdentifyError, element_harmonics};
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
@@ -24,13 +25,14 @@ pub struct StepCycle {
     pub force_noise_n: f64,
     /// Harmonics in the rebuilt force.
     pub harmonics: usize,
-    /// Cutoff of the sensor low-pass this cycle's state was undone from [Hz]: the state
-    /// (displacement, velocity) is the element's, the force is as measured, so a model force
-    /// is passed through the same low-pass before it is compared (`fit::columns`). Comparing
-    /// in the measured domain keeps the noise white: undoing the filter on the force instead
-    /// would amplify the n-th harmonic's noise by |1 + j n f / fc| and make the error of
-    /// different cutoffs incomparable.
-    pub lowpass_hz: Option<f64>,
+    /// With sensor dynamics undone on the state: per harmonic n = 0..=harmonics, the factor
+    /// the measured force went through ([`sensor::force_response`]). The state (displacement,
+    /// velocity) is the element's, the force is as measured, so a model force is passed
+    /// through the same factors before it is compared (`fit::columns`). Comparing in the
+    /// measured domain keeps the noise white: undoing the filter on the force instead would
+    /// amplify the n-th harmonic's noise by 1 / |H(j n w)| and make the error of different
+    /// members incomparable.
+    pub force_response: Option<Vec<Complex64>>,
     /// Noise of each force harmonic n = 0..=harmonics [N] (complex magnitude).
     pub force_harmonic_noise_n: Vec<f64>,
     /// The element (nearly) did not move: relative displacement amplitude below
@@ -81,39 +83,28 @@ fn significant(c: &[Complex64], noise: &[f64]) -> usize {
         .unwrap_or(1)
 }
 
-/// The analysis with every channel's phasors divided by a first-order low-pass
-/// `1 / (1 + j f / fc)`: what the channels were before a sensor low-pass of cutoff `fc`.
-pub fn unfiltered(an: &HarmonicAnalysis, cutoff_hz: f64) -> HarmonicAnalysis {
-    let mut out = an.clone();
-    for ch in &mut out.channels {
-        for (n, (c, s)) in ch.phasors.iter_mut().zip(&mut ch.noise_std).enumerate() {
-            let inv = Complex64::new(1.0, n as f64 * an.frequency_hz / cutoff_hz);
-            *c *= inv;
-            *s *= inv.norm();
-        }
-    }
-    out
-}
-
-/// The step's cycle; `lowpass_hz` undoes a sensor low-pass on the state (see
-/// [`StepCycle::lowpass_hz`]), `mass_factor` scales the element force (true mass = nominal *
-/// factor).
+/// The step's cycle; `sensor` undoes sensor dynamics on the state (see
+/// [`StepCycle::force_response`]), `mass_factor` scales the element force (true mass = nominal
+/// * factor).
 pub fn step_cycle(
     setup: &Setup,
     an: &HarmonicAnalysis,
-    lowpass_hz: Option<f64>,
+    sensor: Option<&SensorFilter>,
     mass_factor: f64,
 ) -> Result<StepCycle, IdentifyError> {
-    // The force as measured; the state as the element saw it (the low-pass undone).
+    // The force as measured; the state as the element saw it (the filter undone).
     let eh = element_harmonics(setup, an, false)?;
     let unfiltered_state;
-    let state = match lowpass_hz {
-        Some(fc) => {
-            unfiltered_state = element_harmonics(setup, &unfiltered(an, fc), false)?;
+    let state = match sensor {
+        Some(f) => {
+            unfiltered_state = element_harmonics(setup, &sensor::unfiltered(an, f), false)?;
             &unfiltered_state
         }
         None => &eh,
     };
+    let force_response = sensor
+        .map(|f| sensor::force_response(setup, an, f))
+        .transpose()?;
     let nh = eh.harmonics();
     let l = CYCLE_POINTS.max(4 * (nh + 1)).next_power_of_two();
     let nx = significant(&state.displacement, &state.displacement_noise);
@@ -145,7 +136,7 @@ pub fn step_cycle(
             g_rms
         },
         harmonics: nh,
-        lowpass_hz,
+        force_response,
         force_harmonic_noise_n: eh.force_noise.iter().map(|s| s * mass_factor).collect(),
         stuck: false,
     })

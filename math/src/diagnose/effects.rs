@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
+use super::sensor::SensorFilter;
 use crate::basis::{
     AbsVelocity, Constant, Cubic, DeadZone, SignVelocity, SignedSquareDisplacement,
     SignedSquareVelocity, SquareDisplacement, StribeckVelocity, Term,
@@ -97,7 +98,7 @@ impl Effect {
                 "the element sees the measured base motion delayed by d (fitted from the kinematic identity x_o - x = x_i)"
             }
             Effect::SensorLowpass => {
-                "every measured channel passed a first-order low-pass of cutoff fc, searched"
+                "a first- or second-order low-pass (cutoff fc, damping ratio zeta), with or without a delay d, on one channel or on every channel: a family, its member chosen by the channel identities (x_o = x_i + x, -A/(n w)^2 = X_o) or, on every channel, by the element fit"
             }
             Effect::MassError => "the true mass is the nominal one times f, searched",
             Effect::Preload => "f0, a constant force",
@@ -135,7 +136,7 @@ impl Effect {
                 "the base channel leads the motion the element sees: the relative displacement disagrees with mass minus base displacement by a phase growing with frequency; the element's force law itself is intact"
             }
             Effect::SensorLowpass => {
-                "every channel lags by atan(f / fc); consistent between channels, so it shows only through the nonlinear terms and in prediction"
+                "on some channels: the identities that tie the channels together (x_o = x_i + x, a = x_o'') fail by a lag growing with frequency, gone once the filter is undone on those channels; on every channel alike: consistent between channels, so it shows only through the nonlinear terms and in prediction"
             }
             Effect::MassError => {
                 "with every element parameter fitted, a mass error scales the fitted force law and the prediction is unchanged (only theta / m is identifiable); it can only show when parameters are held fixed"
@@ -168,8 +169,8 @@ pub struct Structure {
 pub struct Transform {
     /// The element sees the base motion this much later than it is measured [s].
     pub delay_s: f64,
-    /// Cutoff of a first-order low-pass on every measured channel [Hz].
-    pub lowpass_hz: Option<f64>,
+    /// Sensor dynamics on some or all of the measured channels.
+    pub sensor: Option<SensorFilter>,
     /// True mass / nominal mass.
     pub mass_factor: f64,
 }
@@ -178,7 +179,7 @@ impl Default for Transform {
     fn default() -> Self {
         Transform {
             delay_s: 0.0,
-            lowpass_hz: None,
+            sensor: None,
             mass_factor: 1.0,
         }
     }
@@ -199,7 +200,7 @@ impl Structure {
             hysteresis_yield_m: self.hysteresis_yield_m.or(other.hysteresis_yield_m),
             transform: Transform {
                 delay_s: self.transform.delay_s + other.transform.delay_s,
-                lowpass_hz: self.transform.lowpass_hz.or(other.transform.lowpass_hz),
+                sensor: self.transform.sensor.or(other.transform.sensor),
                 mass_factor: self.transform.mass_factor * other.transform.mass_factor,
             },
             searched,
@@ -214,8 +215,14 @@ pub const FREE_PLAY_GAP_FRACTIONS: [f64; 7] = [0.1, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0
 pub const HYSTERESIS_YIELD_FRACTIONS: [f64; 6] = [0.02, 0.05, 0.1, 0.2, 0.4, 0.8];
 /// Stribeck velocities searched, relative to the largest velocity amplitude.
 pub const STRIBECK_VELOCITY_FRACTIONS: [f64; 6] = [0.01, 0.02, 0.05, 0.1, 0.2, 0.4];
-/// Sensor low-pass cutoffs searched, as multiples of the highest excitation frequency.
+/// Sensor low-pass cutoffs searched, as multiples of the highest excitation frequency (the
+/// member on every channel; first order).
 pub const LOWPASS_CUTOFF_MULTIPLES: [f64; 9] = [0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 9.0, 15.0];
+/// Second-order cutoffs searched on every channel (damping ratio
+/// [`LOWPASS_SECOND_ORDER_DAMPING`]): where a second-order filter differs from a first-order one
+/// within the excitation band.
+pub const LOWPASS_SECOND_ORDER_MULTIPLES: [f64; 5] = [1.0, 1.5, 2.0, 3.0, 4.0];
+pub const LOWPASS_SECOND_ORDER_DAMPING: f64 = 0.7;
 /// Mass factors searched.
 pub const MASS_FACTORS: [f64; 6] = [0.8, 0.9, 0.95, 1.05, 1.1, 1.25];
 
@@ -344,22 +351,19 @@ pub fn structures_on(
                 }
             })
             .collect(),
+        // The member on every channel; the single-channel members are chosen by the channel
+        // identities (`sensor::best_subset_member`, built by the caller with
+        // [`sensor_structure`]).
         Effect::SensorLowpass => grid
             .lowpass_cutoff_multiples
             .iter()
-            .map(|m| {
-                let fc = m * scales.max_frequency_hz;
-                Structure {
-                    effects: vec![effect],
-                    transform: Transform {
-                        lowpass_hz: Some(fc),
-                        ..Transform::default()
-                    },
-                    searched: vec![("cutoff_hz".into(), fc)],
-                    extra_parameters: 1,
-                    ..Structure::default()
-                }
-            })
+            .map(|m| SensorFilter::first_order_on_all(m * scales.max_frequency_hz))
+            .chain(LOWPASS_SECOND_ORDER_MULTIPLES.iter().map(|m| SensorFilter {
+                order: 2,
+                damping_ratio: LOWPASS_SECOND_ORDER_DAMPING,
+                ..SensorFilter::first_order_on_all(m * scales.max_frequency_hz)
+            }))
+            .map(|f| sensor_structure(&f))
             .collect(),
         Effect::MassError => grid
             .mass_factors
@@ -377,5 +381,19 @@ pub fn structures_on(
             .collect(),
         Effect::Preload => vec![one(effect, vec![Arc::new(Constant)])],
         Effect::ExciterDelay => Vec::new(),
+    }
+}
+
+/// The sensor_lowpass structure of one member of the family.
+pub fn sensor_structure(f: &SensorFilter) -> Structure {
+    Structure {
+        effects: vec![Effect::SensorLowpass],
+        transform: Transform {
+            sensor: Some(*f),
+            ..Transform::default()
+        },
+        searched: f.searched(),
+        extra_parameters: f.parameters(),
+        ..Structure::default()
     }
 }

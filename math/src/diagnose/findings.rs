@@ -194,6 +194,9 @@ pub struct Findings {
     /// The second effect when the gap is explained by two effects fitted together and by no
     /// one alone ([`Findings::explained_by_pair`]); `top_effect` is then the first.
     pub second_effect: Option<Effect>,
+    /// The family member `top_effect` stands for and its fitted shape, for a family (see
+    /// [`super::RankedEffect::member`]).
+    pub top_member: Option<String>,
     /// The best-ranked candidate, explained or not.
     pub best_candidate: Option<Effect>,
     pub gap_before_percent: f64,
@@ -224,6 +227,7 @@ impl Findings {
                 .filter(|_| matches!(verdict, Verdict::Explained | Verdict::ExplainedInPart))
                 .map(|t| t.effect),
             second_effect: None,
+            top_member: None,
             best_candidate: top.map(|t| t.effect),
             gap_before_percent,
             gap_after_percent: top.map_or(gap_before_percent, |t| t.gap_after_percent),
@@ -255,14 +259,26 @@ impl Findings {
             return self;
         }
         self.verdict = Verdict::Explained;
+        if self.top_effect != Some(pair.effects[0]) {
+            self.top_member = None;
+        }
         self.top_effect = Some(pair.effects[0]);
         self.second_effect = Some(pair.effects[1]);
         self.gap_after_percent = pair.gap_after_percent;
         self
     }
 
-    /// The verdict in one line: "explained by coulomb_friction: 14.80 % -> 0.96 %".
+    /// The verdict in one line: "explained by coulomb_friction: 14.80 % -> 0.96 %", with the
+    /// family member found after it ("(channel mass_acceleration, 2nd order, 6.1 Hz, ...)").
     pub fn headline(&self) -> String {
+        let line = self.headline_alone();
+        match (&self.top_member, self.top_effect) {
+            (Some(m), Some(_)) => format!("{line} ({m})"),
+            _ => line,
+        }
+    }
+
+    fn headline_alone(&self) -> String {
         let before = percent_text(self.gap_before_percent);
         let after = percent_text(self.gap_after_percent);
         let floor = percent_text(self.floor_percent);
@@ -481,6 +497,15 @@ mod tests {
         assert_eq!(
             f.status("linear"),
             "baseline 'linear' has a gap of 14.80 % that no candidate explains"
+        );
+        let f = Findings {
+            top_member: Some("channel mass_acceleration, 2nd order, 6.1 Hz, damping 0.70".into()),
+            top_effect: Some(Effect::SensorLowpass),
+            ..Findings::decide(Evidence::HeldOutNmse, 14.8, 0.5, top(0.96, true))
+        };
+        assert_eq!(
+            f.headline(),
+            "explained by sensor_lowpass: 14.80 % -> 0.96 % (channel mass_acceleration, 2nd order, 6.1 Hz, damping 0.70)"
         );
         let f = Findings::decide(Evidence::HeldOutNmse, 0.8, 0.5, None);
         assert_eq!(f.status("linear"), "baseline 'linear' is adequate");

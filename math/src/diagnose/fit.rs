@@ -63,18 +63,18 @@ fn columns(
     // the same band (a jump rebuilt from N harmonics rings, and so must the prediction), and
     // through the same sensor low-pass, if the cycle's state had one undone.
     cols.iter()
-        .map(|col| as_measured(col, c.harmonics, c.frequency_hz, c.lowpass_hz))
+        .map(|col| as_measured(col, c.harmonics, c.force_response.as_deref()))
         .collect()
 }
 
-/// `h` (one period on a uniform grid) keeping only harmonics 0..=n, each passed through a
-/// first-order low-pass of cutoff `lowpass_hz` if given (`frequency_hz` is the fundamental).
-fn as_measured(h: &[f64], n: usize, frequency_hz: f64, lowpass_hz: Option<f64>) -> Vec<f64> {
-    match lowpass_hz {
+/// `h` (one period on a uniform grid) keeping only harmonics 0..=n, each multiplied by its
+/// factor of `response` if given (what the measured force went through).
+fn as_measured(h: &[f64], n: usize, response: Option<&[Complex64]>) -> Vec<f64> {
+    match response {
         None if n + 1 >= h.len() / 2 => h.to_vec(),
         None => synthesize(&harmonics_of(h, n), h.len(), |_| Complex64::new(1.0, 0.0)),
-        Some(fc) => synthesize(&harmonics_of(h, n), h.len(), |k| {
-            Complex64::new(1.0, k as f64 * frequency_hz / fc).inv()
+        Some(r) => synthesize(&harmonics_of(h, n), h.len(), |k| {
+            r.get(k).copied().unwrap_or(Complex64::new(0.0, 0.0))
         }),
     }
 }
@@ -340,7 +340,7 @@ mod tests {
     use crate::basis::StribeckVelocity;
 
     #[test]
-    fn as_measured_applies_the_first_order_lowpass_per_harmonic() {
+    fn as_measured_applies_the_response_per_harmonic() {
         // cos(3 w t) through 1 / (1 + j 3 f / fc): gain 1 / sqrt(1 + (3 f / fc)^2), phase
         // -atan(3 f / fc); harmonics above n are dropped.
         let l = 256;
@@ -349,7 +349,10 @@ mod tests {
         let h: Vec<f64> = (0..l)
             .map(|i| (3.0 * t(i)).cos() + 0.5 * (9.0 * t(i)).cos())
             .collect();
-        let y = as_measured(&h, 5, f, Some(fc));
+        let response: Vec<Complex64> = (0..=5)
+            .map(|k| Complex64::new(1.0, k as f64 * f / fc).inv())
+            .collect();
+        let y = as_measured(&h, 5, Some(&response));
         let r = 3.0 * f / fc;
         let (gain, phase) = (1.0 / (1.0 + r * r).sqrt(), -r.atan());
         for (i, yi) in y.iter().enumerate() {
@@ -357,7 +360,7 @@ mod tests {
             assert!((yi - want).abs() < 1e-12, "{i}: {yi} vs {want}");
         }
         // Without a low-pass only the band limit acts.
-        let y = as_measured(&h, 5, f, None);
+        let y = as_measured(&h, 5, None);
         for (i, yi) in y.iter().enumerate() {
             assert!((yi - (3.0 * t(i)).cos()).abs() < 1e-12);
         }

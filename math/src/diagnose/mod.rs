@@ -13,7 +13,8 @@
 //!    near zero velocity or large displacement).
 //! 3. **Which effect.** Every candidate of [`effects::Effect`] not already in the baseline is
 //!    added, its searched parameter (gap, yield, Stribeck velocity, cutoff, mass factor)
-//!    chosen by leave-one-step-out cross-validation on the sine steps, the exciter delay
+//!    chosen by leave-one-step-out cross-validation on the sine steps (the sensor family's
+//!    member on one channel by the channel identities, [`sensor`]), the exciter delay
 //!    estimated from the kinematic identity (a fit whose friction level, Stribeck excess,
 //!    free-play spring or hysteretic force comes out negative is not that effect and is
 //!    dropped); the model is refitted and simulated on the
@@ -45,6 +46,7 @@ pub mod output_error;
 pub mod phasor;
 pub mod score;
 pub mod search;
+pub mod sensor;
 pub mod time_domain;
 
 use serde::Serialize;
@@ -136,6 +138,9 @@ fn parameter_values(list: Vec<(String, f64, f64)>) -> Vec<ParameterValue> {
 #[derive(Debug, Clone, Serialize)]
 pub struct RankedEffect {
     pub effect: Effect,
+    /// The family member found and its fitted shape, for a family (sensor_lowpass: "channel
+    /// mass_acceleration, 2nd order, 6.1 Hz, damping 0.70, delay 2.0 ms").
+    pub member: Option<String>,
     /// Held-out NMSE with the effect added [%].
     pub gap_after_percent: f64,
     /// `gap_before - gap_after` [%-points].
@@ -248,6 +253,32 @@ fn step_tie_break(
         .filter_map(|(k, i)| ranked[*i].phasor_cv_percent.map(|cv| (k, cv)))
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
     (cv < 0.9 * best_cv).then_some(k)
+}
+
+/// A family offers several members (the sensor family: one on every channel, one on a single
+/// channel); each was scored on the held-out records, and the best-scoring member stands for
+/// its effect.
+fn keep_best_member<T>(
+    ranked: &mut Vec<RankedEffect>,
+    fits: &mut Vec<T>,
+    cand_idx: &mut Vec<usize>,
+) {
+    let mut k = 0;
+    while k < ranked.len() {
+        let beaten = ranked.iter().enumerate().any(|(j, r)| {
+            j != k
+                && r.effect == ranked[k].effect
+                && (r.score_percent < ranked[k].score_percent
+                    || (r.score_percent == ranked[k].score_percent && j < k))
+        });
+        if beaten {
+            ranked.remove(k);
+            fits.remove(k);
+            cand_idx.remove(k);
+        } else {
+            k += 1;
+        }
+    }
 }
 
 fn mass_of(setup: &Setup) -> Result<f64, DiagnoseError> {
@@ -371,7 +402,7 @@ pub fn diagnose(
     let mut notes = Vec::new();
     if let Some((f, gain)) = search.amplified_base {
         notes.push(format!(
-            "the kinematic identity (x_o - x = x_i) shows the base the rig receives amplified over the recorded one, by {gain:.3} at {f:.2} Hz: exciter dynamics with a gain above 1 (a resonance of the exciter, its mount or the fixture), which no delay or lag gives and no candidate describes; exciter_delay not offered"
+            "the kinematic identity (x_o - x = x_i) shows the base the rig receives amplified over the recorded one, by {gain:.3} at {f:.2} Hz: exciter dynamics with a gain above 1 (a resonance of the exciter, its mount or the fixture), which no delay or lag gives, or a low-pass on the base displacement channel (the sensor_lowpass family); exciter_delay not offered"
         ));
     }
     let mut cand_idx = Vec::new();
@@ -390,6 +421,7 @@ pub fn diagnose(
         let score = penalised(after, extra, n_eff);
         ranked.push(RankedEffect {
             effect: c.effect,
+            member: c.structure.transform.sensor.map(|f| f.describe()),
             gap_after_percent: after,
             shrink_percent: gap_before - after,
             score_percent: score,
@@ -404,6 +436,7 @@ pub fn diagnose(
         fits.push((c.fitted.clone(), h));
         cand_idx.push(ci);
     }
+    keep_best_member(&mut ranked, &mut fits, &mut cand_idx);
     let mut order: Vec<usize> = (0..ranked.len()).collect();
     order.sort_by(|&a, &b| ranked[a].score_percent.total_cmp(&ranked[b].score_percent));
     let baseline_output_error_misfit = if options.holdout_steps.is_empty() {
@@ -496,6 +529,9 @@ pub fn diagnose(
             ),
             single_score_percent: top.score_percent,
         });
+    }
+    if findings.top_effect == ranked.first().map(|r| r.effect) {
+        findings.top_member = ranked.first().and_then(|r| r.member.clone());
     }
     let located = locate::locate(&search.baseline, &search.cycles);
     let diagnosis = Diagnosis {

@@ -138,6 +138,13 @@ impl PhasorDiagnosis {
             })
             .collect();
         ranked.sort_by(|a, b| a.score_percent.total_cmp(&b.score_percent));
+        // A family's members (the sensor family's two) stand for one effect: its best.
+        let mut seen = Vec::new();
+        ranked.retain(|r| {
+            let first = !seen.contains(&r.effect);
+            seen.push(r.effect);
+            first
+        });
         let delay_named = s
             .exciter_delay
             .is_some_and(|(d, sd)| d > 4.0 * sd && d > 5e-4);

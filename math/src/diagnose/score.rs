@@ -2,14 +2,13 @@
 //! the measured base motion, against the measured mass acceleration (eq. 27); and the penalty
 //! for extra parameters.
 
-use std::f64::consts::TAU;
-
 use super::effects::Transform;
+use super::sensor::{apply_samples, undo_samples};
 use crate::element::Element;
 use crate::pipeline::{VALIDATION_BASE_LOWPASS_HZ, nmse_percent};
 use crate::record::{Channel, Record};
 use crate::signal::differentiate::central_difference_at_rate;
-use crate::signal::lowpass::{first_order_lowpass, zero_phase_lowpass};
+use crate::signal::lowpass::zero_phase_lowpass;
 use crate::sim::{ReplayOptions, RigInitial, SimError, simulate_on_sampled_base};
 
 /// The prediction of one held-out record.
@@ -46,8 +45,9 @@ pub fn delayed(x: &[f64], sample_rate_hz: f64, delay_s: f64) -> Vec<f64> {
 
 /// Simulates `element` on the record's measured base motion and compares the mass
 /// acceleration (eq. 27). The transform says what the candidate believes happened between the
-/// element and the channels: a delay of the base motion the element sees, a low-pass on every
-/// channel (undone on the base input, applied to the prediction), a mass factor.
+/// element and the channels: a delay of the base motion the element sees, sensor dynamics on
+/// some channels (undone on the base input and on the relative displacement that gives the
+/// initial state, applied to the predicted mass acceleration), a mass factor.
 pub fn predict_record(
     element: &dyn Element,
     nominal_mass_kg: f64,
@@ -64,7 +64,7 @@ pub fn predict_record(
     let base = record
         .channel(Channel::BaseDisplacementM)
         .ok_or_else(|| missing(Channel::BaseDisplacementM))?;
-    let rel = record
+    let measured_rel = record
         .channel(Channel::RelativeDisplacementM)
         .ok_or_else(|| missing(Channel::RelativeDisplacementM))?;
     let acc = record
@@ -73,13 +73,18 @@ pub fn predict_record(
     let fs = record.sample_rate_hz;
     // The same zero-phase low-pass as `pipeline::validate_rig` before anything else.
     let mut input = zero_phase_lowpass(base, fs, VALIDATION_BASE_LOWPASS_HZ);
-    if let Some(fc) = transform.lowpass_hz {
-        let d = central_difference_at_rate(&input, fs);
-        input = input
-            .iter()
-            .zip(&d)
-            .map(|(x, dx)| x + dx / (TAU * fc))
-            .collect();
+    let sensor = transform.sensor;
+    let undone_rel;
+    let mut rel: &[f64] = measured_rel;
+    if let Some(f) = &sensor {
+        if f.applies_to(Channel::BaseDisplacementM) {
+            input = undo_samples(&input, fs, f);
+        }
+        // The relative displacement only gives the initial state.
+        if f.applies_to(Channel::RelativeDisplacementM) {
+            undone_rel = undo_samples(measured_rel, fs, f);
+            rel = &undone_rel;
+        }
     }
     if transform.delay_s != 0.0 {
         input = delayed(&input, fs, transform.delay_s);
@@ -115,11 +120,13 @@ pub fn predict_record(
         &opts,
     )?;
     let mut predicted = resp.mass_acceleration_mps2;
-    if let Some(fc) = transform.lowpass_hz {
-        predicted = first_order_lowpass(&predicted, fs, fc);
+    if let Some(f) = &sensor
+        && f.applies_to(Channel::MassAccelerationMps2)
+    {
+        predicted = apply_samples(&predicted, fs, f);
     }
     let acc = &acc[k0..];
-    let rel = &rel[k0..];
+    let rel = &measured_rel[k0..];
     Ok(HeldOut {
         step: record.step,
         nmse_percent: nmse_percent(acc, &predicted),
@@ -161,6 +168,7 @@ pub fn penalised(nmse_percent: f64, extra: usize, n_eff: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::TAU;
 
     #[test]
     fn delay_shifts_a_sine() {

@@ -1,12 +1,17 @@
 //! The phasor-domain search: every candidate structure fitted to the step cycles and scored by
 //! leave-one-step-out cross-validation; for each effect the searched parameter with the best
-//! cross-validated error is kept.
+//! cross-validated error is kept. The sensor family may add a second sensor_lowpass candidate,
+//! its single-channel member chosen on the channel identities ([`super::sensor`]); the held-out
+//! ranking keeps the better of the two.
 
 use super::DiagnoseError;
 use super::cycles::{STUCK_FRACTION, StepCycle, step_cycle};
-use super::effects::{Effect, Scales, Structure, Transform, baseline_has, structures};
+use super::effects::{
+    Effect, Scales, Structure, Transform, baseline_has, sensor_structure, structures,
+};
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
 use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit};
+use super::sensor::{Consistency, SubsetMember, best_subset_member, exact_for};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
@@ -40,6 +45,9 @@ pub struct PhasorSearch {
     /// (frequency [Hz], gain) where the kinematic identity shows the base the rig receives most
     /// amplified over the recorded one, beyond noise and calibration ([`amplified_base`]).
     pub amplified_base: Option<(f64, f64)>,
+    /// The best single-channel member of the sensor family by the channel identities (offered
+    /// as a candidate when it explains them, [`SubsetMember::explains_identities`]).
+    pub sensor_member: Option<SubsetMember>,
 }
 
 /// Cycles of every analysis under a transform.
@@ -50,7 +58,9 @@ pub fn cycles_for(
 ) -> Result<Vec<StepCycle>, DiagnoseError> {
     let mut cycles: Vec<StepCycle> = analyses
         .iter()
-        .map(|an| step_cycle(setup, an, t.lowpass_hz, t.mass_factor).map_err(DiagnoseError::from))
+        .map(|an| {
+            step_cycle(setup, an, t.sensor.as_ref(), t.mass_factor).map_err(DiagnoseError::from)
+        })
         .collect::<Result<_, _>>()?;
     let amax = cycles.iter().map(|c| c.amplitude_m).fold(0.0, f64::max);
     for c in &mut cycles {
@@ -105,6 +115,11 @@ pub fn search(
     let ratios = kinematic_ratios(analyses).unwrap_or_default();
     let amplified_base = amplified_base(&ratios);
     let exciter_delay = estimate_exciter_delay(&ratios).filter(|_| amplified_base.is_none());
+    let sensor_member = if effects.contains(&Effect::SensorLowpass) {
+        Consistency::of(analyses).and_then(|c| best_subset_member(&c, scales.max_frequency_hz))
+    } else {
+        None
+    };
     let mut candidates = Vec::new();
     for &effect in effects {
         if baseline_has(baseline, effect) {
@@ -128,36 +143,33 @@ pub fn search(
         };
         let mut best: Option<PhasorCandidate> = None;
         for s in options {
-            let cyc;
-            let cycles_s = if s.transform.lowpass_hz.is_some() || s.transform.mass_factor != 1.0 {
-                cyc = cycles_for(setup, analyses, &s.transform)?;
-                &cyc
-            } else {
-                &cycles
-            };
-            let Ok(fitted) = fit(baseline, &s, cycles_s, None) else {
+            let Some(c) = evaluate(setup, baseline, analyses, &cycles, effect, s)? else {
                 continue;
             };
-            if !physical(&fitted) {
-                continue;
-            }
-            let cv = cross_validated_percent(baseline, &s, cycles_s);
             // Without cross-validation (fewer than 3 steps) the in-sample residual decides.
-            let key = cv.unwrap_or(fitted.residual_percent);
-            let better = best
-                .as_ref()
-                .is_none_or(|b| key < b.cv_percent.unwrap_or(b.fitted.residual_percent));
-            if better {
-                best = Some(PhasorCandidate {
-                    effect,
-                    structure: s,
-                    fitted,
-                    cv_percent: cv,
-                });
+            let key = |c: &PhasorCandidate| c.cv_percent.unwrap_or(c.fitted.residual_percent);
+            if best.as_ref().is_none_or(|b| key(&c) < key(b)) {
+                best = Some(c);
             }
         }
         if let Some(b) = best {
             candidates.push(b);
+        }
+        // The sensor family's single-channel member, when the channel identities show one: a
+        // second sensor_lowpass candidate; the held-out ranking keeps the better of the two.
+        if effect == Effect::SensorLowpass
+            && let Some(m) = sensor_member.filter(SubsetMember::explains_identities)
+            && analyses.iter().all(|an| exact_for(an, &m.filter))
+            && let Some(c) = evaluate(
+                setup,
+                baseline,
+                analyses,
+                &cycles,
+                effect,
+                sensor_structure(&m.filter),
+            )?
+        {
+            candidates.push(c);
         }
     }
     Ok(PhasorSearch {
@@ -174,7 +186,40 @@ pub fn search(
         candidates,
         exciter_delay,
         amplified_base,
+        sensor_member,
     })
+}
+
+/// One structure fitted to the steps (under its own channel transformation) and
+/// cross-validated; None when the fit fails or is not physical.
+fn evaluate(
+    setup: &Setup,
+    baseline: &Model,
+    analyses: &[HarmonicAnalysis],
+    cycles: &[StepCycle],
+    effect: Effect,
+    s: Structure,
+) -> Result<Option<PhasorCandidate>, DiagnoseError> {
+    let cyc;
+    let cycles_s = if s.transform.sensor.is_some() || s.transform.mass_factor != 1.0 {
+        cyc = cycles_for(setup, analyses, &s.transform)?;
+        &cyc
+    } else {
+        cycles
+    };
+    let Ok(fitted) = fit(baseline, &s, cycles_s, None) else {
+        return Ok(None);
+    };
+    if !physical(&fitted) {
+        return Ok(None);
+    }
+    let cv = cross_validated_percent(baseline, &s, cycles_s);
+    Ok(Some(PhasorCandidate {
+        effect,
+        structure: s,
+        fitted,
+        cv_percent: cv,
+    }))
 }
 
 /// Coefficients that must be positive for the effect to be what it is named: a friction level

@@ -240,7 +240,7 @@ fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
             r.output_error_misfit
                 .map_or("-".into(), |v| format!("{v:.3}")),
             if r.significant { "yes" } else { "no" },
-            parameters_text(&r.added_parameters)
+            candidate_text(r)
         );
     }
     if let Some(p) = &d.best_pair {
@@ -259,7 +259,7 @@ fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
     ) && let Some(r) = d.ranked_effects.first()
     {
         println!("  signature: {}", r.signature);
-        println!("  found: {}", parameters_text(&r.added_parameters));
+        println!("  found: {}", candidate_text(r));
     }
     if d.findings.verdict == Verdict::ExplainedInPart
         && let Some(left) = &detail.after_located
@@ -375,7 +375,7 @@ fn write_report(
                     r.output_error_misfit
                         .map_or("-".into(), |v| format!("{v:.3}")),
                     if r.significant { "yes" } else { "no" }.into(),
-                    parameters_text(&r.added_parameters),
+                    candidate_text(r),
                     r.signature.clone(),
                 ]
             })
@@ -398,4 +398,13 @@ fn write_report(
         let html = page.finish(&d.findings.rule);
         write_atomically(&tmp.join("index.html"), &html)
     })
+}
+
+/// A candidate's added parameters, after its family member when it has one
+/// ("[channel mass_acceleration, 2nd order, 6.1 Hz, damping 0.70] cutoff_hz = ...").
+fn candidate_text(r: &forcemap_math::diagnose::RankedEffect) -> String {
+    match &r.member {
+        Some(m) => format!("[{m}] {}", parameters_text(&r.added_parameters)),
+        None => parameters_text(&r.added_parameters),
+    }
 }

@@ -52,7 +52,7 @@ pub(super) fn svg_state_plane(detail: &DiagnosisDetail) -> anyhow::Result<String
     let after: Option<Vec<Vec<f64>>> = detail
         .after_fit
         .as_ref()
-        .filter(|f| f.transform().lowpass_hz.is_none() && f.transform().mass_factor == 1.0)
+        .filter(|f| f.transform().sensor.is_none() && f.transform().mass_factor == 1.0)
         .map(|f| {
             cycles
                 .iter()
