@@ -162,7 +162,8 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
         tru += truth;
     }
     let ne = errors.len().max(1) as f64;
-    let err: f64 = errors.iter().sum();
+    // A fold from +0.0: the sum of no terms is -0.0 and would print as "-0.00".
+    let err: f64 = errors.iter().fold(0.0, |a, e| a + e);
     errors.sort_by(f64::total_cmp);
     let median_err = match errors.len() {
         0 => 0.0,
