@@ -9,6 +9,8 @@
 //! `[Phi, g0, g1]`. One such step replaces the `h / 0.1 ms` RK4 sub-steps of the interval
 //! (whose own error, about 1e-13 of the signal, is what separates the two).
 
+use nalgebra::Matrix4;
+
 use super::linear_step::Linear2;
 
 /// The step over an interval of one length of one [`Linear2`] system.
@@ -19,59 +21,21 @@ pub(crate) struct ExactStep {
     g1: [f64; 2],
 }
 
-type M4 = [[f64; 4]; 4];
-
-fn mul4(a: &M4, b: &M4) -> M4 {
-    let mut c = [[0.0; 4]; 4];
-    for i in 0..4 {
-        for j in 0..4 {
-            c[i][j] = (0..4).map(|k| a[i][k] * b[k][j]).sum();
-        }
-    }
-    c
-}
-
-/// `exp(m)` by scaling and squaring: a Taylor series of `m / 2^s` with `|m| / 2^s <= 1/4`
-/// (degree 18: truncation below 1e-27 of the result), squared `s` times.
-fn expm4(m: &M4) -> M4 {
-    let norm = (0..4)
-        .map(|j| (0..4).map(|i| m[i][j].abs()).sum::<f64>())
-        .fold(0.0, f64::max);
-    let mut squarings = 0;
-    let mut scale = 1.0;
-    while norm * scale > 0.25 {
-        scale *= 0.5;
-        squarings += 1;
-    }
-    let a: M4 = std::array::from_fn(|i| std::array::from_fn(|j| m[i][j] * scale));
-    let mut e: M4 = std::array::from_fn(|i| std::array::from_fn(|j| f64::from(i == j)));
-    // Horner: I + A/1 (I + A/2 (I + ... (I + A/18))).
-    for k in (1..=18).rev() {
-        let ae = mul4(&a, &e);
-        e = std::array::from_fn(|i| {
-            std::array::from_fn(|j| f64::from(i == j) + ae[i][j] / k as f64)
-        });
-    }
-    for _ in 0..squarings {
-        e = mul4(&e, &e);
-    }
-    e
-}
-
 impl ExactStep {
     pub fn new(sys: Linear2, h: f64) -> ExactStep {
         let (a, b) = (sys.stiffness_per_kg, sys.damping_per_kg);
-        let m = [
-            [0.0, h, 0.0, 0.0],
-            [-a * h, -b * h, h, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [0.0, 0.0, 0.0, 0.0],
-        ];
-        let e = expm4(&m);
+        #[rustfmt::skip]
+        let m = Matrix4::new(
+            0.0, h, 0.0, 0.0,
+            -a * h, -b * h, h, 0.0,
+            0.0, 0.0, 0.0, 1.0,
+            0.0, 0.0, 0.0, 0.0,
+        );
+        let e = m.exp();
         ExactStep {
-            phi: [[e[0][0], e[0][1]], [e[1][0], e[1][1]]],
-            g0: [e[0][2], e[1][2]],
-            g1: [e[0][3], e[1][3]],
+            phi: [[e[(0, 0)], e[(0, 1)]], [e[(1, 0)], e[(1, 1)]]],
+            g0: [e[(0, 2)], e[(1, 2)]],
+            g1: [e[(0, 3)], e[(1, 3)]],
         }
     }
 
