@@ -18,7 +18,7 @@ use super::sweep::{self, SweepLabel};
 use crate::steps::unlabelled::{StepWithFrequency, check_labels, split_run};
 use crate::steps::{
     AssembledStep, StepAssembler, StepError, StepFault, StepPlan, StepRules, StepSample,
-    estimated_excitation, rms_about_mean,
+    estimated_excitation, rms_about_mean, sine_amplitude_from_rms,
 };
 use forcemap_math::phasor::SweepLaw;
 use forcemap_math::record::{Channel, Excitation};
@@ -195,12 +195,7 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
                 step,
                 first_line: cur.lines[0],
                 line,
-                change: format!(
-                    "line {} has {}, this line {}",
-                    cur.lines[0],
-                    text(&cur.multisine),
-                    text(&multisine)
-                ),
+                change: label_change(cur.lines[0], text(&cur.multisine), text(&multisine)),
             });
         }
         if cur.sweep != swept {
@@ -219,12 +214,7 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
                 step,
                 first_line: cur.lines[0],
                 line,
-                change: format!(
-                    "line {} has {}, this line {}",
-                    cur.lines[0],
-                    text(&cur.sweep),
-                    text(&swept)
-                ),
+                change: label_change(cur.lines[0], text(&cur.sweep), text(&swept)),
             });
         }
         values.clear();
@@ -303,7 +293,7 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
                 (None, Some(Some(s))) => Excitation::Sweep {
                     law: SweepLaw {
                         kind: s.kind,
-                        amplitude: std::f64::consts::SQRT_2 * level,
+                        amplitude: sine_amplitude_from_rms(level),
                         start_frequency_hz: s.start_frequency_hz,
                         end_frequency_hz: s.end_frequency_hz,
                         duration_s: record.len() as f64 / record.sample_rate_hz,
@@ -495,6 +485,11 @@ fn check_utf8(path: &Path, line: u64, row: &csv::ByteRecord) -> Result<(), CsvEr
 }
 
 /// A cell of a row [`check_utf8`] accepted, as text.
+/// How a step's label changed within the step: "line 12 has X, this line Y".
+fn label_change(first_line: u64, before: String, now: String) -> String {
+    format!("line {first_line} has {before}, this line {now}")
+}
+
 fn text(cell: &[u8]) -> &str {
     std::str::from_utf8(cell).unwrap_or_default()
 }

@@ -500,13 +500,19 @@ pub fn estimated_excitation(frequency: Option<f64>, level: f64) -> Excitation {
     match frequency {
         Some(frequency_hz) => Excitation::Sine {
             frequency_hz,
-            amplitude: std::f64::consts::SQRT_2 * level,
+            amplitude: sine_amplitude_from_rms(level),
         },
         None => Excitation::Random {
             band_hz: None,
             rms: level,
         },
     }
+}
+
+/// The amplitude of a sine (or of a sweep, a sine of slowly changing frequency) whose RMS is
+/// `level`.
+pub fn sine_amplitude_from_rms(level: f64) -> f64 {
+    std::f64::consts::SQRT_2 * level
 }
 
 /// Root mean square of `x` about its mean (0 for no samples).
