@@ -42,19 +42,9 @@ fn live_theta_equals_the_offline_identification() {
     assert_eq!(live.len(), 10, "one theta per waiting step");
     let last = live.last().unwrap();
 
-    let bag = read_rig_bag(&rig_bag()).unwrap();
-    let model = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
-    let offline = identify_records(
-        &model,
-        &Setup::BaseExcited { mass_kg: 36.0 },
-        Method::FdMulti,
-        &bag.records,
-        &PhasorOptions::for_identification(),
-        &FdMultiOptions::default(),
-    )
-    .unwrap();
+    let offline = offline_rig_theta("coulomb");
     assert_eq!(last.parameter_names, vec!["k", "c", "fd"]);
-    for (live, off) in last.values.iter().zip(offline.theta()) {
+    for (live, off) in last.values.iter().zip(&offline) {
         assert!(
             ((live - off) / off).abs() < 1e-9,
             "live {live} offline {off}"

@@ -12,12 +12,6 @@ use std::path::Path;
 
 use common::*;
 use forcemap_io::params::ParamValue;
-use forcemap_io::rig_bag::read_rig_bag;
-use forcemap_math::identify::{FdMultiOptions, Method};
-use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::phasor::PhasorOptions;
-use forcemap_math::pipeline::identify_records;
-use forcemap_math::recipe::Setup;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_nodes::node::identifier::{
     IdentifierCore, IdentifierState, Output, RecipeParameters, Setting,
@@ -83,20 +77,10 @@ fn reconfigure_equals_a_fresh_identifier_with_the_new_values() {
     let out = c
         .reconfigure(&[setting("model", "coulomb-cubic")], RUN_START)
         .unwrap();
-    let bag = read_rig_bag(&rig_bag()).unwrap();
-    let model = Model::by_name("coulomb-cubic", &ModelOptions::default()).unwrap();
-    let offline = identify_records(
-        &model,
-        &Setup::BaseExcited { mass_kg: 36.0 },
-        Method::FdMulti,
-        &bag.records,
-        &PhasorOptions::for_identification(),
-        &FdMultiOptions::default(),
-    )
-    .unwrap();
+    let offline = offline_rig_theta("coulomb-cubic");
     let live = thetas(&out)[0];
     assert_eq!(live.parameter_names, vec!["k", "c", "fd", "s"]);
-    for (l, o) in live.values.iter().zip(offline.theta()) {
+    for (l, o) in live.values.iter().zip(&offline) {
         assert!(((l - o) / o).abs() < 1e-9, "live {l} offline {o}");
     }
 }

@@ -10,7 +10,11 @@ use std::path::Path;
 
 use forcemap_io::params::{ParamValue, Params};
 use forcemap_io::rig_bag::{DEFAULT_RUN_START, read_rig_bag};
+use forcemap_math::identify::{FdMultiOptions, Method};
+use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
+use forcemap_math::pipeline::identify_records;
+use forcemap_math::recipe::Setup;
 use forcemap_math::record::Excitation;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
@@ -107,3 +111,20 @@ pub fn setting(name: &str, value: &str) -> Setting {
 
 /// Parameter names and values.
 pub type Entries = Vec<(&'static str, ParamValue)>;
+
+/// theta of `model` identified offline (fd-multi, the rig's 36 kg) on the committed rig bag:
+/// what the live identifier must publish.
+pub fn offline_rig_theta(model: &str) -> Vec<f64> {
+    let bag = read_rig_bag(&rig_bag()).unwrap();
+    let model = Model::by_name(model, &ModelOptions::default()).unwrap();
+    identify_records(
+        &model,
+        &Setup::BaseExcited { mass_kg: 36.0 },
+        Method::FdMulti,
+        &bag.records,
+        &PhasorOptions::for_identification(),
+        &FdMultiOptions::default(),
+    )
+    .unwrap()
+    .theta()
+}
