@@ -17,10 +17,11 @@ pub const SETTABLE: [&str; 4] = ["model", "method", "weighting", "forgetting_per
 /// One new parameter value, checked for its type and name.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Setting {
-    Model(String),
+    /// The model's name; its options (atan_m, poly_order) stay as started.
+    Model(ModelSpec),
     Method(Method),
     Weighting(Weighting),
-    ForgettingPerStep(f64),
+    ForgettingPerStep(Tracking),
 }
 
 /// Why a set was not applied (what `SetParametersResult.reason` says); the identifier is left
@@ -54,10 +55,10 @@ impl Setting {
         match name {
             "model" => {
                 let s = text()?;
-                // The name alone; the model's options (atan_m, poly_order) stay as started.
-                s.parse::<ModelSpec>()
+                let spec = s
+                    .parse::<ModelSpec>()
                     .map_err(|e| refuse(format!("model = '{s}': {e}")))?;
-                Ok(Setting::Model(s.to_string()))
+                Ok(Setting::Model(spec))
             }
             "method" => {
                 let s = text()?;
@@ -87,9 +88,9 @@ impl Setting {
                         )));
                     }
                 };
-                Tracking::from_factor(f)
+                let tracking = Tracking::from_factor(f)
                     .map_err(|e| refuse(format!("forgetting_per_step = {f}: {e}")))?;
-                Ok(Setting::ForgettingPerStep(f))
+                Ok(Setting::ForgettingPerStep(tracking))
             }
             other => Err(refuse(format!(
                 "parameter '{other}' cannot change while the identifier runs (settable: {}); restart the node with -p {other}:=VALUE",
@@ -106,19 +107,10 @@ impl RecipeParameters {
         let mut p = self.clone();
         for s in settings {
             match s {
-                Setting::Model(name) => {
-                    let options = p.model.options();
-                    p.model = name
-                        .parse::<ModelSpec>()
-                        .map_err(|e| refuse(format!("model = '{name}': {e}")))?
-                        .with_options(options);
-                }
+                Setting::Model(spec) => p.model = spec.clone().with_options(p.model.options()),
                 Setting::Method(m) => p.method = *m,
                 Setting::Weighting(w) => p.weighting = *w,
-                Setting::ForgettingPerStep(f) => {
-                    p.tracking = Tracking::from_factor(*f)
-                        .map_err(|e| refuse(format!("forgetting_per_step = {f}: {e}")))?;
-                }
+                Setting::ForgettingPerStep(t) => p.tracking = *t,
             }
         }
         p.model
