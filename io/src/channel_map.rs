@@ -13,6 +13,10 @@
 //!   bench_msgs/msg/State: msg/State.msg   # relative to this file
 //! ```
 //!
+//! An entry may name its topic's message type (`type: std_msgs/msg/Float64MultiArray`): a bag
+//! carries its topics' types, so offline the key only checks them, but the live source of
+//! foreign topics (the `foreign` node) subscribes by type and needs it once per topic.
+//!
 //! The same `channels` mapping may sit in a ROS 2 params file under `/**: ros__parameters:`.
 //! Each value is `raw * scale + offset` (scale 1 and offset 0 unless given), in the unit of the
 //! channel's name: metres (`_m`), metres per second squared (`_mps2`), newtons (`_n`); `step`
@@ -39,6 +43,8 @@ pub const CHANNELS_KEY: &str = "channels";
 #[derive(Debug, Clone, PartialEq)]
 pub struct Source {
     pub topic: String,
+    /// The topic's message type (`pkg/msg/Type`), if the map names it.
+    pub type_name: Option<String>,
     pub field: FieldPath,
     pub scale: f64,
     pub offset: f64,
@@ -90,6 +96,7 @@ struct FileForm {
 struct RawEntry {
     name: String,
     topic: String,
+    type_name: Option<String>,
     field: String,
     scale: Option<f64>,
     offset: Option<f64>,
@@ -99,6 +106,8 @@ struct RawEntry {
 #[serde(deny_unknown_fields)]
 struct EntryForm {
     topic: String,
+    #[serde(rename = "type")]
+    type_name: Option<String>,
     field: String,
     scale: Option<f64>,
     offset: Option<f64>,
@@ -150,6 +159,7 @@ impl ChannelMap {
             .map(|(name, e)| RawEntry {
                 name,
                 topic: e.topic,
+                type_name: e.type_name,
                 field: e.field,
                 scale: e.scale,
                 offset: e.offset,
@@ -183,6 +193,16 @@ impl ChannelMap {
                 entry: entry.clone(),
                 problem,
             };
+            let type_name = match keys.remove("type") {
+                Some(ParamValue::String(s)) => Some(s),
+                Some(v) => {
+                    return Err(err(format!(
+                        "'type' must be a string, found {}",
+                        v.type_name()
+                    )));
+                }
+                None => None,
+            };
             let mut text = |k: &str| match keys.remove(k) {
                 Some(ParamValue::String(s)) => Ok(s),
                 Some(v) => Err(err(format!(
@@ -204,12 +224,13 @@ impl ChannelMap {
             let (scale, offset) = (number("scale")?, number("offset")?);
             if let Some(k) = keys.keys().next() {
                 return Err(err(format!(
-                    "unknown key '{k}' (expected topic, field, scale, offset)"
+                    "unknown key '{k}' (expected topic, type, field, scale, offset)"
                 )));
             }
             entries.push(RawEntry {
                 name: entry,
                 topic,
+                type_name,
                 field,
                 scale,
                 offset,
@@ -233,6 +254,7 @@ impl ChannelMap {
         for RawEntry {
             name: entry,
             topic,
+            type_name,
             field,
             scale,
             offset,
@@ -249,6 +271,20 @@ impl ChannelMap {
                 )));
             }
             let field: FieldPath = field.parse().map_err(|e| err(format!("{e}")))?;
+            let type_name = type_name
+                .map(|t| crate::ros_msg::full_type_name(&t).map_err(|e| err(format!("type: {e}"))))
+                .transpose()?;
+            // One topic, one type.
+            if let Some(t) = &type_name
+                && let Some((other_entry, other)) = map
+                    .sources()
+                    .find(|(_, s)| s.topic == topic && s.type_name.as_ref().is_some_and(|o| o != t))
+            {
+                return Err(err(format!(
+                    "topic {topic} has type {t} here but {} for '{other_entry}'",
+                    other.type_name.as_deref().unwrap_or_default()
+                )));
+            }
             let scale = scale.unwrap_or(1.0);
             let offset = offset.unwrap_or(0.0);
             if !(scale.is_finite() && scale != 0.0) {
@@ -259,6 +295,7 @@ impl ChannelMap {
             }
             let source = Source {
                 topic,
+                type_name,
                 field,
                 scale,
                 offset,
@@ -296,6 +333,26 @@ impl ChannelMap {
             map.definitions.insert(full, path);
         }
         Ok(map)
+    }
+
+    /// The message type the map names for `topic`, if any entry names one.
+    pub fn topic_type(&self, topic: &str) -> Option<&str> {
+        self.sources().find_map(|(_, s)| {
+            (s.topic == topic)
+                .then_some(s.type_name.as_deref())
+                .flatten()
+        })
+    }
+
+    /// The topics the map reads, each once, in the order of their first entry.
+    pub fn topics(&self) -> Vec<&str> {
+        let mut out: Vec<&str> = Vec::new();
+        for (_, s) in self.sources() {
+            if !out.contains(&s.topic.as_str()) {
+                out.push(&s.topic);
+            }
+        }
+        out
     }
 
     /// Every source (channels, then labels) with the name of what it supplies.

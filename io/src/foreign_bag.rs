@@ -6,10 +6,10 @@
 //!
 //! Alignment: the samples take the times of a reference topic (the first channel's topic whose
 //! type has a header, else the first channel's). The data topics must have one sample rate;
-//! over the time span they all cover, each reference message takes the nearest message of every
-//! other data topic, which must be stamped within [`ALIGN_TOLERANCE`] sample intervals of it,
-//! once each (no resampling: a lost message, a clock offset or a different rate is an error
-//! that says which). The labels (`step`, `frequency_hz`) hold from their message's stamp (less
+//! over the time span they all cover, each reference message takes the message of every other
+//! data topic stamped within [`ALIGN_TOLERANCE`] sample intervals of it, once each (no
+//! resampling: a lost message, a clock offset or a different rate is an error that says
+//! which). The rule is [`crate::stamp_align`]'s, which the live `foreign` node applies too. The labels (`step`, `frequency_hz`) hold from their message's stamp (less
 //! the tolerance) until the next one, so a state topic published once per step works as well as
 //! one published with every sample; samples before the first label are left out.
 
@@ -24,16 +24,14 @@ use crate::bag::{BagError, BagReader};
 use crate::channel_map::{ChannelMap, FREQUENCY_LABEL, STEP_LABEL, Source};
 use crate::rig_bag::RigBag;
 use crate::ros_msg::{Registry, builtin_registry, decode, has_header, header_stamp_ns, parse_msg};
+use crate::stamp_align::{
+    Aligned as AlignedMessage, StampAligner, median_interval_ns, tolerance_ns,
+};
 use crate::steps::{
     StepAssembler, StepError, StepPlan, StepRules, StepSample, estimated_excitation, rms_about_mean,
 };
 
-/// How far (in sample intervals) the stamps of one sample on different topics may differ.
-/// Values are not interpolated: 1 % of an interval is a phase error of 0.036 degrees at a
-/// tenth of the sample rate.
-pub const ALIGN_TOLERANCE: f64 = 0.01;
-/// How far (relative) the sample rates of the data topics may differ.
-pub const RATE_TOLERANCE: f64 = 1e-3;
+pub use crate::stamp_align::{ALIGN_TOLERANCE, RATE_TOLERANCE};
 
 #[derive(Debug, thiserror::Error)]
 pub enum ForeignBagError {
@@ -116,7 +114,7 @@ impl Topic {
 
 /// The definitions `type_name` is decoded with: the bag's schema, else the map's `.msg` files,
 /// completed by the built-in ones.
-fn registry_for(
+pub fn registry_for(
     map: &ChannelMap,
     type_name: &str,
     schema: &str,
@@ -161,6 +159,19 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
                     .collect::<Vec<_>>()
                     .join(", "),
             })?;
+        if let Some(named) = &s.type_name
+            && *named != info.type_name
+        {
+            return Err(ForeignBagError::Definition {
+                path: p.clone(),
+                topic: s.topic.clone(),
+                type_name: info.type_name.clone(),
+                problem: format!(
+                    "the channel map names the type {named} (for {entry}), the bag records {}",
+                    info.type_name
+                ),
+            });
+        }
         if !topics.contains_key(s.topic.as_str()) {
             let registry = registry_for(map, &info.type_name, &info.schema_text).map_err(
                 |(unknown, problem)| {
@@ -272,12 +283,21 @@ struct Aligned {
 
 /// The median interval [ns] of a topic's times (0 with fewer than two).
 fn median_interval(rows: &[(i64, Vec<f64>)]) -> f64 {
-    let mut d: Vec<i64> = rows.windows(2).map(|w| w[1].0 - w[0].0).collect();
-    if d.is_empty() {
-        return 0.0;
+    median_interval_ns(rows.iter().map(|r| r.0))
+}
+
+/// The data topics in the map's channel order, the reference (whose times the samples take)
+/// first: the first with a header stamp, else the first. The live source orders them the same.
+pub fn data_topic_order<'a>(map: &'a ChannelMap, stamped: impl Fn(&str) -> bool) -> Vec<&'a str> {
+    let mut order: Vec<&str> = Vec::new();
+    for (_, s) in &map.channels {
+        if !order.contains(&s.topic.as_str()) {
+            order.push(&s.topic);
+        }
     }
-    d.sort_unstable();
-    d[d.len() / 2] as f64
+    let first_stamped = order.iter().position(|n| stamped(n)).unwrap_or(0);
+    order.swap(0, first_stamped);
+    order
 }
 
 fn align(
@@ -289,16 +309,7 @@ fn align(
         path: p.to_string(),
         problem,
     };
-    // Data topics in the map's channel order; the reference (whose times the samples take) is
-    // the first with a header stamp, else the first.
-    let mut order: Vec<&str> = Vec::new();
-    for (_, s) in &map.channels {
-        if !order.contains(&s.topic.as_str()) {
-            order.push(&s.topic);
-        }
-    }
-    let first_stamped = order.iter().position(|n| topics[n].stamped).unwrap_or(0);
-    order.swap(0, first_stamped);
+    let order = data_topic_order(map, |n| topics[n].stamped);
     let reference = order[0];
     let ref_rows = &topics[reference].rows;
     if ref_rows.len() < 2 {
@@ -313,7 +324,7 @@ fn align(
             "{reference}: most messages share one stamp (a median interval of 0 ns)"
         )));
     }
-    let tol = (ALIGN_TOLERANCE * interval).max(1.0);
+    let tol = tolerance_ns(interval);
     for name in &order[1..] {
         let rows = &topics[name].rows;
         if rows.len() < 2 {
@@ -332,67 +343,42 @@ fn align(
             )));
         }
     }
-    // The span every data topic covers.
-    let first = order
-        .iter()
-        .map(|n| topics[n].rows[0].0)
-        .max()
-        .unwrap_or_default() as f64;
-    let last = order
-        .iter()
-        .filter_map(|n| topics[n].rows.last().map(|r| r.0))
-        .min()
-        .unwrap_or_default() as f64;
-    let in_span = |t: i64| (t as f64) >= first - tol && (t as f64) <= last + tol;
-    let ref_idx: Vec<usize> = (0..ref_rows.len())
-        .filter(|&i| in_span(ref_rows[i].0))
-        .collect();
-    // Each reference sample takes the nearest message of every other data topic, which must be
-    // within the tolerance and not taken twice; no other message may lie in the span.
-    let mut columns: Vec<(&str, Vec<usize>)> = vec![(reference, ref_idx.clone())];
-    for name in &order[1..] {
-        let rows = &topics[name].rows;
-        let mut idx: Vec<usize> = Vec::with_capacity(ref_idx.len());
-        for (k, &i) in ref_idx.iter().enumerate() {
-            let t = ref_rows[i].0;
-            let after = rows.partition_point(|r| r.0 < t);
-            let j = [after.checked_sub(1), (after < rows.len()).then_some(after)]
-                .into_iter()
-                .flatten()
-                .min_by_key(|&j| (rows[j].0 - t).abs())
-                .unwrap_or_default();
-            let d = rows[j].0 - t;
-            if (d as f64).abs() > tol || idx.last().is_some_and(|&l| l >= j) {
-                return Err(err(format!(
-                    "sample {k} ({reference} at {t} ns): the nearest {name} message is {:.9} s away; stamps must agree within {:.3e} s (a lost message, or clocks that differ)",
-                    d as f64 * 1e-9,
-                    tol * 1e-9
-                )));
+    // Every topic's messages through the aligner, topic after topic; the first message that
+    // breaks the rule is the error.
+    let mut aligner = StampAligner::new(order.len(), tol, usize::MAX);
+    let mut out = Vec::new();
+    let mut times = Vec::new();
+    let mut rows: Vec<Vec<f64>> = Vec::new();
+    for (k, name) in order.iter().enumerate() {
+        for (t, v) in &topics[name].rows {
+            aligner.push(k, *t, v.clone(), &mut out);
+            for a in out.drain(..) {
+                match a {
+                    AlignedMessage::Sample { t_ns, values } => {
+                        times.push(t_ns);
+                        rows.push(values);
+                    }
+                    AlignedMessage::Misaligned(m) => return Err(err(m.describe(&order, tol))),
+                }
             }
-            idx.push(j);
-        }
-        let in_span_count = rows.iter().filter(|r| in_span(r.0)).count();
-        if in_span_count != idx.len() {
-            return Err(err(format!(
-                "{name} has {in_span_count} messages where {reference} has {} over the span both cover (duplicated or extra messages)",
-                idx.len()
-            )));
-        }
-        columns.push((*name, idx));
-    }
-    let times: Vec<i64> = ref_idx.iter().map(|&i| ref_rows[i].0).collect();
-    let mut values = vec![Vec::with_capacity(map.channels.len()); times.len()];
-    for (c, s) in &map.channels {
-        let (_, idx) = columns
-            .iter()
-            .find(|(n, _)| *n == s.topic)
-            .ok_or_else(|| err(format!("{}: topic {} not read", c.name(), s.topic)))?;
-        let topic = &topics[s.topic.as_str()];
-        let pos = topic.column(c.name());
-        for (k, &i) in idx.iter().enumerate() {
-            values[k].push(topic.rows[i].1[pos]);
         }
     }
+    // Each channel's place in a row: the topics' values are concatenated in `order`.
+    let mut offset = 0usize;
+    let mut starts = BTreeMap::new();
+    for name in &order {
+        starts.insert(*name, offset);
+        offset += topics[name].entries.len();
+    }
+    let places: Vec<usize> = map
+        .channels
+        .iter()
+        .map(|(c, s)| starts[s.topic.as_str()] + topics[s.topic.as_str()].column(c.name()))
+        .collect();
+    let values = rows
+        .iter()
+        .map(|row| places.iter().map(|&i| row[i]).collect())
+        .collect();
     Ok(Aligned {
         times,
         values,

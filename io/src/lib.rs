@@ -17,6 +17,7 @@ pub mod rig_bag;
 pub mod rig_constants;
 pub mod rig_messages;
 pub mod ros_msg;
+pub mod stamp_align;
 pub mod steps;
 pub mod table;
 pub mod tdms;
