@@ -10,6 +10,7 @@ pub mod csv_export;
 pub mod distro;
 pub mod emps;
 pub mod foreign_bag;
+pub mod foreign_topics;
 pub mod input;
 pub mod mdf;
 pub mod params;

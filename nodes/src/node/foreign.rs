@@ -1,0 +1,279 @@
+//! The foreign node: the live source of a bench's own topics. It subscribes to the topics a
+//! channel map names, with the types the map gives (std_msgs/msg/Float64, Float64MultiArray,
+//! sensor_msgs/msg/JointState, geometry_msgs/msg/WrenchStamped built in; any other from a
+//! `.msg` file the map lists), takes each message's raw CDR payload, and hands it to
+//! [`ForeignTopics`] (io: the dynamic decoder and the same stamp alignment as a foreign bag),
+//! publishing the aligned samples as forcemap `RigSample`s on `samples`. It publishes no
+//! `ExcitationState`: run the harmonic node with `find_steps:=true`.
+//!
+//! Parameters:
+//! - the map, either `channels.NAME.{topic,type,field,scale,offset}` in the node's own
+//!   parameters (a params file or a launch file), or `channels:=FILE` (a channel map file);
+//! - `reliability`: `reliable` (default: no loss, matches reliable publishers only) or
+//!   `best_effort` (matches any publisher);
+//! - `min_subscribers` (1) and `startup_timeout_s` (20): the subscribers on `samples` to wait
+//!   for before subscribing to the foreign topics (samples before that would be lost);
+//! - `frame_id` (`rig`): the samples' header frame.
+//!
+//! A malformed message (it does not decode, or lacks a mapped field) and a message the alignment
+//! leaves out are counted, logged (the first few and then every thousandth) and skipped: a
+//! foreign participant cannot crash the node.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail};
+use forcemap_io::channel_map::{CHANNELS_KEY, ChannelMap};
+use forcemap_io::foreign_topics::{ForeignTopics, Output};
+use forcemap_io::topics;
+use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::msg::RigSample;
+use forcemap_msgs::std_msgs::Header;
+use futures::StreamExt as _;
+use ros2_client::{MessageTypeName, Name, QosProfile, qos::WhenFull};
+use serde::de::{DeserializeSeed, Deserializer, SeqAccess, Visitor};
+use tokio::sync::mpsc;
+
+use crate::log_line;
+use crate::ros::{NodeSetup, RosNode, publish_blocking, qos};
+
+/// A message's payload as it came: the CDR encapsulation header and the bytes after it.
+pub struct RawCdr(pub Vec<u8>);
+
+/// Takes a payload byte by byte through the CDR deserializer (ros2-client's subscriptions
+/// decode through serde; this seed asks for one `u8` after another until the input ends, so
+/// no type is needed). The byte order is not visible through serde: it is read from the
+/// deserializer's type name (RustDDS's `CdrDeserializer<BigEndian>` or `<LittleEndian>`) and
+/// written back as the encapsulation header the dynamic decoder reads.
+#[derive(Clone, Copy)]
+pub struct RawCdrSeed;
+
+struct BytesVisitor;
+
+impl<'de> Visitor<'de> for BytesVisitor {
+    type Value = Vec<u8>;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("the bytes of a CDR payload")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Vec<u8>, A::Error> {
+        let mut out = Vec::new();
+        // The end of the input is an error of the deserializer: it ends the payload.
+        while let Ok(Some(b)) = seq.next_element::<u8>() {
+            out.push(b);
+        }
+        Ok(out)
+    }
+}
+
+impl<'de> DeserializeSeed<'de> for RawCdrSeed {
+    type Value = RawCdr;
+
+    fn deserialize<D: Deserializer<'de>>(self, deserializer: D) -> Result<RawCdr, D::Error> {
+        let big_endian = std::any::type_name::<D>().contains("BigEndian");
+        let body = deserializer.deserialize_tuple(usize::MAX, BytesVisitor)?;
+        let mut bytes = Vec::with_capacity(body.len() + 4);
+        bytes.extend_from_slice(&[0, if big_endian { 0 } else { 1 }, 0, 0]);
+        bytes.extend(body);
+        Ok(RawCdr(bytes))
+    }
+}
+
+/// The channel map from the node's parameters: `channels.*` entries, else `channels:=FILE`.
+fn channel_map(setup: &NodeSetup) -> anyhow::Result<ChannelMap> {
+    let p = &setup.params;
+    let prefix = format!("{CHANNELS_KEY}.");
+    if let Some((first, _)) = p.iter().find(|(n, _)| n.starts_with(&prefix)) {
+        let origin = p
+            .origin(first)
+            .map_or_else(|| "the node's parameters".to_string(), str::to_string);
+        return Ok(ChannelMap::from_params(p, &origin)?);
+    }
+    let file = p.opt_str(CHANNELS_KEY)?.context(
+        "no channel map: give channels:=FILE or channels.NAME.{topic,type,field} parameters",
+    )?;
+    Ok(ChannelMap::read(Path::new(file))?)
+}
+
+/// Logs the first few reports of a kind, then every thousandth.
+fn worth_logging(count: u64) -> bool {
+    count <= 10 || count.is_multiple_of(1000)
+}
+
+pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
+    let p = &setup.params;
+    let map = channel_map(&setup)?;
+    let mut foreign = ForeignTopics::new(&map)?;
+    if map.step.is_some() || map.frequency_hz.is_some() {
+        log_line!(
+            "note: the map's step and frequency_hz labels are not read live: the harmonic node finds the steps (find_steps:=true)"
+        );
+    }
+    let reliable = match p.opt_str("reliability")?.unwrap_or("reliable") {
+        "reliable" => true,
+        "best_effort" => false,
+        other => bail!("reliability = '{other}': expected reliable or best_effort"),
+    };
+    let min_subscribers = p.opt_usize("min_subscribers")?.unwrap_or(1);
+    let startup_timeout = p.opt_f64("startup_timeout_s")?.unwrap_or(20.0);
+    let frame = p.opt_str("frame_id")?.unwrap_or("rig").to_string();
+
+    let mut ros = RosNode::start(setup.clone())?;
+    let samples_pub = ros.publisher::<RigSample>(topics::SAMPLES, qos::samples())?;
+    let out_topic = setup.absolute_topic(topics::SAMPLES);
+    log_line!("waiting for {min_subscribers} subscriber(s) on {out_topic}");
+    let deadline = Instant::now() + Duration::from_secs_f64(startup_timeout);
+    while samples_pub.get_subscription_count(&ros.node) < min_subscribers {
+        if crate::ros::shutdown_requested() {
+            return Ok(());
+        }
+        if Instant::now() > deadline {
+            bail!(
+                "no {min_subscribers} subscriber(s) on {out_topic} after {startup_timeout} s (min_subscribers): is the harmonic node running on the same ROS_DOMAIN_ID?"
+            );
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+
+    // One task per foreign topic forwards its payloads into the node's loop.
+    let (tx, mut rx) = mpsc::unbounded_channel::<(usize, Vec<u8>, i64)>();
+    let reader_qos = if reliable {
+        QosProfile::subscription_default().reliability_reliable(WhenFull::Block)
+    } else {
+        QosProfile::subscription_default().reliability_best_effort()
+    }
+    .history(ros2_client::qos::History::KeepLast {
+        depth: qos::SAMPLES_DEPTH,
+    });
+    for (k, t) in foreign.topics().iter().enumerate() {
+        let name = Name::parse(&t.name).map_err(|e| anyhow::anyhow!("topic {}: {e:?}", t.name))?;
+        let mut parts = t.type_name.split('/');
+        let (pkg, ty) = (parts.next().unwrap_or(""), parts.next_back().unwrap_or(""));
+        let topic = ros
+            .node
+            .create_topic(&name, MessageTypeName::new(pkg, ty), &reader_qos)
+            .map_err(|e| anyhow::anyhow!("topic {}: {e:?}", t.name))?;
+        let subscription = ros
+            .node
+            .create_subscription::<RawCdr>(&topic, Some(reader_qos.clone()))
+            .map_err(|e| anyhow::anyhow!("subscription to {}: {e:?}", t.name))?;
+        let tx = tx.clone();
+        let topic_name = t.name.clone();
+        tokio::spawn(async move {
+            let stream = subscription.async_stream_seed(RawCdrSeed);
+            futures::pin_mut!(stream);
+            while let Some(m) = stream.next().await {
+                match m {
+                    Ok((RawCdr(bytes), _info)) => {
+                        let received = crate::ros::now_time().as_nanos();
+                        if tx.send((k, bytes, received)).is_err() {
+                            break;
+                        }
+                    }
+                    Err(e) => log_line!("warning: receiving {topic_name}: {e:?}"),
+                }
+            }
+        });
+        log_line!(
+            "subscribed to {} ({}{}): {}",
+            t.name,
+            t.type_name,
+            if t.stamped {
+                ", timed by its header stamps"
+            } else {
+                ", no header: timed by receive time"
+            },
+            map.sources()
+                .filter(|(_, s)| s.topic == t.name)
+                .map(|(e, s)| format!("{e} = {}", s.field.text))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    drop(tx);
+    log_line!(
+        "publishing aligned samples ({}) on {out_topic}",
+        foreign
+            .channels()
+            .iter()
+            .map(|c| c.name())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+
+    let (mut published, mut malformed, mut misaligned) = (0u64, 0u64, 0u64);
+    let mut last_report = Instant::now();
+    let mut out = Vec::new();
+    loop {
+        let received = tokio::select! {
+            m = rx.recv() => m,
+            () = crate::ros::shutdown_signal() => None,
+        };
+        let Some((k, bytes, receive_ns)) = received else {
+            break;
+        };
+        foreign.push(k, &bytes, receive_ns, &mut out);
+        for o in out.drain(..) {
+            match o {
+                Output::Sample { t_ns, values } => {
+                    let header = Header {
+                        stamp: Time::from_nanos(t_ns),
+                        frame_id: frame.clone(),
+                    };
+                    let mut s = RigSample::new(header, 0);
+                    for (c, v) in values {
+                        s = s.with(c, v);
+                    }
+                    publish_blocking(&samples_pub, s).await?;
+                    published += 1;
+                }
+                Output::Malformed { topic, problem } => {
+                    malformed += 1;
+                    if worth_logging(malformed) {
+                        log_line!(
+                            "warning: skipped a malformed message on {topic} ({malformed} so far): {problem}"
+                        );
+                    }
+                }
+                Output::Misaligned(problem) => {
+                    misaligned += 1;
+                    if worth_logging(misaligned) {
+                        log_line!("warning: cannot align ({misaligned} so far): {problem}");
+                    }
+                }
+            }
+        }
+        if last_report.elapsed() > Duration::from_secs(5) {
+            log_line!(
+                "{published} samples published, {malformed} malformed and {misaligned} misaligned messages skipped"
+            );
+            last_report = Instant::now();
+        }
+    }
+    log_line!(
+        "stopped: {published} samples published, {malformed} malformed and {misaligned} misaligned messages skipped"
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The seed through RustDDS's own CDR decoding, both byte orders: the payload comes back
+    /// whole, with the encapsulation header of its byte order.
+    #[test]
+    fn the_raw_seed_gives_back_the_payload_with_its_byte_order() {
+        use ros2_client::dds::rustdds::RepresentationIdentifier as R;
+        use ros2_client::dds::rustdds::serialization::deserialize_from_cdr_with_decoder_and_rep_id;
+        let body: Vec<u8> = (0u8..13).collect();
+        for (rep, first) in [(R::CDR_LE, 1u8), (R::CDR_BE, 0u8)] {
+            let (raw, used) =
+                deserialize_from_cdr_with_decoder_and_rep_id(&body, rep, RawCdrSeed).unwrap();
+            assert_eq!(used, body.len());
+            assert_eq!(raw.0[..4], [0, first, 0, 0]);
+            assert_eq!(raw.0[4..], body[..]);
+        }
+    }
+}
