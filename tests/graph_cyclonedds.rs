@@ -18,25 +18,6 @@ use common::*;
 use forcemap_msgs::RosMessage;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
 
-fn python_with_cyclonedds() -> Option<String> {
-    let py = std::env::var("FORCEMAP_PYTHON").ok();
-    let usable = py.as_ref().is_some_and(|p| {
-        Command::new(p)
-            .args(["-c", "import cyclonedds.domain"])
-            .status()
-            .is_ok_and(|s| s.success())
-    });
-    if !usable {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI is set but FORCEMAP_PYTHON ({py:?}) has no cyclonedds: .ci/run must install it"
-        );
-        eprintln!("skipped: set FORCEMAP_PYTHON to a Python with cyclonedds to run this test");
-        return None;
-    }
-    py
-}
-
 #[test]
 fn cyclone_dds_publishes_samples_and_receives_the_offline_theta() {
     let Some(py) = python_with_cyclonedds() else {

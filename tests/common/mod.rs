@@ -234,3 +234,24 @@ pub fn domain(offset: u16) -> u16 {
         .unwrap_or(140);
     base + offset
 }
+
+/// The Python of FORCEMAP_PYTHON if it has `cyclonedds`; `None` (the test skips, saying so)
+/// otherwise, except under CI, where .ci/run must provide it.
+pub fn python_with_cyclonedds() -> Option<String> {
+    let py = std::env::var("FORCEMAP_PYTHON").ok();
+    let usable = py.as_ref().is_some_and(|p| {
+        Command::new(p)
+            .args(["-c", "import cyclonedds.domain"])
+            .status()
+            .is_ok_and(|s| s.success())
+    });
+    if !usable {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI is set but FORCEMAP_PYTHON ({py:?}) has no cyclonedds: .ci/run must install it"
+        );
+        eprintln!("skipped: set FORCEMAP_PYTHON to a Python with cyclonedds to run this test");
+        return None;
+    }
+    py
+}
