@@ -1,0 +1,267 @@
+//! The live source of foreign topics without ROS: payloads in, aligned samples out. The
+//! samples equal the values written (through the map's scale), timed by the header stamps;
+//! the map's mistakes are named with topic and field; any bytes give a report, never a panic.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
+use forcemap_io::channel_map::ChannelMap;
+use forcemap_io::foreign_topics::{ForeignTopics, LEARN_MESSAGES, Output};
+use forcemap_math::record::Channel;
+use serde::Serialize;
+
+#[derive(Serialize)]
+struct Time {
+    sec: i32,
+    nanosec: u32,
+}
+
+#[derive(Serialize)]
+struct Header {
+    stamp: Time,
+    frame_id: String,
+}
+
+#[derive(Serialize)]
+struct JointState {
+    header: Header,
+    name: Vec<String>,
+    position: Vec<f64>,
+    velocity: Vec<f64>,
+    effort: Vec<f64>,
+}
+
+#[derive(Serialize)]
+struct Vector3 {
+    x: f64,
+    y: f64,
+    z: f64,
+}
+
+#[derive(Serialize)]
+struct WrenchStamped {
+    header: Header,
+    force: Vector3,
+    torque: Vector3,
+}
+
+const T0: i64 = 1_767_225_600_000_000_000;
+const DT: i64 = 10_000_000;
+
+fn header(ns: i64) -> Header {
+    Header {
+        stamp: Time {
+            sec: (ns / 1_000_000_000) as i32,
+            nanosec: (ns % 1_000_000_000) as u32,
+        },
+        frame_id: "bench".into(),
+    }
+}
+
+fn joints(i: i64, shift: i64) -> Vec<u8> {
+    forcemap_msgs::encode(&JointState {
+        header: header(T0 + i * DT + shift),
+        name: vec!["stroke".into(), "base".into()],
+        position: vec![(i as f64 * 0.3).sin(), i as f64],
+        velocity: vec![],
+        effort: vec![],
+    })
+}
+
+fn load(i: i64) -> Vec<u8> {
+    let zero = || Vector3 {
+        x: 0.0,
+        y: 0.0,
+        z: 0.0,
+    };
+    forcemap_msgs::encode(&WrenchStamped {
+        header: header(T0 + i * DT),
+        force: Vector3 {
+            x: 0.0,
+            y: 0.0,
+            z: 0.25 * i as f64,
+        },
+        torque: zero(),
+    })
+}
+
+const MAP: &str = "channels:
+  relative_displacement_m: {topic: /bench/joints, type: sensor_msgs/msg/JointState, field: 'position[stroke]', scale: 0.001}
+  base_displacement_m: {topic: /bench/joints, field: 'position[base]'}
+  mass_acceleration_mps2: {topic: /bench/load, type: geometry_msgs/WrenchStamped, field: wrench.force.z, scale: 4.0}
+";
+
+fn topics(text: &str) -> Result<ForeignTopics, String> {
+    let map = ChannelMap::from_yaml_str(text, "map.yaml").map_err(|e| e.to_string())?;
+    ForeignTopics::new(&map).map_err(|e| e.to_string())
+}
+
+/// Feeds messages 0..n of both topics, the load topic one message behind (as two publishers
+/// interleave), `joints_shift` added to the joints' stamps and message `lost` of the joints
+/// left out.
+fn feed(n: i64, joints_shift: i64, lost: Option<i64>) -> Vec<Output> {
+    let mut f = topics(MAP).unwrap();
+    let mut out = Vec::new();
+    for i in 0..n {
+        if Some(i) != lost {
+            f.push(0, &joints(i, joints_shift), 0, &mut out);
+        }
+        if i > 0 {
+            f.push(1, &load(i - 1), 0, &mut out);
+        }
+    }
+    out
+}
+
+#[test]
+fn samples_are_the_values_written_at_their_stamps() {
+    let out = feed(40, 0, None);
+    let samples: Vec<(i64, Vec<(Channel, f64)>)> = out
+        .into_iter()
+        .map(|o| match o {
+            Output::Sample { t_ns, values } => (t_ns, values),
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    // Every message pair but the last (its load message is not sent).
+    assert_eq!(samples.len(), 39);
+    for (i, (t, values)) in samples.iter().enumerate() {
+        let i = i as i64;
+        assert_eq!(*t, T0 + i * DT);
+        let mut values = values.clone();
+        values.sort_by_key(|(c, _)| c.name());
+        assert_eq!(
+            values,
+            vec![
+                (Channel::BaseDisplacementM, i as f64),
+                (Channel::MassAccelerationMps2, i as f64),
+                (
+                    Channel::RelativeDisplacementM,
+                    (i as f64 * 0.3).sin() * 0.001
+                ),
+            ]
+        );
+    }
+}
+
+#[test]
+fn misaligned_messages_are_reported_with_topic_and_field() {
+    // A lost joints message after the interval is learnt.
+    let lost = LEARN_MESSAGES as i64 + 5;
+    let out = feed(40, 0, Some(lost));
+    let reports: Vec<&String> = out
+        .iter()
+        .filter_map(|o| match o {
+            Output::Misaligned(m) => Some(m),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(reports.len(), 1, "{out:?}");
+    assert!(
+        reports[0].contains("/bench/load (wrench.force.z) message at")
+            && reports[0].contains("matches no /bench/joints (position["),
+        "{}",
+        reports[0]
+    );
+    // A clock 1 ms off on the joints: nothing aligns, every sample is reported.
+    let out = feed(40, 1_000_000, None);
+    assert!(!out.iter().any(|o| matches!(o, Output::Sample { .. })));
+    let first = out
+        .iter()
+        .find_map(|o| match o {
+            Output::Misaligned(m) => Some(m.clone()),
+            _ => None,
+        })
+        .unwrap();
+    assert!(
+        first.contains("the nearest /bench/load (wrench.force.z) message is -0.001000000 s away"),
+        "{first}"
+    );
+}
+
+#[test]
+fn map_mistakes_are_named_with_topic_and_field() {
+    let e = topics(&MAP.replace(", type: geometry_msgs/WrenchStamped", "")).unwrap_err();
+    assert!(
+        e.contains("topic /bench/load: the channel map names no message type"),
+        "{e}"
+    );
+    let e = topics(&MAP.replace("geometry_msgs/WrenchStamped", "bench_msgs/Secret")).unwrap_err();
+    assert!(
+        e.contains("topic /bench/load: cannot decode message type bench_msgs/msg/Secret"),
+        "{e}"
+    );
+    let e = topics(&MAP.replace("wrench.force.z", "wrench.force.w")).unwrap_err();
+    assert!(
+        e.contains("topic /bench/load, field wrench.force.w (for mass_acceleration_mps2)")
+            && e.contains("no field 'w'"),
+        "{e}"
+    );
+    let e = topics(&MAP.replace("wrench.force.z", "header.frame_id")).unwrap_err();
+    assert!(
+        e.contains("field header.frame_id") && e.contains("not a number"),
+        "{e}"
+    );
+    let e = topics(&MAP.replace(
+        "field: 'position[base]'",
+        "type: std_msgs/msg/Float64, field: 'position[base]'",
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("topic /bench/joints has type")
+            && e.contains("std_msgs/msg/Float64")
+            && e.contains("sensor_msgs/msg/JointState"),
+        "{e}"
+    );
+}
+
+#[test]
+fn malformed_payloads_are_reported_and_skipped() {
+    let mut f = topics(MAP).unwrap();
+    let mut out = Vec::new();
+    let good = joints(0, 0);
+    // Truncations, garbage and a joint missing from the names.
+    for cut in 0..good.len() - 3 {
+        f.push(0, &good[..cut], 0, &mut out);
+    }
+    let mut state = 7u64;
+    for _ in 0..2000 {
+        let len = (state % 97) as usize;
+        let bytes: Vec<u8> = (0..len)
+            .map(|_| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (state >> 56) as u8
+            })
+            .collect();
+        f.push((state % 2) as usize, &bytes, 0, &mut out);
+    }
+    let unnamed = forcemap_msgs::encode(&JointState {
+        header: header(T0),
+        name: vec!["base".into()],
+        position: vec![1.0],
+        velocity: vec![],
+        effort: vec![],
+    });
+    out.clear();
+    f.push(0, &unnamed, 0, &mut out);
+    assert!(
+        matches!(&out[..], [Output::Malformed { topic, problem }] if topic == "/bench/joints" && problem.contains("position[stroke]")),
+        "{out:?}"
+    );
+    // The good messages still align afterwards.
+    out.clear();
+    for i in 0..30 {
+        f.push(0, &joints(i, 0), 0, &mut out);
+        f.push(1, &load(i), 0, &mut out);
+    }
+    assert_eq!(
+        out.iter()
+            .filter(|o| matches!(o, Output::Sample { .. }))
+            .count(),
+        30,
+        "{out:?}"
+    );
+}
