@@ -276,4 +276,31 @@ mod tests {
             assert_eq!(raw.0[4..], body[..]);
         }
     }
+
+    /// The shipped launch example: the foreign node's parameters (the params file the launch
+    /// file names) give a channel map the live source resolves.
+    #[test]
+    fn the_launch_example_gives_a_map_of_two_topics() {
+        let configs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../launch_configs");
+        let nodes = crate::launch::plan(&configs.join("foreign.launch.yaml"), &[]).unwrap();
+        let node = nodes.iter().find(|n| n.exec == "foreign").unwrap();
+        let args = crate::ros::RosArgs::parse(&node.args).unwrap();
+        let setup = NodeSetup::from_args("foreign", &args).unwrap();
+        let map = channel_map(&setup).unwrap();
+        assert!(map.file.ends_with("bench.channels.yaml"), "{}", map.file);
+        let live = ForeignTopics::new(&map).unwrap();
+        let topics: Vec<(&str, &str, bool)> = live
+            .topics()
+            .iter()
+            .map(|t| (t.name.as_str(), t.type_name.as_str(), t.stamped))
+            .collect();
+        assert_eq!(
+            topics,
+            [
+                ("/bench/joints", "sensor_msgs/msg/JointState", true),
+                ("/bench/load", "geometry_msgs/msg/WrenchStamped", true)
+            ]
+        );
+        assert_eq!(live.channels().len(), 5);
+    }
 }
