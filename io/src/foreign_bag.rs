@@ -288,7 +288,7 @@ fn median_interval(rows: &[(i64, Vec<f64>)]) -> f64 {
 
 /// The data topics in the map's channel order, the reference (whose times the samples take)
 /// first: the first with a header stamp, else the first. The live source orders them the same.
-pub fn data_topic_order<'a>(map: &'a ChannelMap, stamped: impl Fn(&str) -> bool) -> Vec<&'a str> {
+pub fn data_topic_order(map: &ChannelMap, stamped: impl Fn(&str) -> bool) -> Vec<&str> {
     let mut order: Vec<&str> = Vec::new();
     for (_, s) in &map.channels {
         if !order.contains(&s.topic.as_str()) {

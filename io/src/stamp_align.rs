@@ -183,13 +183,12 @@ impl StampAligner {
             let mut skips = vec![0usize; self.queues.len()];
             let mut lost: Option<(usize, Option<i64>)> = None;
             let mut waiting = false;
-            for j in 1..self.queues.len() {
-                let q = &self.queues[j];
+            for (j, (q, skip)) in self.queues.iter().zip(skips.iter_mut()).enumerate().skip(1) {
                 let skipped = q
                     .iter()
                     .take_while(|(u, _)| (*u as f64) < t as f64 - tol)
                     .count();
-                skips[j] = skipped;
+                *skip = skipped;
                 match q.get(skipped) {
                     None => waiting = true,
                     Some(&(u, _)) if (u as f64) <= t as f64 + tol => {}
