@@ -417,3 +417,20 @@ fn a_map_without_step_labels_is_refused_for_now() {
         "{e}"
     );
 }
+
+#[test]
+fn a_type_the_bag_contradicts_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let bag = small_bag(dir.path(), 1, 0, None);
+    let e = error(
+        &bag,
+        &GOOD.replace("{topic: /b,", "{topic: /b, type: bench_msgs/msg/Other,"),
+    );
+    assert!(
+        e.contains("topic /b: definition of bench_msgs/msg/Stamped: the channel map names the type bench_msgs/msg/Other (for relative_displacement_m), the bag records bench_msgs/msg/Stamped"),
+        "{e}"
+    );
+    // Naming the type the bag records is fine.
+    let text = GOOD.replace("{topic: /b,", "{topic: /b, type: bench_msgs/Stamped,");
+    assert!(read_foreign_bag(&bag, &map(&text)).is_ok());
+}
