@@ -6,15 +6,22 @@
 //! and the identifier run as processes; the theta the Python participant receives equals
 //! `forcemap identify` on the same run's bag.
 //!
-//! Runs when FORCEMAP_PYTHON names a Python with `cyclonedds` (skipped with a message
-//! otherwise, failed under CI).
+//! The same with an eProsima Fast DDS participant (ROS 2's default middleware; the C++ peer of
+//! graph_fastdds in its `bench` mode).
+//!
+//! Runs when FORCEMAP_PYTHON names a Python with `cyclonedds`, and Fast DDS is installed
+//! (each skipped with a message otherwise, failed under CI).
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
 )]
 
 mod common;
+#[path = "fastdds/peer.rs"]
+mod peer;
 
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
@@ -23,73 +30,131 @@ use forcemap_math::record::Channel;
 use forcemap_msgs::RosMessage;
 use forcemap_msgs::msg::RigSample;
 
-#[test]
-fn cyclone_dds_on_standard_topics_gives_the_offline_theta() {
-    let Some(py) = python_with_cyclonedds() else {
-        return;
-    };
-    let d = domain(41);
+/// The committed rig run as a bench would publish it: per sample its stamp and the values of
+/// the joints (every channel but the mass acceleration) and of the load (the mass acceleration).
+struct BenchRun {
+    joints: Vec<&'static str>,
+    load: Channel,
+    /// (sec, nanosec, joint values in `joints` order, load value).
+    samples: Vec<(i32, u32, Vec<f64>, f64)>,
+}
+
+fn bench_run() -> BenchRun {
     let bag = repo().join("bags/rig_40db");
-    let dir = tempfile::tempdir().unwrap();
-    // The bag's samples as the bench would have them: time and a value per channel.
     let reader = forcemap_io::bag::BagReader::open(&bag).unwrap();
+    let load = Channel::MassAccelerationMps2;
+    let mut joints: Vec<Channel> = Vec::new();
     let mut samples = Vec::new();
-    let mut present: Vec<Channel> = Vec::new();
     for m in reader.messages_on(&["/rig/samples"]).unwrap() {
         let s = RigSample::from_cdr(&m.unwrap().data).unwrap();
-        if present.is_empty() {
-            present = s.present();
+        if joints.is_empty() {
+            assert!(s.present().contains(&load), "{:?}", s.present());
+            joints = s.present().into_iter().filter(|c| *c != load).collect();
         }
-        let values: serde_json::Map<String, serde_json::Value> = present
-            .iter()
-            .map(|c| (c.name().to_string(), s.channel(*c).unwrap().into()))
-            .collect();
-        samples.push(serde_json::json!([
-            s.header.stamp.sec,
-            s.header.stamp.nanosec,
-            values
-        ]));
+        let values = joints.iter().map(|c| s.channel(*c).unwrap()).collect();
+        let stamp = &s.header.stamp;
+        samples.push((stamp.sec, stamp.nanosec, values, s.channel(load).unwrap()));
     }
-    let load = Channel::MassAccelerationMps2;
-    assert!(present.contains(&load), "{present:?}");
-    let joints: Vec<&str> = present
-        .iter()
-        .filter(|c| **c != load)
-        .map(|c| c.name())
-        .collect();
-    let run = dir.path().join("samples.json");
-    std::fs::write(
-        &run,
-        serde_json::json!({"joints": joints, "load": load.name(), "samples": samples}).to_string(),
-    )
-    .unwrap();
-    // The channel map: each joint by name, the load cell's z force scaled back.
+    BenchRun {
+        joints: joints.iter().map(|c| c.name()).collect(),
+        load,
+        samples,
+    }
+}
+
+/// The channel map of the bench: each joint by name, the load cell's z force scaled back.
+fn write_map(dir: &Path, run: &BenchRun) -> PathBuf {
     let mut map = String::from("channels:\n");
-    for j in &joints {
+    for j in &run.joints {
         map.push_str(&format!(
             "  {j}: {{topic: /bench/joints, type: sensor_msgs/msg/JointState, field: 'position[{j}]'}}\n"
         ));
     }
     map.push_str(&format!(
         "  {}: {{topic: /bench/load, type: geometry_msgs/msg/WrenchStamped, field: wrench.force.z, scale: 2.0}}\n",
-        load.name()
+        run.load.name()
     ));
-    let map_file = dir.path().join("bench.channels.yaml");
-    std::fs::write(&map_file, map).unwrap();
+    let path = dir.join("bench.channels.yaml");
+    std::fs::write(&path, map).unwrap();
+    path
+}
 
-    let harmonic = NodeProcess::start("harmonic", d, &["find_steps:=true".into()]);
-    let _identifier = NodeProcess::start(
+/// The harmonic node (finding the steps), the identifier and the foreign node on `domain`,
+/// ready for the bench's messages.
+fn start_graph(domain: u16, map: &Path) -> Vec<NodeProcess> {
+    let harmonic = NodeProcess::start("harmonic", domain, &["find_steps:=true".into()]);
+    let identifier = NodeProcess::start(
         "identifier",
-        d,
+        domain,
         &["model:=coulomb".into(), "mass_kg:=36.0".into()],
     );
-    let foreign = NodeProcess::start("foreign", d, &[format!("channels:={}", map_file.display())]);
+    let foreign = NodeProcess::start("foreign", domain, &[format!("channels:={}", map.display())]);
     harmonic.wait_for("waiting for samples", Duration::from_secs(30));
     foreign.wait_for("publishing aligned samples", Duration::from_secs(30));
+    vec![harmonic, identifier, foreign]
+}
+
+/// The last theta a peer received equals the offline theta of the same run, and the foreign
+/// node skipped no message.
+fn assert_offline_theta(last: &serde_json::Value, foreign: &NodeProcess) {
+    assert_eq!(last["steps_used"].as_array().unwrap().len(), 10, "{last}");
+    let live: Vec<(String, f64)> = last["names"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(last["values"].as_array().unwrap())
+        .map(|(n, x)| (n.as_str().unwrap().to_string(), x.as_f64().unwrap()))
+        .collect();
+    let offline = offline_theta(&repo().join("bags/rig_40db"), &["--model", "coulomb"]);
+    let worst = live
+        .iter()
+        .zip(&offline)
+        .map(|((_, a), (_, b))| (a - b).abs() / b.abs())
+        .fold(0.0f64, f64::max);
+    eprintln!("live {live:?}\noffline {offline:?}\nlargest relative difference {worst:e}");
+    assert_same_theta(&live, &offline, 1e-6);
+    let lines = foreign.lines();
+    assert!(
+        !lines.iter().any(|l| l.contains("warning")),
+        "{}",
+        lines.join("\n")
+    );
+}
+
+#[test]
+fn cyclone_dds_on_standard_topics_gives_the_offline_theta() {
+    let Some(py) = python_with_cyclonedds() else {
+        return;
+    };
+    let d = domain(41);
+    let dir = tempfile::tempdir().unwrap();
+    let run = bench_run();
+    let samples: Vec<serde_json::Value> = run
+        .samples
+        .iter()
+        .map(|(sec, nanosec, joints, load)| {
+            let mut values: serde_json::Map<String, serde_json::Value> = run
+                .joints
+                .iter()
+                .zip(joints)
+                .map(|(j, v)| (j.to_string(), (*v).into()))
+                .collect();
+            values.insert(run.load.name().to_string(), (*load).into());
+            serde_json::json!([sec, nanosec, values])
+        })
+        .collect();
+    let json = dir.path().join("samples.json");
+    std::fs::write(
+        &json,
+        serde_json::json!({"joints": run.joints, "load": run.load.name(), "samples": samples})
+            .to_string(),
+    )
+    .unwrap();
+    let graph = start_graph(d, &write_map(dir.path(), &run));
     let out = Command::new(&py)
         .arg(repo().join("tests/python/cyclone_foreign.py"))
         .arg(d.to_string())
-        .arg(&run)
+        .arg(&json)
         .arg("10")
         .arg("120")
         .output()
@@ -101,27 +166,56 @@ fn cyclone_dds_on_standard_topics_gives_the_offline_theta() {
         String::from_utf8_lossy(&out.stdout)
     );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(v["steps_used"].as_array().unwrap().len(), 10, "{v}");
-    let live: Vec<(String, f64)> = v["names"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .zip(v["values"].as_array().unwrap())
-        .map(|(n, x)| (n.as_str().unwrap().to_string(), x.as_f64().unwrap()))
-        .collect();
-    let offline = offline_theta(&bag, &["--model", "coulomb"]);
-    let worst = live
-        .iter()
-        .zip(&offline)
-        .map(|((_, a), (_, b))| (a - b).abs() / b.abs())
-        .fold(0.0f64, f64::max);
-    eprintln!("live {live:?}\noffline {offline:?}\nlargest relative difference {worst:e}");
-    assert_same_theta(&live, &offline, 1e-6);
-    // Nothing was skipped on the way.
-    let lines = foreign.lines();
+    assert_offline_theta(&v, &graph[2]);
+}
+
+/// The same with ROS 2's default middleware: an eProsima Fast DDS participant (the peer of
+/// graph_fastdds, mode `bench`) publishes the bench's topics.
+#[test]
+fn fast_dds_on_standard_topics_gives_the_offline_theta() {
+    let Some(exe) = peer::fastdds_peer() else {
+        return;
+    };
+    let d = domain(42);
+    let dir = tempfile::tempdir().unwrap();
+    let run = bench_run();
+    // Floats in Rust's shortest round-trip form, so the peer sends the same bits.
+    let mut tsv = String::new();
+    let names = run.joints.join(",");
+    for (sec, nanosec, joints, load) in &run.samples {
+        let values: Vec<String> = joints.iter().map(|v| format!("{v:?}")).collect();
+        writeln!(
+            tsv,
+            "J\t{sec}\t{nanosec}\tbench\t{names}\t{}",
+            values.join("\t")
+        )
+        .unwrap();
+        writeln!(tsv, "W\t{sec}\t{nanosec}\tbench\t{:?}", load / 2.0).unwrap();
+    }
+    let path = dir.path().join("bench.tsv");
+    std::fs::write(&path, tsv).unwrap();
+    let graph = start_graph(d, &write_map(dir.path(), &run));
+    let out = Command::new(&exe)
+        .args([
+            "bench",
+            &d.to_string(),
+            &path.display().to_string(),
+            "10",
+            "120",
+        ])
+        .output()
+        .unwrap();
     assert!(
-        !lines.iter().any(|l| l.contains("warning")),
-        "{}",
-        lines.join("\n")
+        out.status.success(),
+        "fastdds_peer bench failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
     );
+    let last = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter(|l| l.starts_with('{'))
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .next_back()
+        .expect("no theta received");
+    assert_offline_theta(&last, &graph[2]);
 }

@@ -286,6 +286,84 @@ static int run_publish(int domain, const std::string& path, int expected_steps, 
   return 0;
 }
 
+// A bench publishing its own standard topics (for forcemap's foreign node): lines
+// "J sec nanosec frame name1,name2,... value1 value2 ..." (a sensor_msgs/JointState on
+// rt/bench/joints) and "W sec nanosec frame z" (a geometry_msgs/WrenchStamped on rt/bench/load,
+// z in wrench.force.z), then theta as run_publish receives it.
+static int run_bench(int domain, const std::string& path, int expected_steps, double timeout_s) {
+  std::ifstream in(path);
+  if (!in) fail("cannot read " + path);
+  DomainParticipant* p = ros_participant(domain, nullptr);
+  TypeSupport joints_t(new sensor_msgs::msg::dds_::JointState_PubSubType());
+  TypeSupport load_t(new geometry_msgs::msg::dds_::WrenchStamped_PubSubType());
+  TypeSupport theta_t(new msg::IdentifiedParameters_PubSubType());
+  joints_t.register_type(p);
+  load_t.register_type(p);
+  theta_t.register_type(p);
+  Topic* joints = p->create_topic("rt/bench/joints", joints_t.get_type_name(), TOPIC_QOS_DEFAULT);
+  Topic* load = p->create_topic("rt/bench/load", load_t.get_type_name(), TOPIC_QOS_DEFAULT);
+  Topic* theta = p->create_topic("rt/rig/theta", theta_t.get_type_name(), TOPIC_QOS_DEFAULT);
+  Publisher* pub = p->create_publisher(PUBLISHER_QOS_DEFAULT);
+  Subscriber* sub = p->create_subscriber(SUBSCRIBER_QOS_DEFAULT);
+  DataWriter* j_w = pub->create_datawriter(joints, writer_qos(pub, false, 0));
+  DataWriter* l_w = pub->create_datawriter(load, writer_qos(pub, false, 0));
+  ThetaListener listener("theta");
+  DataReader* t_r = sub->create_datareader(theta, reader_qos(sub, 1), &listener);
+  if (!j_w || !l_w || !t_r) fail("cannot create the endpoints");
+
+  auto t0 = Clock::now();
+  PublicationMatchedStatus js, ls;
+  for (;;) {
+    j_w->get_publication_matched_status(js);
+    l_w->get_publication_matched_status(ls);
+    if (js.current_count > 0 && ls.current_count > 0) break;
+    if (Clock::now() - t0 > std::chrono::seconds(30))
+      fail("no subscriber (forcemap's foreign node) matched rt/bench/joints and rt/bench/load within 30 s");
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+
+  std::string line;
+  size_t n_joints = 0, n_load = 0;
+  while (std::getline(in, line)) {
+    auto f = split_tabs(line);
+    if (f.empty()) continue;
+    if (f[0] == "J" && f.size() >= 5) {
+      sensor_msgs::msg::dds_::JointState_ m;
+      header(m, f);
+      std::istringstream names(f[4]);
+      std::string name;
+      while (std::getline(names, name, ',')) m.name().push_back(name);
+      for (size_t i = 5; i < f.size(); ++i) m.position().push_back(num(f[i]));
+      if (m.position().size() != m.name().size()) fail(path + ": names and values differ: " + line.substr(0, 60));
+      write_reliably(j_w, m);
+      ++n_joints;
+    } else if (f[0] == "W" && f.size() == 5) {
+      geometry_msgs::msg::dds_::WrenchStamped_ m;
+      header(m, f);
+      m.wrench().force().z(num(f[4]));
+      write_reliably(l_w, m);
+      ++n_load;
+    } else {
+      fail(path + ": bad line '" + line.substr(0, 60) + "'");
+    }
+  }
+  std::cerr << "fastdds_peer: published " << n_joints << " joint states and " << n_load
+            << " wrenches" << std::endl;
+  j_w->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(30, 0));
+  l_w->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(30, 0));
+  t0 = Clock::now();
+  while (listener.last_steps < expected_steps) {
+    if (std::chrono::duration<double>(Clock::now() - t0).count() > timeout_s)
+      fail("no theta with " + std::to_string(expected_steps) + " steps within the timeout (" +
+           std::to_string(listener.count) + " thetas received)");
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  p->delete_contained_entities();
+  DomainParticipantFactory::get_instance()->delete_participant(p);
+  return 0;
+}
+
 static int run_late(int domain, double listen_s) {
   DomainParticipant* p = ros_participant(domain, nullptr);
   TypeSupport theta_t(new msg::IdentifiedParameters_PubSubType());
@@ -360,7 +438,9 @@ int main(int argc, char** argv) {
   std::vector<std::string> a(argv + 1, argv + argc);
   if (a.size() == 5 && a[0] == "publish")
     return run_publish(std::stoi(a[1]), a[2], std::stoi(a[3]), std::stod(a[4]));
+  if (a.size() == 5 && a[0] == "bench")
+    return run_bench(std::stoi(a[1]), a[2], std::stoi(a[3]), std::stod(a[4]));
   if (a.size() == 3 && a[0] == "late") return run_late(std::stoi(a[1]), std::stod(a[2]));
   if (a.size() == 2 && a[0] == "discover") return run_discover(std::stoi(a[1]));
-  fail("usage: fastdds_peer publish DOMAIN MESSAGES.tsv STEPS TIMEOUT_S | late DOMAIN LISTEN_S | discover DOMAIN");
+  fail("usage: fastdds_peer publish DOMAIN MESSAGES.tsv STEPS TIMEOUT_S | bench DOMAIN BENCH.tsv STEPS TIMEOUT_S | late DOMAIN LISTEN_S | discover DOMAIN");
 }
