@@ -36,7 +36,7 @@ pub enum Command {
     DiagnoseEval(DiagnoseEvalArgs),
     /// List the named models.
     Models,
-    /// Run one ROS 2 node (sensor, harmonic, identifier, recorder, monitor, diagnoser); settings are ROS
+    /// Run one ROS 2 node (sensor, harmonic, identifier, recorder, monitor, diagnoser, foreign); settings are ROS
     /// parameters: `forcemap node identifier --ros-args -p model:=coulomb`.
     Node(NodeArgs),
     /// Start the nodes of a ROS 2 YAML launch file as separate processes:
@@ -100,7 +100,7 @@ pub struct BenchGraphArgs {
 
 #[derive(Debug, Args)]
 pub struct NodeArgs {
-    /// sensor, harmonic, identifier, recorder, monitor or diagnoser.
+    /// sensor, harmonic, identifier, recorder, monitor, diagnoser or foreign.
     pub kind: String,
     /// ROS arguments: --ros-args -p name:=value --params-file FILE -r from:=to -r __ns:=/rig
     #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
