@@ -318,13 +318,8 @@ impl WriterSendBuffer {
   // Conservative: only samples every matched reliable reader has acknowledged
   // are evicted (none are pending then), so repair of a lagging reliable reader
   // is unchanged; with no reliable reader matched, the oldest go at once.
-  //
-  // forcemap patch 5 (flat memory of a flooded volatile writer): the same trim
-  // for volatile reliable writers, whose acknowledged samples were otherwise kept
-  // until the 6 s cache cleaning (about 400 MB for a 10 kHz sensor published as
-  // fast as acknowledged). Only acknowledged samples go, so repair is unchanged.
   fn trim_durable_acked(shared: &Shared, inner: &mut Inner) {
-    if shared.is_builtin {
+    if shared.is_builtin || shared.volatile {
       return;
     }
     while inner.changes.len() > inner.max_retain {
