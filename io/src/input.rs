@@ -127,11 +127,34 @@ pub fn load(path: &Path) -> anyhow::Result<Loaded> {
     }
 }
 
+/// [`load`] of a rig bag with each step handed to `keep(kind, record)` as soon as it is
+/// complete ([`RigBagReader::records_reduced`]): what `keep` returns is kept in the records.
+/// The kind is that of the first step. For an analysis that streams a long bag.
+pub fn load_bag_reduced(
+    path: &Path,
+    mut keep: impl FnMut(SetupKind, Record) -> Option<Record>,
+) -> anyhow::Result<Loaded> {
+    let source = path.display().to_string();
+    let mut kind: Option<anyhow::Result<SetupKind>> = None;
+    let bag = RigBagReader::open(path)?.records_reduced(|r| {
+        match kind.get_or_insert_with(|| kind_of(std::slice::from_ref(&r), &source)) {
+            Ok(k) => keep(*k, r),
+            Err(_) => Some(r),
+        }
+    })?;
+    let kind = kind.unwrap_or_else(|| kind_of(&bag.records, &source))?;
+    of_bag_of_kind(path, bag, kind)
+}
+
 fn of_bag(path: &Path, bag: RigBag) -> anyhow::Result<Loaded> {
+    let kind = kind_of(&bag.records, &path.display().to_string())?;
+    of_bag_of_kind(path, bag, kind)
+}
+
+fn of_bag_of_kind(path: &Path, bag: RigBag, kind: SetupKind) -> anyhow::Result<Loaded> {
     if let Some(why) = &bag.left_out {
         eprintln!("notice: {}: {why}", path.display());
     }
-    let kind = kind_of(&bag.records, &path.display().to_string())?;
     Ok(Loaded {
         records: bag.records,
         kind,

@@ -64,31 +64,69 @@ pub fn rig_messages<'a>(
     run_start: Time,
     frame: &'a str,
 ) -> impl Iterator<Item = RigMessage> + 'a {
-    let steps = records.iter().flat_map(move |r| {
-        let start = run_start.add_secs_f64(r.start_time_s);
-        let state = ExcitationState::from_excitation(
-            Header::new(start, frame),
-            r.step,
-            start,
-            &r.excitation,
-            driven,
-            r.len(),
-        );
-        std::iter::once(RigMessage::Excitation(state)).chain((0..r.len()).map(move |i| {
-            let stamp = run_start.add_secs_f64(r.time_s(i));
-            RigMessage::Sample(RigSample::from_record(r, i, Header::new(stamp, frame)))
-        }))
-    });
-    let end = records.last().map_or(run_start, |r| {
-        run_start.add_secs_f64(r.start_time_s + r.len() as f64 / r.sample_rate_hz)
-    });
-    let idle_step = records.last().map_or(0, |r| r.step + 1);
-    let idle = ExcitationState::idle(Header::new(end, frame), idle_step, end, driven);
+    let steps = records
+        .iter()
+        .flat_map(move |r| record_messages(r, driven, run_start, frame));
     parameters
         .map(RigMessage::Parameters)
         .into_iter()
         .chain(steps)
-        .chain(std::iter::once(RigMessage::Excitation(idle)))
+        .chain(std::iter::once(idle_after(
+            records.last(),
+            driven,
+            run_start,
+            frame,
+        )))
+}
+
+/// The messages of one record of a run from `run_start`: its `ExcitationState` (stamped at the
+/// record's start), then its samples (for a run published record by record).
+pub fn record_messages<'a>(
+    r: &'a Record,
+    driven: Channel,
+    run_start: Time,
+    frame: &'a str,
+) -> impl Iterator<Item = RigMessage> + 'a {
+    std::iter::once(record_state(r, driven, run_start, frame))
+        .chain((0..r.len()).map(move |i| record_sample(r, i, run_start, frame)))
+}
+
+/// The `ExcitationState` of a record, stamped at its start.
+pub fn record_state(r: &Record, driven: Channel, run_start: Time, frame: &str) -> RigMessage {
+    let start = run_start.add_secs_f64(r.start_time_s);
+    RigMessage::Excitation(ExcitationState::from_excitation(
+        Header::new(start, frame),
+        r.step,
+        start,
+        &r.excitation,
+        driven,
+        r.len(),
+    ))
+}
+
+/// Sample `i` of a record, stamped at its time.
+pub fn record_sample(r: &Record, i: usize, run_start: Time, frame: &str) -> RigMessage {
+    let stamp = run_start.add_secs_f64(r.time_s(i));
+    RigMessage::Sample(RigSample::from_record(r, i, Header::new(stamp, frame)))
+}
+
+/// The IDLE state at the end of a run's `last` record (the step after it).
+pub fn idle_after(
+    last: Option<&Record>,
+    driven: Channel,
+    run_start: Time,
+    frame: &str,
+) -> RigMessage {
+    let end = last.map_or(run_start, |r| {
+        run_start.add_secs_f64(r.start_time_s + r.len() as f64 / r.sample_rate_hz)
+    });
+    let idle_step = last.map_or(0, |r| r.step + 1);
+    RigMessage::Excitation(ExcitationState::idle(
+        Header::new(end, frame),
+        idle_step,
+        end,
+        driven,
+    ))
 }
 
 #[cfg(test)]

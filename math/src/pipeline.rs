@@ -42,16 +42,27 @@ pub fn analyse_sine_steps(
         .iter()
         .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
     {
-        let an = analyse_record(r, options)?;
-        if !an.settled {
-            notes.push(format!(
-                "step {}: no settled part of {} periods found; phasors from the last periods anyway",
-                an.step, options.min_periods
-            ));
-        }
+        let (an, note) = analyse_sine_step(r, options)?;
+        notes.extend(note);
         out.push(an);
     }
     Ok((out, notes))
+}
+
+/// The harmonic analysis of one sine step and the note of [`analyse_sine_steps`] when it never
+/// settled (for records analysed as they arrive).
+pub fn analyse_sine_step(
+    record: &Record,
+    options: &PhasorOptions,
+) -> Result<(HarmonicAnalysis, Option<String>), PhasorError> {
+    let an = analyse_record(record, options)?;
+    let note = (!an.settled).then(|| {
+        format!(
+            "step {}: no settled part of {} periods found; phasors from the last periods anyway",
+            an.step, options.min_periods
+        )
+    });
+    Ok((an, note))
 }
 
 /// Analyses of the periodic multisine records (the default transient of one period).
@@ -91,7 +102,23 @@ pub fn identify_records_with_analyses(
     phasor_options: &PhasorOptions,
     fd_options: &FdMultiOptions,
 ) -> Result<(Identification, Vec<HarmonicAnalysis>), PipelineError> {
-    let (mut analyses, notes) = analyse_sine_steps(records, phasor_options)?;
+    let (analyses, notes) = analyse_sine_steps(records, phasor_options)?;
+    identify_analysed(model, setup, method, records, analyses, notes, fd_options)
+}
+
+/// [`identify_records_with_analyses`] with the sine steps already analysed (`analyses` and
+/// their `notes`, [`analyse_sine_step`] in record order): `records` need not hold the sine
+/// steps for the frequency-domain methods (fd, fd-multi); time-domain FSM and output error
+/// need them.
+pub fn identify_analysed(
+    model: &Model,
+    setup: &Setup,
+    method: Method,
+    records: &[Record],
+    mut analyses: Vec<HarmonicAnalysis>,
+    notes: Vec<String>,
+    fd_options: &FdMultiOptions,
+) -> Result<(Identification, Vec<HarmonicAnalysis>), PipelineError> {
     let sweeps = analyse_sweep_records(records)?;
     if let (Some(w), Method::OutputError) = (sweeps.first(), method) {
         return Err(PipelineError::Identify(identify::IdentifyError::Step {

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use anyhow::{Context, anyhow};
 use forcemap_math::identify::{Identification, Method, rebuilt_cycle};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
-use forcemap_math::phasor::{IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
+use forcemap_math::phasor::{HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
 use forcemap_math::recipe::Setup;
 use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind, Tracking};
@@ -56,17 +56,66 @@ pub fn recipe(
         model,
         method: method(args)?,
         weighting: args.weighting,
-        phasor: PhasorOptions {
-            max_harmonic: args.max_harmonic.unwrap_or(IDENTIFICATION_MAX_HARMONIC),
-            ..PhasorOptions::for_identification()
-        },
+        phasor: phasor_options(args),
         tracking: Tracking::from_factor(args.forgetting_per_step)?,
     })
 }
 
+/// The phasor options of `forcemap identify`.
+fn phasor_options(args: &IdentifyArgs) -> PhasorOptions {
+    PhasorOptions {
+        max_harmonic: args.max_harmonic.unwrap_or(IDENTIFICATION_MAX_HARMONIC),
+        ..PhasorOptions::for_identification()
+    }
+}
+
+/// The sine steps of a bag analysed as they are read (`Err`: the first analysis that failed).
+type Streamed = Result<(Vec<HarmonicAnalysis>, Vec<String>), pipeline::PipelineError>;
+
+/// Reads `args.file`. A rig's or drive-point bag identified by fd or fd-multi, converged and
+/// without plots, is streamed: each sine step is analysed into its phasors as soon as it is
+/// complete and dropped, so that memory does not grow with the bag (the other records are
+/// kept, for validation); the analyses are returned with it.
+fn load(args: &IdentifyArgs) -> anyhow::Result<(forcemap_io::input::Loaded, Option<Streamed>)> {
+    let streams = forcemap_io::input::is_bag(&args.file)
+        && args.channels.is_none()
+        && args.plot.is_none()
+        && matches!(method(args)?, Method::Fd | Method::FdMulti)
+        && Tracking::from_factor(args.forgetting_per_step)? == Tracking::Converged;
+    if !streams {
+        let import = forcemap_io::input::load_mapped(&args.file, args.channels.as_deref())?;
+        return Ok((import, None));
+    }
+    let phasor = phasor_options(args);
+    let mut streamed: Streamed = Ok((Vec::new(), Vec::new()));
+    // An element test's outputs need its sine steps' samples: kept whole.
+    let mut element = false;
+    let import = forcemap_io::input::load_bag_reduced(&args.file, |kind, r| {
+        element = kind == SetupKind::Element;
+        let Ok((analyses, notes)) = &mut streamed else {
+            return Some(r);
+        };
+        if element || !matches!(r.excitation, Excitation::Sine { .. }) {
+            return Some(r);
+        }
+        match pipeline::analyse_sine_step(&r, &phasor) {
+            Ok((an, note)) => {
+                analyses.push(an);
+                notes.extend(note);
+                None
+            }
+            Err(e) => {
+                streamed = Err(e.into());
+                Some(r)
+            }
+        }
+    })?;
+    Ok((import, (!element).then_some(streamed)))
+}
+
 pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     let file = args.file.display().to_string();
-    let import = forcemap_io::input::load_mapped(&args.file, args.channels.as_deref())?;
+    let (import, mut streamed) = load(args)?;
     if !import.ignored_columns.is_empty() {
         eprintln!(
             "notice: {file}: ignored columns not in the contract: {}",
@@ -88,14 +137,27 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     // current one. Converged: one theta from every step.
     let (id, track, analyses) = match recipe.tracking {
         Tracking::Converged => {
-            let (id, analyses) = pipeline::identify_records_with_analyses(
-                &model,
-                &setup,
-                method,
-                &import.records,
-                &recipe.phasor,
-                &recipe.fd_options(),
-            )
+            let (id, analyses) = match streamed.take() {
+                Some(analysed) => analysed.and_then(|(analyses, notes)| {
+                    pipeline::identify_analysed(
+                        &model,
+                        &setup,
+                        method,
+                        &import.records,
+                        analyses,
+                        notes,
+                        &recipe.fd_options(),
+                    )
+                }),
+                None => pipeline::identify_records_with_analyses(
+                    &model,
+                    &setup,
+                    method,
+                    &import.records,
+                    &recipe.phasor,
+                    &recipe.fd_options(),
+                ),
+            }
             .with_context(what)?;
             (id, Vec::new(), analyses)
         }

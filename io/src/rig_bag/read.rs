@@ -222,6 +222,17 @@ impl RigBagReader {
     /// state logged after its step's first samples still applies), assembled from the
     /// samples by the one [`StepAssembler`].
     pub fn records(&self) -> Result<RigBag, RigBagError> {
+        self.records_reduced(Some)
+    }
+
+    /// [`records`](Self::records) with each record handed to `keep` as soon as its step is
+    /// complete: what `keep` returns is kept (None: consumed, e.g. analysed into phasors), so
+    /// that a long bag is read in memory of one step and what is kept. `records` of the
+    /// result holds the kept records.
+    pub fn records_reduced(
+        &self,
+        mut keep: impl FnMut(Record) -> Option<Record>,
+    ) -> Result<RigBag, RigBagError> {
         let p = &self.path;
         let samples_topic = self.required(RigTopic::Samples)?.to_string();
         let excitation_topic = self.required(RigTopic::Excitation)?.to_string();
@@ -261,6 +272,11 @@ impl RigBagReader {
             assembler.set_origin(t);
         }
         let mut records: Vec<Record> = Vec::new();
+        let mut complete = 0usize;
+        let mut take = |r: Record| {
+            complete += 1;
+            records.extend(keep(r));
+        };
         let step_err = |e: StepError| RigBagError::Step {
             path: p.clone(),
             step: e.step,
@@ -271,20 +287,20 @@ impl RigBagReader {
                 continue;
             };
             for done in assembler.push(&s, plans.get(&s.step)) {
-                records.push(done.map_err(step_err)?);
+                take(done.map_err(step_err)?);
             }
         }
         let mut left_out = None;
         match assembler.finish() {
-            Some(Ok(r)) => records.push(r),
+            Some(Ok(r)) => take(r),
             // The recording stopped in the middle of the last step: keep the complete ones.
-            Some(Err(e)) if e.truncated && !records.is_empty() => {
+            Some(Err(e)) if e.truncated && complete > 0 => {
                 left_out = Some(format!("step {} left out: {}", e.step, e.problem));
             }
             Some(Err(e)) => return Err(step_err(e)),
             None => {}
         }
-        if records.is_empty() {
+        if complete == 0 {
             return Err(RigBagError::Empty {
                 path: p.clone(),
                 topic: samples_topic,
@@ -368,4 +384,29 @@ impl RigBagReader {
 /// The rig messages of a bag, as [`RigBagReader::playback`].
 pub fn read_rig_messages(path: &Path) -> Result<Vec<RigMessage>, RigBagError> {
     RigBagReader::open(path)?.playback()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Records handed out as they complete are today's records, in order; those kept are kept.
+    #[test]
+    fn reduced_records_are_the_records_one_at_a_time() {
+        let bag = Path::new(env!("CARGO_MANIFEST_DIR")).join("../bags/rig_40db");
+        let reader = RigBagReader::open(&bag).unwrap();
+        let whole = reader.records().unwrap();
+        let mut seen = Vec::new();
+        let kept = reader
+            .records_reduced(|r| {
+                seen.push(r.clone());
+                (r.step % 2 == 1).then_some(r)
+            })
+            .unwrap();
+        assert_eq!(whole.records.len(), 12);
+        assert!(format!("{seen:?}") == format!("{:?}", whole.records));
+        let odd: Vec<&Record> = whole.records.iter().filter(|r| r.step % 2 == 1).collect();
+        assert!(format!("{:?}", kept.records.iter().collect::<Vec<_>>()) == format!("{odd:?}"));
+        assert_eq!(kept.parameters, whole.parameters);
+    }
 }

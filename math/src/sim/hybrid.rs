@@ -385,42 +385,59 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         breaks: &[f64],
         mut on_sample: impl FnMut(usize, f64, f64, &[f64], Mode),
     ) -> Result<RunStats, SimError> {
-        // Nodes: (time, sample index, is input breakpoint).
-        let mut nodes: Vec<(f64, Option<usize>, bool)> = (0..samples)
-            .map(|i| (i as f64 / sample_rate_hz, Some(i), false))
-            .collect();
-        let t_end = (samples.max(1) - 1) as f64 / sample_rate_hz;
-        for &b in breaks {
-            if b <= 0.0 || b > t_end {
-                continue;
-            }
-            let i = (b * sample_rate_hz).round() as usize;
-            if i < samples && (nodes[i].0 - b).abs() <= 1e-12 * b.max(1.0) {
-                nodes[i].2 = true;
-            } else {
-                nodes.push((b, None, true));
-            }
-        }
-        nodes.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut stats = RunStats {
             stick_time_s: vec![0.0; samples],
             events: vec![0; samples],
         };
+        self.run_streamed(
+            y,
+            samples,
+            sample_rate_hz,
+            breaks,
+            |i, t, t_ref, y, mode| {
+                on_sample(i, t, t_ref, y, mode);
+                true
+            },
+            |i, stuck_s, events| {
+                stats.stick_time_s[i] += stuck_s;
+                stats.events[i] += events;
+            },
+        )?;
+        Ok(stats)
+    }
+
+    /// [`run`](Self::run) in memory independent of the run's length: the nodes are generated
+    /// as the integration reaches them, each sub-step's stuck time and events go to
+    /// `on_substep(sample interval, stuck_s, events)`, and `on_sample` returning false stops
+    /// the run there (Ok).
+    pub fn run_streamed(
+        &mut self,
+        y: &mut [f64],
+        samples: usize,
+        sample_rate_hz: f64,
+        breaks: &[f64],
+        mut on_sample: impl FnMut(usize, f64, f64, &[f64], Mode) -> bool,
+        mut on_substep: impl FnMut(usize, f64, usize),
+    ) -> Result<(), SimError> {
+        let mut nodes = Nodes::new(samples, sample_rate_hz, breaks).peekable();
         let mut mode = Mode::Free;
         let mut current = 0usize;
-        for j in 0..nodes.len() {
-            let (t, sample, is_break) = nodes[j];
-            let t_next = nodes.get(j + 1).map(|n| n.0);
+        let mut first = true;
+        while let Some((t, sample, is_break)) = nodes.next() {
+            let t_next = nodes.peek().map(|n| n.0);
             let t_ref = t_next.map_or(t, |tn| 0.5 * (t + tn));
-            if is_break && j > 0 {
+            if is_break && !first {
                 self.sys.jump(t, y);
             }
-            if j == 0 || is_break {
+            if first || is_break {
                 mode = self.consistent(t, t_ref, y, mode);
             }
+            first = false;
             if let Some(i) = sample {
                 current = i;
-                on_sample(i, t, t_ref, y, mode);
+                if !on_sample(i, t, t_ref, y, mode) {
+                    return Ok(());
+                }
             }
             let Some(tn) = t_next else { break };
             if let Some(next) = self.exact_interval(t, tn, t_ref, y, mode) {
@@ -441,13 +458,94 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
                     t + (s + 1) as f64 * h
                 };
                 let (st, ev) = self.advance(a, b, t_ref, y, &mut mode)?;
-                stats.stick_time_s[current] += st;
-                stats.events[current] += ev;
+                on_substep(current, st, ev);
             }
             if y.iter().any(|v| !v.is_finite()) {
                 return Err(SimError::NonFinite { time_s: tn });
             }
         }
-        Ok(stats)
+        Ok(())
+    }
+}
+
+/// The integration nodes of a run, (time, sample index, is input breakpoint), in time order:
+/// the samples `i / sample_rate_hz`, a breakpoint within 1e-12 (relative) of a sample marking
+/// it, the others merged in (after a sample of the same time, in their given order when
+/// equal). Generated one at a time, so a run of any length needs memory only for its
+/// breakpoints.
+struct Nodes {
+    samples: usize,
+    sample_rate_hz: f64,
+    /// Samples that are breakpoints, ascending.
+    marked: Vec<usize>,
+    /// Breakpoints between samples, ascending (stable).
+    between: Vec<f64>,
+    next_sample: usize,
+    next_marked: usize,
+    next_between: usize,
+}
+
+impl Nodes {
+    fn new(samples: usize, sample_rate_hz: f64, breaks: &[f64]) -> Nodes {
+        let t_end = (samples.max(1) - 1) as f64 / sample_rate_hz;
+        let mut marked = Vec::new();
+        let mut between = Vec::new();
+        for &b in breaks {
+            if b <= 0.0 || b > t_end {
+                continue;
+            }
+            let i = (b * sample_rate_hz).round() as usize;
+            if i < samples && (i as f64 / sample_rate_hz - b).abs() <= 1e-12 * b.max(1.0) {
+                marked.push(i);
+            } else {
+                between.push(b);
+            }
+        }
+        marked.sort_unstable();
+        marked.dedup();
+        between.sort_by(f64::total_cmp);
+        Nodes {
+            samples,
+            sample_rate_hz,
+            marked,
+            between,
+            next_sample: 0,
+            next_marked: 0,
+            next_between: 0,
+        }
+    }
+}
+
+impl Iterator for Nodes {
+    type Item = (f64, Option<usize>, bool);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let sample = (self.next_sample < self.samples)
+            .then(|| self.next_sample as f64 / self.sample_rate_hz);
+        let between = self.between.get(self.next_between).copied();
+        match (sample, between) {
+            (Some(ts), Some(tb)) if tb.total_cmp(&ts).is_lt() => {
+                self.next_between += 1;
+                Some((tb, None, true))
+            }
+            (Some(ts), _) => self.take_sample(ts),
+            (None, Some(tb)) => {
+                self.next_between += 1;
+                Some((tb, None, true))
+            }
+            (None, None) => None,
+        }
+    }
+}
+
+impl Nodes {
+    fn take_sample(&mut self, t: f64) -> Option<(f64, Option<usize>, bool)> {
+        let i = self.next_sample;
+        self.next_sample += 1;
+        let marked = self.marked.get(self.next_marked) == Some(&i);
+        if marked {
+            self.next_marked += 1;
+        }
+        Some((t, Some(i), marked))
     }
 }

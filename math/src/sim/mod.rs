@@ -17,6 +17,7 @@ pub mod periodic_multisine;
 pub mod rig;
 pub mod run;
 mod spline;
+mod stream;
 pub mod three_dof;
 pub mod truth;
 

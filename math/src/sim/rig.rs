@@ -285,7 +285,7 @@ impl Hybrid for RigSystem<'_> {
 
 /// Core of the rig simulators: returns the samples of every channel over the whole run
 /// (raw or filtered) and the per-sample trace.
-struct RigSetup<'a> {
+pub(crate) struct RigSetup<'a> {
     element: &'a dyn Element,
     mass_kg: f64,
     base_meas: PiecewiseSignal,
@@ -299,6 +299,38 @@ struct RigSetup<'a> {
 type RigRunOut = (Vec<[f64; 5]>, Vec<SampleTrace>, RunStats);
 
 fn run_rig(setup: RigSetup<'_>, solver: &SolverOptions) -> Result<RigRunOut, SimError> {
+    let samples = setup.samples;
+    let mut out = vec![[0.0; 5]; samples];
+    let mut trace = vec![SampleTrace::default(); samples];
+    let mut stats = RunStats {
+        stick_time_s: vec![0.0; samples],
+        events: vec![0; samples],
+    };
+    run_rig_streamed(
+        setup,
+        solver,
+        |i, channels, t| {
+            out[i] = channels;
+            trace[i] = t;
+            true
+        },
+        |i, stuck_s, events| {
+            stats.stick_time_s[i] += stuck_s;
+            stats.events[i] += events;
+        },
+    )?;
+    Ok((out, trace, stats))
+}
+
+/// [`run_rig`] sample by sample, in memory independent of the run's length:
+/// `on_sample(i, channels, trace)` takes each sample (false stops the run) and
+/// `on_substep(i, stuck_s, events)` the statistics of sample interval `i`.
+pub(crate) fn run_rig_streamed(
+    setup: RigSetup<'_>,
+    solver: &SolverOptions,
+    mut on_sample: impl FnMut(usize, [f64; 5], SampleTrace) -> bool,
+    on_substep: impl FnMut(usize, f64, usize),
+) -> Result<(), SimError> {
     let RigSetup {
         element,
         mass_kg,
@@ -351,17 +383,15 @@ fn run_rig(setup: RigSetup<'_>, solver: &SolverOptions) -> Result<RigRunOut, Sim
     }
     let mut breaks = sys.base_meas.breakpoints();
     breaks.extend(sys.base_true.breakpoints());
-    let mut out = vec![[0.0; 5]; samples];
-    let mut trace = vec![SampleTrace::default(); samples];
     let mut integ = Integrator::new(&sys, *solver);
-    let stats = integ.run(
+    integ.run_streamed(
         &mut y,
         samples,
         sample_rate_hz,
         &breaks,
         |i, t, t_ref, y, mode| {
             let (channels, friction_force_n) = sys.channels(t, t_ref, y, mode);
-            out[i] = match sys.omega_c {
+            let out = match sys.omega_c {
                 Some(_) => {
                     let mut c = [0.0; 5];
                     c.copy_from_slice(&y[2 + nz..2 + nz + 5]);
@@ -369,14 +399,15 @@ fn run_rig(setup: RigSetup<'_>, solver: &SolverOptions) -> Result<RigRunOut, Sim
                 }
                 None => channels,
             };
-            trace[i] = SampleTrace {
+            let trace = SampleTrace {
                 relative_velocity_mps: y[1],
                 stuck: mode == Mode::Stick,
                 friction_force_n,
             };
+            on_sample(i, out, trace)
         },
-    )?;
-    Ok((out, trace, stats))
+        on_substep,
+    )
 }
 
 /// Simulates the rig under a base-displacement program (the measured base channel) with
@@ -390,19 +421,29 @@ pub fn simulate_rig(
     init: RigInitial,
     solver: &SolverOptions,
 ) -> Result<SimOutput, SimError> {
-    let n = program.total_samples();
-    let setup = RigSetup {
+    let setup = program_setup(element, nominal_mass_kg, program, effects, init);
+    let (out, trace, stats) = run_rig(setup, solver)?;
+    Ok(split_records(program, &RIG_CHANNELS, &out, trace, &stats))
+}
+
+/// The rig of [`simulate_rig`] under `program`.
+pub(crate) fn program_setup<'a>(
+    element: &'a dyn Element,
+    nominal_mass_kg: f64,
+    program: &Program,
+    effects: &RigEffects,
+    init: RigInitial,
+) -> RigSetup<'a> {
+    RigSetup {
         element,
         mass_kg: nominal_mass_kg * effects.mass_factor,
         base_meas: program.signal.clone(),
         delay_s: effects.exciter_delay_s,
         lowpass_hz: effects.sensor_lowpass_hz,
-        samples: n,
+        samples: program.total_samples(),
         sample_rate_hz: program.sample_rate_hz,
         init,
-    };
-    let (out, trace, stats) = run_rig(setup, solver)?;
-    Ok(split_records(program, &RIG_CHANNELS, &out, trace, &stats))
+    }
 }
 
 /// Cuts run-long samples into the program's records.

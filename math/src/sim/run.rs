@@ -22,7 +22,7 @@ use crate::recipe::SetupKind;
 use crate::record::{Channel, Record};
 
 /// Noise stream number derived from the run seed.
-const NOISE_STREAM: u64 = 1;
+pub(crate) const NOISE_STREAM: u64 = 1;
 
 /// The paper's 3-DOF cases (the force amplitudes of the five steps at 5 Hz).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

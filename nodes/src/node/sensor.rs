@@ -34,7 +34,8 @@ use crate::ros::{NodeSetup, RosNode, publish_blocking, qos};
 use forcemap_io::params::Params;
 use forcemap_io::rig_bag::{RigBagReader, RigTopic};
 use forcemap_io::rig_messages::{
-    RigMessage, SIMULATED_CONSTANTS_MESSAGE, constants_status, rig_messages,
+    RigMessage, SIMULATED_CONSTANTS_MESSAGE, constants_status, idle_after, record_sample,
+    record_state,
 };
 use forcemap_io::topics;
 
@@ -103,29 +104,31 @@ pub trait SampleSource: Send {
     ) -> Box<dyn Iterator<Item = anyhow::Result<RigMessage>> + Send>;
 }
 
-/// The simulated run of a [`RunSpec`], stamped from the moment it is published.
+/// The simulated run of a [`RunSpec`], stamped from the moment it is published, simulated
+/// record by record while it is published (a simulator thread a bounded queue of records
+/// ahead of the publisher), so that memory stays flat however long the run: the records of the
+/// whole-run simulation bit for bit ([`RunSpec::simulate_streamed`]).
 pub struct SimulatedRun {
-    records: Vec<Record>,
+    spec: RunSpec,
+    samples: usize,
     driven: Channel,
     constants: DiagnosticStatus,
     frame: String,
 }
 
+/// Records the simulator thread may be ahead of the publisher.
+const SIMULATION_QUEUE: usize = 1;
+
 impl SimulatedRun {
-    /// Simulates `spec` (the whole run, before publishing: see the performance issue).
+    /// Checks `spec` (bad input fails here, before the network); the simulation runs while
+    /// the messages are taken.
     pub fn new(spec: &RunSpec, node_name: &str, frame: &str) -> anyhow::Result<SimulatedRun> {
-        let t0 = Instant::now();
-        let records = spec
-            .simulate()
-            .with_context(|| format!("simulating {}", spec.system.description()))?;
-        log_line!(
-            "simulated {} steps ({} samples) in {:.2} s",
-            records.len(),
-            records.iter().map(Record::len).sum::<usize>(),
-            t0.elapsed().as_secs_f64()
-        );
+        if spec.samples_per_record == 0 || spec.steps.is_empty() {
+            bail!("{} needs steps and samples", spec.system.description());
+        }
         Ok(SimulatedRun {
-            records,
+            spec: spec.clone(),
+            samples: spec.program().total_samples(),
             driven: spec.driven_channel(),
             constants: constants_status(SIMULATED_CONSTANTS_MESSAGE, node_name, &spec.constants()),
             frame: frame.to_string(),
@@ -135,23 +138,71 @@ impl SimulatedRun {
 
 impl SampleSource for SimulatedRun {
     fn sample_count(&self) -> usize {
-        self.records.iter().map(Record::len).sum()
+        self.samples
     }
 
     fn messages(
         self: Box<Self>,
         run_start: Time,
     ) -> Box<dyn Iterator<Item = anyhow::Result<RigMessage>> + Send> {
-        let this = *self;
-        let messages: Vec<RigMessage> = rig_messages(
-            &this.records,
-            this.driven,
-            Some(this.constants),
-            run_start,
-            &this.frame,
-        )
-        .collect();
-        Box::new(messages.into_iter().map(Ok))
+        let SimulatedRun {
+            spec,
+            driven,
+            constants,
+            frame,
+            ..
+        } = *self;
+        let (tx, rx) = std::sync::mpsc::sync_channel(SIMULATION_QUEUE);
+        std::thread::spawn(move || {
+            let t0 = Instant::now();
+            let result = spec.simulate_streamed(|r| tx.send(Ok(r)).is_ok());
+            match result {
+                Ok(()) => log_line!(
+                    "simulated {} ({} steps) in {:.2} s",
+                    spec.system.description(),
+                    spec.steps.len(),
+                    t0.elapsed().as_secs_f64()
+                ),
+                // The publisher stops at the error and exits with it.
+                Err(e) => {
+                    let _ = tx.send(Err(anyhow::Error::new(e)
+                        .context(format!("simulating {}", spec.system.description()))));
+                }
+            }
+        });
+        // Each record's state then its samples, the IDLE state after the last record.
+        let mut records = rx.into_iter();
+        let mut current: Option<(Record, usize)> = None;
+        let mut last: Option<Record> = None;
+        let mut done = false;
+        let stream = std::iter::from_fn(move || {
+            if let Some((r, i)) = &mut current {
+                if *i < r.len() {
+                    *i += 1;
+                    return Some(Ok(record_sample(r, *i - 1, run_start, &frame)));
+                }
+                last = current.take().map(|(r, _)| r);
+            }
+            if done {
+                return None;
+            }
+            match records.next() {
+                Some(Ok(r)) => {
+                    let state = record_state(&r, driven, run_start, &frame);
+                    current = Some((r, 0));
+                    Some(Ok(state))
+                }
+                Some(Err(e)) => {
+                    done = true;
+                    Some(Err(e))
+                }
+                None => {
+                    done = true;
+                    Some(Ok(idle_after(last.as_ref(), driven, run_start, &frame)))
+                }
+            }
+        });
+        Box::new(std::iter::once(Ok(RigMessage::Parameters(constants))).chain(stream))
     }
 }
 
@@ -413,6 +464,60 @@ mod tests {
         let spec = run_spec(&p).unwrap();
         assert_eq!(spec, RunSpec::three_dof(ThreeDofCase::Ii, Some(40.0), 1));
         assert_eq!(spec.driven_channel(), Channel::ForceN);
+    }
+
+    /// The sensor's messages of the default run (simulated while published) are those of the
+    /// whole-run simulation, and its samples those of the committed bag of the same run
+    /// (`bags/rig_40db`, written by the simulator before it streamed) bit for bit.
+    #[test]
+    fn the_streamed_simulated_run_is_the_whole_run_and_the_committed_bag() {
+        use forcemap_io::rig_bag::{DEFAULT_RUN_START, read_rig_messages};
+        use forcemap_io::rig_messages::rig_messages;
+        use forcemap_msgs::RosMessage as _;
+        let spec = run_spec(&Params::new()).unwrap();
+        let run = SimulatedRun::new(&spec, "/rig/sensor", "rig").unwrap();
+        assert_eq!(run.sample_count(), 12 * 1300);
+        let constants = run.constants.clone();
+        let streamed: Vec<RigMessage> = Box::new(run)
+            .messages(DEFAULT_RUN_START)
+            .map(Result::unwrap)
+            .collect();
+        let whole = spec.simulate().unwrap();
+        let expected: Vec<RigMessage> = rig_messages(
+            &whole,
+            spec.driven_channel(),
+            Some(constants),
+            DEFAULT_RUN_START,
+            "rig",
+        )
+        .collect();
+        // Compared as their CDR bytes (a channel the rig lacks is NaN, which is not == NaN).
+        let cdr = |m: &[RigMessage]| -> Vec<Vec<u8>> {
+            m.iter()
+                .map(|m| match m {
+                    RigMessage::Sample(s) => s.to_cdr(),
+                    RigMessage::Excitation(e) => e.to_cdr(),
+                    RigMessage::Parameters(p) => p.to_cdr(),
+                })
+                .collect()
+        };
+        assert!(cdr(&streamed) == cdr(&expected), "streamed messages differ");
+
+        let bag = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../bags/rig_40db");
+        let samples = |m: &[RigMessage]| -> Vec<Vec<u8>> {
+            m.iter()
+                .filter_map(|m| match m {
+                    RigMessage::Sample(s) => Some(s.to_cdr()),
+                    _ => None,
+                })
+                .collect()
+        };
+        let committed = samples(&read_rig_messages(&bag).unwrap());
+        assert_eq!(committed.len(), 12 * 1300);
+        assert!(
+            samples(&streamed) == committed,
+            "samples differ from the committed bag"
+        );
     }
 
     #[test]

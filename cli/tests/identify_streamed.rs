@@ -1,0 +1,44 @@
+//! `forcemap identify BAG` streams a bag (each sine step analysed into phasors as soon as it is
+//! complete, its samples dropped) when it identifies by fd or fd-multi, converged and without
+//! plots; with `--plot` it reads the bag whole. Both give the same output bit for bit on the
+//! committed bags (the element test is read whole either way: its outputs need the samples).
+#![allow(clippy::unwrap_used, reason = "tests")]
+
+mod common;
+
+use std::path::Path;
+
+use common::forcemap;
+
+fn identify_json(args: &[&str]) -> String {
+    let o = forcemap(args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8(o.stdout).unwrap()
+}
+
+#[test]
+fn a_streamed_bag_identifies_as_the_whole_bag_bit_for_bit() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let three_dof = root.join("launch_configs/three_dof.params.yaml");
+    let three_dof = three_dof.to_str().unwrap();
+    let plots = tempfile::tempdir().unwrap();
+    let plots = plots.path().to_str().unwrap();
+    for (bag, extra) in [
+        ("rig_40db", vec!["--model", "coulomb"]),
+        ("rig_40db", vec!["--model", "coulomb", "--method", "fd"]),
+        (
+            "three_dof_case_i",
+            vec!["--model", "coulomb-cubic", "--params", three_dof],
+        ),
+        ("damper_dyno_40db", vec!["--model", "damper"]),
+    ] {
+        let bag = root.join("bags").join(bag);
+        let mut args = vec!["identify", bag.to_str().unwrap(), "--json"];
+        args.extend_from_slice(&extra);
+        let streamed = identify_json(&args);
+        args.extend_from_slice(&["--plot", plots]);
+        let whole = identify_json(&args);
+        assert!(!streamed.is_empty());
+        assert_eq!(streamed, whole, "{}", bag.display());
+    }
+}
