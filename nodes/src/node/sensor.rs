@@ -89,8 +89,8 @@ fn run_spec(p: &Params) -> anyhow::Result<RunSpec> {
 
 /// The messages of a bag (its samples, excitation and rig-constants topics, recognised by
 /// their last name component), in log-time order, ending with IDLE if the bag has none.
-/// Where the sensor's messages come from: the simulated rig or a bag (a live source of foreign
-/// topics is the next kind). A source is prepared before the node touches the network, so bad
+/// Where the sensor's messages come from: the simulated rig or a bag (foreign topics arrive
+/// through the `foreign` node instead, which does not pace them). A source is prepared before the node touches the network, so bad
 /// input fails fast; its messages are taken once the subscribers listen.
 pub trait SampleSource: Send {
     /// How many samples the run publishes (for progress).
