@@ -267,6 +267,8 @@ impl HarmonicPhasors {
                         .collect(),
                     noise_std: self.noise_std[r].to_vec(),
                     residual_rms: self.residual_rms[c],
+                    // The message carries settled steps' phasors, which do not change.
+                    rate_per_s: Vec::new(),
                 })
             })
             .collect::<Result<Vec<_>, ConversionError>>()?;
@@ -283,6 +285,7 @@ impl HarmonicPhasors {
             harmonics: orders - 1,
             harmonic_cap: self.harmonic_cap as usize,
             channels,
+            frequency_rate_hz_per_s: 0.0,
         })
     }
 }
