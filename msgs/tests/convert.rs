@@ -380,7 +380,12 @@ fn a_multisine_excitation_travels_as_random_over_its_lines() {
 fn a_sweep_excitation_travels_with_its_law() {
     for (kind, code, start, end) in [
         (SweepKind::Linear, ExcitationState::SWEEP_LINEAR, 1.6, 3.4),
-        (SweepKind::Logarithmic, ExcitationState::SWEEP_LOG, 25.0, 8.0),
+        (
+            SweepKind::Logarithmic,
+            ExcitationState::SWEEP_LOG,
+            25.0,
+            8.0,
+        ),
     ] {
         let law = SweepLaw {
             kind,
