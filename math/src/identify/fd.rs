@@ -67,7 +67,6 @@ pub fn element_harmonics(
     let (force, force_noise) = match setup {
         Setup::BaseExcited { mass_kg } => {
             let m = *mass_kg;
-            // Mass displacement: measured, or base + relative.
             // Mass displacement (its phasors, their rates, noise): measured, or base + relative.
             type Disp = (Vec<Complex64>, Vec<Complex64>, Vec<f64>);
             let disp: Option<Disp> = if let Some(xo) = an.channel(Channel::MassDisplacementM) {
