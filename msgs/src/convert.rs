@@ -1,7 +1,7 @@
 //! Conversions between the messages and the `forcemap_math` types.
 
 use forcemap_math::identify::{Identification, Parameter};
-use forcemap_math::phasor::{ChannelPhasors, HarmonicAnalysis};
+use forcemap_math::phasor::{ChannelPhasors, HarmonicAnalysis, SweepKind, SweepLaw};
 use forcemap_math::record::{Channel, Excitation, Record};
 use num_complex::Complex64;
 
@@ -17,7 +17,7 @@ pub enum ConversionError {
     )]
     UnknownChannel { message: &'static str, name: String },
     #[error(
-        "ExcitationState: kind {0} is not an excitation (expected SINE=0 or RANDOM=1; IDLE=2 means none)"
+        "ExcitationState: kind {0} is not an excitation (expected SINE=0, RANDOM=1, SWEEP_LINEAR=3 or SWEEP_LOG=4; IDLE=2 means none)"
     )]
     UnknownKind(u8),
     #[error("{message}: {field} has {actual} entries, expected {expected}")]
@@ -100,17 +100,15 @@ impl ExcitationState {
                 };
                 (Self::RANDOM, 0.0, *rms, band)
             }
-            // No sweep kind either: a sweep travels as a random record over its band, with
-            // the RMS of a sine of its amplitude.
-            Excitation::Sweep { law } => {
-                let (a, b) = (law.start_frequency_hz, law.end_frequency_hz);
-                (
-                    Self::RANDOM,
-                    0.0,
-                    law.amplitude / 2f64.sqrt(),
-                    [a.min(b), a.max(b)],
-                )
-            }
+            Excitation::Sweep { law } => (
+                match law.kind {
+                    SweepKind::Linear => Self::SWEEP_LINEAR,
+                    SweepKind::Logarithmic => Self::SWEEP_LOG,
+                },
+                0.0,
+                law.amplitude,
+                [law.start_frequency_hz, law.end_frequency_hz],
+            ),
         };
         ExcitationState {
             header,
@@ -157,6 +155,21 @@ impl ExcitationState {
                 band_hz: (!self.band_low_hz.is_nan() && !self.band_high_hz.is_nan())
                     .then_some([self.band_low_hz, self.band_high_hz]),
                 rms: self.amplitude,
+            }),
+            Self::SWEEP_LINEAR | Self::SWEEP_LOG => Ok(Excitation::Sweep {
+                law: SweepLaw {
+                    kind: if self.kind == Self::SWEEP_LINEAR {
+                        SweepKind::Linear
+                    } else {
+                        SweepKind::Logarithmic
+                    },
+                    amplitude: self.amplitude,
+                    start_frequency_hz: self.band_low_hz,
+                    end_frequency_hz: self.band_high_hz,
+                    // The sweep lasts its step, whose length the message may not know: the
+                    // step's assembler sets it from the samples (`io::steps`).
+                    duration_s: f64::NAN,
+                },
             }),
             k => Err(ConversionError::UnknownKind(k)),
         }
@@ -267,6 +280,8 @@ impl HarmonicPhasors {
                         .collect(),
                     noise_std: self.noise_std[r].to_vec(),
                     residual_rms: self.residual_rms[c],
+                    // The message carries settled steps' phasors, which do not change.
+                    rate_per_s: Vec::new(),
                 })
             })
             .collect::<Result<Vec<_>, ConversionError>>()?;
@@ -283,6 +298,7 @@ impl HarmonicPhasors {
             harmonics: orders - 1,
             harmonic_cap: self.harmonic_cap as usize,
             channels,
+            frequency_rate_hz_per_s: 0.0,
         })
     }
 }

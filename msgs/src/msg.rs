@@ -191,6 +191,8 @@ impl ExcitationState {
     pub const SINE: u8 = 0;
     pub const RANDOM: u8 = 1;
     pub const IDLE: u8 = 2;
+    pub const SWEEP_LINEAR: u8 = 3;
+    pub const SWEEP_LOG: u8 = 4;
 }
 
 /// `forcemap_msgs/msg/HarmonicPhasors`: phasors of one settled step. The arrays

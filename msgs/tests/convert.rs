@@ -3,7 +3,7 @@
 mod common;
 
 use forcemap_math::identify::{Identification, Parameter};
-use forcemap_math::phasor::{PhasorOptions, analyse_record};
+use forcemap_math::phasor::{PhasorOptions, SweepKind, SweepLaw, analyse_record};
 use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, IdentifiedParameters, RigSample};
@@ -371,4 +371,51 @@ fn a_multisine_excitation_travels_as_random_over_its_lines() {
             rms: 60.0,
         }
     );
+}
+
+/// A sweep travels with its own kind, its start and end frequency in the band fields (a
+/// downward sweep too) and its peak amplitude; its duration is the step's, set by the
+/// assembler from the samples, so the message gives NaN.
+#[test]
+fn a_sweep_excitation_travels_with_its_law() {
+    for (kind, code, start, end) in [
+        (SweepKind::Linear, ExcitationState::SWEEP_LINEAR, 1.6, 3.4),
+        (
+            SweepKind::Logarithmic,
+            ExcitationState::SWEEP_LOG,
+            25.0,
+            8.0,
+        ),
+    ] {
+        let law = SweepLaw {
+            kind,
+            amplitude: 6e-3,
+            start_frequency_hz: start,
+            end_frequency_hz: end,
+            duration_s: 130.0,
+        };
+        let m = ExcitationState::from_excitation(
+            Header::default(),
+            0,
+            Time::ZERO,
+            &Excitation::Sweep { law },
+            Channel::BaseDisplacementM,
+            260_000,
+        );
+        assert_eq!(m.kind, code);
+        assert_eq!((m.band_low_hz, m.band_high_hz), (start, end));
+        assert_eq!((m.frequency_hz, m.amplitude), (0.0, 6e-3));
+        let back = ExcitationState::from_cdr(&m.to_cdr()).unwrap();
+        let Excitation::Sweep { law: got } = back.excitation().unwrap() else {
+            panic!("{back:?} is not a sweep");
+        };
+        assert!(got.duration_s.is_nan());
+        assert_eq!(
+            SweepLaw {
+                duration_s: 130.0,
+                ..got
+            },
+            law
+        );
+    }
 }

@@ -184,6 +184,8 @@ fn write_cases(dir: &Path) {
                 "SINE": ExcitationState::SINE,
                 "RANDOM": ExcitationState::RANDOM,
                 "IDLE": ExcitationState::IDLE,
+                "SWEEP_LINEAR": ExcitationState::SWEEP_LINEAR,
+                "SWEEP_LOG": ExcitationState::SWEEP_LOG,
             },
             "diagnostic_msgs/msg/DiagnosticStatus": {
                 "OK": DiagnosticStatus::OK,

@@ -20,11 +20,29 @@ fn steps(reader: &BagReader) -> anyhow::Result<Vec<ExcitationState>> {
     Ok(out)
 }
 
+/// The name of an excitation kind in `bag info`.
+fn kind_name(kind: u8) -> &'static str {
+    match kind {
+        ExcitationState::SINE => "sine",
+        ExcitationState::SWEEP_LINEAR => "sweep_linear",
+        ExcitationState::SWEEP_LOG => "sweep_log",
+        _ => "random",
+    }
+}
+
 fn describe_step(s: &ExcitationState) -> String {
     match s.kind {
         ExcitationState::SINE => format!(
             "sine {:.3} Hz, amplitude {:.4e} ({})",
             s.frequency_hz, s.amplitude, s.driven_channel
+        ),
+        ExcitationState::SWEEP_LINEAR | ExcitationState::SWEEP_LOG => format!(
+            "{} {:.3} -> {:.3} Hz, amplitude {:.4e} ({})",
+            kind_name(s.kind),
+            s.band_low_hz,
+            s.band_high_hz,
+            s.amplitude,
+            s.driven_channel
         ),
         _ if s.band_low_hz.is_nan() => {
             format!("random, RMS {:.4e} ({})", s.amplitude, s.driven_channel)
@@ -61,7 +79,7 @@ pub fn run(args: &BagArgs) -> anyhow::Result<()> {
                         "topics": topics,
                         "steps": steps.iter().map(|st| serde_json::json!({
                             "step": st.step,
-                            "kind": if st.kind == ExcitationState::SINE { "sine" } else { "random" },
+                            "kind": kind_name(st.kind),
                             "frequency_hz": st.frequency_hz,
                             "amplitude": st.amplitude,
                             "driven_channel": st.driven_channel,

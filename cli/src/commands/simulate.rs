@@ -234,7 +234,7 @@ fn planted_rig_effects(e: &EffectArgs) -> anyhow::Result<RigEffects> {
 }
 
 /// The excitations `forcemap simulate` knows for `system`, refused by name otherwise (and a
-/// bag refused for the kinds the ExcitationState message cannot carry).
+/// bag refused for the multisine, which the ExcitationState message cannot carry yet).
 fn check_excitation(args: &SimulateArgs) -> anyhow::Result<()> {
     let name = match args.excitation {
         ExcitationArg::Stepped => return Ok(()),
@@ -256,7 +256,7 @@ fn check_excitation(args: &SimulateArgs) -> anyhow::Result<()> {
     if !known {
         bail!("--excitation {name} is simulated for {systems} only");
     }
-    if args.bag.is_some() && args.excitation != ExcitationArg::Random {
+    if args.bag.is_some() && args.excitation == ExcitationArg::Multisine {
         bail!(
             "--excitation {name} cannot be written to a bag yet: the ExcitationState message \
              has no {name} kind (it would read back as a random record); write --csv instead"

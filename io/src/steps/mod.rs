@@ -462,6 +462,11 @@ fn complete(b: Building, interval: IntervalRule) -> Result<AssembledStep, StepEr
     } else {
         rate
     };
+    // A sweep lasts its step: its samples over the sample rate, as the CSV reader has it.
+    let duration_s = record.len() as f64 / record.sample_rate_hz;
+    if let Excitation::Sweep { law } = &mut record.excitation {
+        law.duration_s = duration_s;
+    }
     Ok(AssembledStep { record, timing })
 }
 

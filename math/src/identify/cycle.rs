@@ -44,6 +44,19 @@ pub fn rebuilt_cycle(
     };
     let displacement = significant(&eh.displacement, &eh.displacement_noise);
     let force = significant(&eh.force, &eh.force_noise);
+    // The velocity from the displacement's significant harmonics.
+    let velocity: Vec<Complex64> = eh
+        .velocity
+        .iter()
+        .zip(&displacement)
+        .map(|(v, x)| {
+            if x.norm() > 0.0 {
+                *v
+            } else {
+                Complex64::new(0.0, 0.0)
+            }
+        })
+        .collect();
     let one = Complex64::new(1.0, 0.0);
     // a grid of `points` holds harmonics up to points / 2
     let points = points.max(2 * eh.harmonics() + 2).next_power_of_two();
@@ -51,9 +64,7 @@ pub fn rebuilt_cycle(
         step: an.step,
         frequency_hz: an.frequency_hz,
         displacement_m: synthesize_grid(&displacement, points, |_| one),
-        velocity_mps: synthesize_grid(&displacement, points, |n| {
-            Complex64::new(0.0, n as f64 * eh.omega_rad_s)
-        }),
+        velocity_mps: synthesize_grid(&velocity, points, |_| one),
         force_n: synthesize_grid(&force, points, |_| one),
     })
 }

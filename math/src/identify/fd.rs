@@ -8,7 +8,7 @@ use num_complex::Complex64;
 
 use super::{FdMultiOptions, IdentifyError, Method, StepEquations, Weighting};
 use crate::model::Model;
-use crate::phasor::HarmonicAnalysis;
+use crate::phasor::{ChannelPhasors, HarmonicAnalysis, acceleration_phasors, velocity_phasors};
 use crate::recipe::Setup;
 use crate::record::Channel;
 
@@ -20,6 +20,9 @@ pub struct ElementHarmonics {
     /// Relative displacement across the element, X_n [m].
     pub displacement: Vec<Complex64>,
     pub displacement_noise: Vec<f64>,
+    /// Relative velocity across the element, V_n [m/s]: `j n w X_n` on a settled step, plus the
+    /// displacement's rate of change in a sweep window ([`velocity_phasors`]).
+    pub velocity: Vec<Complex64>,
     /// Element force, G_n [N], from the measurements and the known linear part.
     pub force: Vec<Complex64>,
     pub force_noise: Vec<f64>,
@@ -51,6 +54,7 @@ pub fn element_harmonics(
 ) -> Result<ElementHarmonics, IdentifyError> {
     let step = an.step;
     let omega = TAU * an.frequency_hz;
+    let omega_rate = TAU * an.frequency_rate_hz_per_s;
     let rel = an.channel(Channel::RelativeDisplacementM).ok_or_else(|| {
         missing(
             step,
@@ -63,31 +67,31 @@ pub fn element_harmonics(
     let (force, force_noise) = match setup {
         Setup::BaseExcited { mass_kg } => {
             let m = *mass_kg;
-            // Mass displacement: measured, or base + relative.
-            let disp: Option<(Vec<Complex64>, Vec<f64>)> =
-                if let Some(xo) = an.channel(Channel::MassDisplacementM) {
-                    Some((xo.phasors.clone(), xo.noise_std.clone()))
-                } else {
-                    an.channel(Channel::BaseDisplacementM).map(|xi| {
-                        (
-                            xi.phasors
-                                .iter()
-                                .zip(&rel.phasors)
-                                .map(|(a, b)| a + b)
-                                .collect(),
-                            xi.noise_std
-                                .iter()
-                                .zip(&rel.noise_std)
-                                .map(|(a, b)| a.hypot(*b))
-                                .collect(),
-                        )
-                    })
-                };
-            let from_disp = disp.map(|(xo, s)| {
-                let g: Vec<Complex64> = xo
+            // Mass displacement (its phasors, their rates, noise): measured, or base + relative.
+            type Disp = (Vec<Complex64>, Vec<Complex64>, Vec<f64>);
+            let disp: Option<Disp> = if let Some(xo) = an.channel(Channel::MassDisplacementM) {
+                Some((
+                    xo.phasors.clone(),
+                    xo.rate_per_s.clone(),
+                    xo.noise_std.clone(),
+                ))
+            } else {
+                an.channel(Channel::BaseDisplacementM).map(|xi| {
+                    (
+                        add(&xi.phasors, &rel.phasors),
+                        add(&xi.rate_per_s, &rel.rate_per_s),
+                        xi.noise_std
+                            .iter()
+                            .zip(&rel.noise_std)
+                            .map(|(a, b)| a.hypot(*b))
+                            .collect(),
+                    )
+                })
+            };
+            let from_disp = disp.map(|(xo, rate, s)| {
+                let g: Vec<Complex64> = acceleration_phasors(&xo, &rate, omega, omega_rate)
                     .iter()
-                    .enumerate()
-                    .map(|(n, x)| x * m * (n as f64 * omega).powi(2))
+                    .map(|a| -a * m)
                     .collect();
                 let gs: Vec<f64> = s
                     .iter()
@@ -133,7 +137,7 @@ pub fn element_harmonics(
             let f = an.channel(Channel::ForceN).ok_or_else(|| {
                 missing(step, Channel::ForceN, "the element test measures its force")
             })?;
-            let (acc, acc_noise) = moving_acceleration(an, &rel.phasors, &rel.noise_std, omega);
+            let (acc, acc_noise) = moving_acceleration(an, rel, omega, omega_rate);
             match moving_mass_kg {
                 Some(m) => {
                     let g = (0..nh).map(|n| f.phasors[n] - acc[n] * *m).collect();
@@ -176,6 +180,7 @@ pub fn element_harmonics(
         omega_rad_s: omega,
         displacement: rel.phasors.clone(),
         displacement_noise: rel.noise_std.clone(),
+        velocity: velocity_phasors(&rel.phasors, &rel.rate_per_s, omega),
         force,
         force_noise,
         extra_column,
@@ -184,29 +189,39 @@ pub fn element_harmonics(
 
 /// Harmonics of the moving mass's acceleration in an element test, with their noise: the
 /// measured fixture acceleration (`mass_acceleration_mps2`) where there is one, else the
-/// displacement's harmonics times -(n w)^2.
+/// displacement's second derivative ([`acceleration_phasors`]).
 fn moving_acceleration(
     an: &HarmonicAnalysis,
-    displacement: &[Complex64],
-    displacement_noise: &[f64],
+    displacement: &ChannelPhasors,
     omega: f64,
+    omega_rate: f64,
 ) -> (Vec<Complex64>, Vec<f64>) {
     if let Some(a) = an.channel(Channel::MassAccelerationMps2) {
         return (a.phasors.clone(), a.noise_std.clone());
     }
     let w2 = |n: usize| (n as f64 * omega).powi(2);
     (
+        acceleration_phasors(
+            &displacement.phasors,
+            &displacement.rate_per_s,
+            omega,
+            omega_rate,
+        ),
         displacement
-            .iter()
-            .enumerate()
-            .map(|(n, x)| -x * w2(n))
-            .collect(),
-        displacement_noise
+            .noise_std
             .iter()
             .enumerate()
             .map(|(n, s)| s * w2(n))
             .collect(),
     )
+}
+
+/// Element-wise sum of two phasor lists (a missing entry is 0: an empty list of rates).
+fn add(a: &[Complex64], b: &[Complex64]) -> Vec<Complex64> {
+    let zero = Complex64::new(0.0, 0.0);
+    (0..a.len().max(b.len()))
+        .map(|n| a.get(n).copied().unwrap_or(zero) + b.get(n).copied().unwrap_or(zero))
+        .collect()
 }
 
 /// RMS over the cycle of the signal with one-sided harmonics `c`.
@@ -366,9 +381,7 @@ fn fd_multi_equations(
     let l = options.grid_points.max(16 * (nh + 1)).next_power_of_two();
     let w = eh.omega_rad_s;
     let x = synthesize_grid(&eh.displacement[..=nx], l, |_| Complex64::new(1.0, 0.0));
-    let v = synthesize_grid(&eh.displacement[..=nx], l, |n| {
-        Complex64::new(0.0, n as f64 * w)
-    });
+    let v = synthesize_grid(&eh.velocity[..=nx], l, |_| Complex64::new(1.0, 0.0));
     let mut keep = vec![true; l];
     let vmax = v.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let v_noise = (1..=nx)
@@ -530,9 +543,8 @@ pub fn step_equations(
     let eh = element_harmonics(setup, an, method == Method::Fd)?;
     let nh = eh.harmonics();
     let l = options.grid_points.max(16 * (nh + 1)).next_power_of_two();
-    let w = eh.omega_rad_s;
     let x = synthesize_grid(&eh.displacement, l, |_| Complex64::new(1.0, 0.0));
-    let v = synthesize_grid(&eh.displacement, l, |n| Complex64::new(0.0, n as f64 * w));
+    let v = synthesize_grid(&eh.velocity, l, |_| Complex64::new(1.0, 0.0));
     let p = model.terms.len() + usize::from(eh.extra_column.is_some());
     let h: Vec<Vec<f64>> = model
         .terms

@@ -80,6 +80,7 @@ pub use stream::PhasorStream;
 pub use sweep::{SweepKind, SweepLaw, SweepOptions, analyse_sweep};
 pub use types::{
     ChannelPhasors, HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorError, PhasorOptions,
+    acceleration_phasors, velocity_phasors,
 };
 
 use crate::record::{Channel, Excitation, Record};

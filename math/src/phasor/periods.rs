@@ -350,6 +350,7 @@ pub(super) fn settle_and_fit(
             phasors: phasors_of(&beta, c, harmonics),
             noise_std,
             residual_rms: var[c].sqrt(),
+            rate_per_s: Vec::new(),
         });
     }
     let bounds = &work.bounds;
@@ -367,5 +368,6 @@ pub(super) fn settle_and_fit(
         harmonics,
         harmonic_cap: cap,
         channels,
+        frequency_rate_hz_per_s: 0.0,
     })
 }

@@ -198,6 +198,7 @@ pub fn analyse_sweep(
         let phase_a = law.phase_rad(first as f64 / fs);
         let t_centre = 0.5 * (first + end - 1) as f64 / fs;
         let basis = design(law, fs, first, end, phase_a, t_centre, harmonics);
+        let width_s = samples as f64 / fs;
         let Some(chol) = (basis.transpose() * &basis).cholesky() else {
             return Err(PhasorError::InvalidFit {
                 reason: format!("step {}: sweep window {k}: singular fit", record.step),
@@ -211,11 +212,16 @@ pub fn analyse_sweep(
             let residual = &y - &basis * &beta;
             let dof = (samples - basis.ncols()).max(1) as f64;
             let sigma2 = residual.norm_squared() / dof;
+            let half = 2 * harmonics + 1;
             let mut phasors = vec![Complex64::new(beta[0], 0.0)];
+            // D_n / W: the amplitude's slope per second (tau is time over the window's width).
+            let mut rate_per_s = vec![Complex64::new(beta[half] / width_s, 0.0)];
             let mut noise_std = vec![(sigma2 * inverse_diag[0]).sqrt()];
             for n in 1..=harmonics {
                 let (a, b) = (beta[2 * n - 1], beta[2 * n]);
                 phasors.push(Complex64::new(a, -b));
+                let (a, b) = (beta[half + 2 * n - 1], beta[half + 2 * n]);
+                rate_per_s.push(Complex64::new(a, -b) / width_s);
                 noise_std.push((sigma2 * (inverse_diag[2 * n - 1] + inverse_diag[2 * n])).sqrt());
             }
             channels.push(ChannelPhasors {
@@ -223,6 +229,7 @@ pub fn analyse_sweep(
                 phasors,
                 noise_std,
                 residual_rms: sigma2.sqrt(),
+                rate_per_s,
             });
         }
         out.push(HarmonicAnalysis {
@@ -238,6 +245,7 @@ pub fn analyse_sweep(
             harmonics,
             harmonic_cap: cap,
             channels,
+            frequency_rate_hz_per_s: law.frequency_rate_hz_per_s(t_centre),
         });
         k += 1;
     }

@@ -64,6 +64,54 @@ pub struct ChannelPhasors {
     /// channel): everything not periodic with the excitation period, i.e. noise, transient left
     /// in, and harmonics above `N`.
     pub residual_rms: f64,
+    /// `dC_n/dt` [unit/s], `n = 0..=N`, where the phasors change across the fit (a sweep
+    /// window's amplitude slope `D_n / W`); empty for a settled step, whose phasors are constant.
+    /// The state's derivatives need it: see [`velocity_phasors`].
+    pub rate_per_s: Vec<Complex64>,
+}
+
+/// Phasors of a signal's first time derivative at the instant its phasors `phasors` hold,
+/// on the same phase, for a signal whose phasors change at `rate_per_s` (empty: constant):
+/// `s = Re(sum A_n e^{j n psi})` with `psi' = omega_rad_s` and `A_n' = rate_n` gives
+/// `s' = Re(sum (j n w A_n + A_n') e^{j n psi})`. On a settled step that is `j n w C_n`; in a
+/// sweep window `A_n'` is first order in the sweep rate, and leaving it out biases the rebuilt
+/// velocity by as much.
+pub fn velocity_phasors(
+    phasors: &[Complex64],
+    rate_per_s: &[Complex64],
+    omega_rad_s: f64,
+) -> Vec<Complex64> {
+    let zero = Complex64::new(0.0, 0.0);
+    phasors
+        .iter()
+        .enumerate()
+        .map(|(n, a)| {
+            Complex64::new(0.0, n as f64 * omega_rad_s) * a
+                + rate_per_s.get(n).copied().unwrap_or(zero)
+        })
+        .collect()
+}
+
+/// Phasors of the second time derivative (see [`velocity_phasors`]), with `psi'' =
+/// omega_rate_rad_s2` and `A_n'' = 0` (the fit's amplitudes are linear across a window):
+/// `s'' = Re(sum (-(n w)^2 A_n + 2 j n w A_n' + j n w' A_n) e^{j n psi})`; `-(n w)^2 C_n` on a
+/// settled step.
+pub fn acceleration_phasors(
+    phasors: &[Complex64],
+    rate_per_s: &[Complex64],
+    omega_rad_s: f64,
+    omega_rate_rad_s2: f64,
+) -> Vec<Complex64> {
+    let zero = Complex64::new(0.0, 0.0);
+    phasors
+        .iter()
+        .enumerate()
+        .map(|(n, a)| {
+            let jnw = Complex64::new(0.0, n as f64 * omega_rad_s);
+            let d = rate_per_s.get(n).copied().unwrap_or(zero);
+            jnw * jnw * a + 2.0 * jnw * d + Complex64::new(0.0, n as f64 * omega_rate_rad_s2) * a
+        })
+        .collect()
 }
 
 /// Result of [`analyse_record`](super::analyse_record).
@@ -93,6 +141,9 @@ pub struct HarmonicAnalysis {
     pub harmonic_cap: usize,
     /// One entry per record channel, in record order.
     pub channels: Vec<ChannelPhasors>,
+    /// Rate of change of the excitation frequency at the phasors [Hz/s]: a sweep window's, 0
+    /// for a step.
+    pub frequency_rate_hz_per_s: f64,
 }
 
 impl HarmonicAnalysis {
@@ -115,11 +166,13 @@ impl HarmonicAnalysis {
             && self.settled == other.settled
             && self.harmonics == other.harmonics
             && self.harmonic_cap == other.harmonic_cap
+            && self.frequency_rate_hz_per_s == other.frequency_rate_hz_per_s
             && self.channels.len() == other.channels.len()
             && self.channels.iter().zip(&other.channels).all(|(a, b)| {
                 a.channel == b.channel
                     && a.phasors.len() == b.phasors.len()
                     && a.noise_std.len() == b.noise_std.len()
+                    && a.rate_per_s.len() == b.rate_per_s.len()
             });
         if !same {
             return None;
@@ -139,8 +192,15 @@ impl HarmonicAnalysis {
                 .zip(&b.noise_std)
                 .map(|(p, q)| (p - q).abs());
             let residual = (a.residual_rms - b.residual_rms).abs();
+            // A rate times a period is a change of phasor.
+            let rates = a
+                .rate_per_s
+                .iter()
+                .zip(&b.rate_per_s)
+                .map(|(p, q)| (p - q).norm() / self.frequency_hz);
             d = phasors
                 .chain(noise)
+                .chain(rates)
                 .chain(std::iter::once(residual))
                 .map(rel)
                 .fold(d, f64::max);
