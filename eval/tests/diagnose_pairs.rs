@@ -28,7 +28,7 @@ fn coulomb(level_n: f64) -> WorldEffect {
     )
 }
 
-/// A hardening spring of `force_n` at 6 mm, 80 % x^3 and 20 % x^5 (the candidate is x^3).
+/// A hardening spring of `force_n` at 6 mm, 95 % x^3 and 5 % x^5 (the candidate is x^3).
 fn cubic(force_n: f64) -> WorldEffect {
     let x = 0.006f64;
     let odd = |coef, exponent| Term::OddPower {
@@ -40,8 +40,8 @@ fn cubic(force_n: f64) -> WorldEffect {
         "cubic_stiffness",
         WorldKind::Library,
         [
-            Some(odd(0.8 * force_n / x.powi(3), 3.0)),
-            Some(odd(0.2 * force_n / x.powi(5), 5.0)),
+            Some(odd(0.95 * force_n / x.powi(3), 3.0)),
+            Some(odd(0.05 * force_n / x.powi(5), 5.0)),
         ],
     )
 }
@@ -98,7 +98,7 @@ fn top_two(d: &Diagnosis) -> Vec<&'static str> {
 
 #[test]
 fn coulomb_friction_with_cubic_stiffness_is_named_as_the_pair() {
-    let d = diagnosed(&[coulomb(8.0), cubic(20.0)], 30.0, 7);
+    let d = diagnosed(&[coulomb(10.0), cubic(3.0)], 30.0, 7);
     let top = top_two(&d);
     assert!(
         top.contains(&"coulomb_friction") && top.contains(&"cubic_stiffness"),
