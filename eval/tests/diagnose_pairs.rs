@@ -121,7 +121,12 @@ fn one_effect_alone_is_not_named_as_a_pair() {
     ] {
         let d = diagnosed(&effects, 30.0, 7);
         assert_eq!(d.findings.verdict, Verdict::Explained);
-        assert_eq!(d.findings.top_effect.map(|e| e.name()), Some(name));
+        assert_eq!(
+            d.findings
+                .top_effect
+                .map(forcemap_math::diagnose::Effect::name),
+            Some(name)
+        );
         assert_eq!(d.findings.second_effect, None, "{}", d.findings.headline());
     }
 }
