@@ -205,6 +205,10 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
                     "both among the top two (the pair the verdict names, else the two best-ranked): {}  (target >= 80 %)",
                     pct(&s.pairs_both_top_two)
                 );
+                println!(
+                    "both named by the verdict (explained by A together with B): {}",
+                    pct(&s.pairs_both_named)
+                );
                 for r in subset.iter().filter_map(|r| r.as_ref().ok()) {
                     let top: Vec<&str> = r.ranked.iter().take(2).map(|x| x.0.as_str()).collect();
                     let named = match &r.second_named {
@@ -240,6 +244,10 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
                     pct(&s.below_threshold_named_right),
                     pct(&s.below_threshold_adequate),
                     pct(&s.below_threshold_wrong)
+                );
+                println!(
+                    "named as a pair (a second effect that is not there): {}",
+                    pct(&s.singles_named_as_pair)
                 );
                 println!(
                     "shrink, explained (>= 2 %): within 20 % of the true model's {}  (|predicted - true| mean {:.2}, median {:.2} %-points, mean true {:.2} %-points{})",

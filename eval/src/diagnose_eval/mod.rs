@@ -329,6 +329,9 @@ pub struct CaseResult {
     /// Every candidate, best first: (effect, held-out NMSE with it [%], penalised score [%],
     /// cross-validated force error on the sine steps [%]).
     pub ranked: Vec<(String, f64, f64, Option<f64>)>,
+    /// The best pair fitted together (the top candidate and the second effect searched on what
+    /// it leaves): (first, second, held-out NMSE [%], penalised score [%]).
+    pub best_pair: Option<(String, String, f64, f64)>,
 }
 
 /// Runs the diagnosis on one case.
@@ -412,6 +415,14 @@ fn diagnose_case(
                 )
             })
             .collect(),
+        best_pair: d.best_pair.as_ref().map(|p| {
+            (
+                p.effects[0].name().to_string(),
+                p.effects[1].name().to_string(),
+                p.gap_after_percent,
+                p.score_percent,
+            )
+        }),
     })
 }
 

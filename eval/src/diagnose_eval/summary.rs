@@ -83,6 +83,11 @@ pub struct EvalSummary {
     /// Two-effect cases whose top two are the two effects: the pair the verdict names, or else
     /// the two best-ranked candidates alone.
     pub pairs_both_top_two: Rate,
+    /// Two-effect cases whose verdict names both ("explained by A together with B").
+    pub pairs_both_named: Rate,
+    /// Single-effect cases (library or new name) whose verdict names a pair: a second effect
+    /// claimed that is not there.
+    pub singles_named_as_pair: Rate,
     /// Explained qualifying single effects whose predicted shrink is within 20 % of the true
     /// model's.
     pub shrink_within_20_percent: Rate,
@@ -259,6 +264,26 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
                 })
                 .count(),
             pairs.len(),
+        ),
+        pairs_both_named: rate(
+            pairs
+                .iter()
+                .filter(|r| {
+                    r.second_named.as_deref().is_some_and(|second| {
+                        r.case
+                            .planted
+                            .pair_names()
+                            .is_some_and(|n| n.contains(&r.named.as_str()) && n.contains(&second))
+                    })
+                })
+                .count(),
+            pairs.len(),
+        ),
+        singles_named_as_pair: rate(
+            ok.iter()
+                .filter(|r| single(r) && r.second_named.is_some())
+                .count(),
+            ok.iter().filter(|r| single(r)).count(),
         ),
         shrink_within_20_percent: rate(within, explained.len()),
         shrink_mean_abs_error_percent: err / ne,

@@ -46,7 +46,7 @@ pub enum Evidence {
 }
 
 /// The part of the rule every evidence shares.
-const SHARED_RULE: &str = "explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor), or else the best pair fitted together is, scores below the top candidate and leaves less than it by more than max(floor, 10 % of the gap, 0.2 %-points) (explained by the two); a candidate or pair that leaves 100 % or more (no better than predicting zero) explains nothing; explained in part: gap_before > max(3 floor, 1 %), the top candidate is significant and gap_after - floor <= 0.75 (gap_before - floor), but not explained; unexplained: gap_before > max(3 floor, 1 %) and neither; adequate: otherwise";
+const SHARED_RULE: &str = "explained: the top candidate is significant and gap_after - floor <= 0.5 (gap_before - floor), explained by two: the best pair fitted together (the top candidate with the second effect searched on what it leaves) explains the gap, scores below the top candidate and leaves less than it by more than max(floor, 10 % of the gap, 0.2 %-points), and either the top candidate alone does not explain the gap or the pair leaves at most half of the top candidate's excess over the floor; a candidate or pair that leaves 100 % or more (no better than predicting zero) explains nothing; explained in part: gap_before > max(3 floor, 1 %), the top candidate is significant and gap_after - floor <= 0.75 (gap_before - floor), but not explained; unexplained: gap_before > max(3 floor, 1 %) and neither; adequate: otherwise";
 
 /// A top candidate that removes at least this share of the gap's excess over the floor (but
 /// not the half that explains it) explains the gap in part.
@@ -245,16 +245,15 @@ impl Findings {
         self
     }
 
-    /// Names two effects fitted together as the explanation when the best single candidate
-    /// does not explain the gap and the pair does ([`pair_explains`]); otherwise unchanged.
+    /// Names two effects fitted together as the explanation when the pair explains the gap
+    /// ([`pair_explains`]) and either the best single candidate does not, or the pair leaves at
+    /// most half of the single's excess over the floor (the second effect explains what the
+    /// first leaves, as the first explains the gap); otherwise unchanged.
     pub fn explained_by_pair(mut self, pair: &PairEvidence) -> Findings {
-        if self.verdict == Verdict::Explained
-            || !pair_explains(
-                self.gap_before_percent,
-                self.floor_percent,
-                self.gap_after_percent,
-                pair,
-            )
+        let floor = self.floor_percent;
+        if !pair_explains(self.gap_before_percent, floor, self.gap_after_percent, pair)
+            || (self.verdict == Verdict::Explained
+                && pair.gap_after_percent - floor > 0.5 * (self.gap_after_percent - floor))
         {
             return self;
         }
@@ -441,10 +440,16 @@ mod tests {
         // Leaving more than half the excess: not explained by the pair either.
         let f = single.clone().explained_by_pair(&pair(5.6, 5.7));
         assert_eq!(f.second_effect, None);
-        // A single candidate that explains the gap keeps it.
-        let alone = Findings::decide(Evidence::HeldOutNmse, 10.0, 1.0, top(3.0, true));
-        let f = alone.explained_by_pair(&pair(1.0, 1.1));
-        assert_eq!((f.second_effect, f.gap_after_percent), (None, 3.0));
+        // A single candidate that explains the gap keeps it unless the pair leaves at most
+        // half of its excess over the floor: with a floor of 0.5 %, 4 % leaves 3.5 above it.
+        let alone = Findings::decide(Evidence::HeldOutNmse, 10.0, 0.5, top(4.0, true));
+        assert_eq!(alone.verdict, Verdict::Explained);
+        // 2.5 %: a significant second shrink (1.5 > 1), but 2.0 left above the floor > 1.75.
+        let f = alone.clone().explained_by_pair(&pair(2.5, 2.6));
+        assert_eq!((f.second_effect, f.gap_after_percent), (None, 4.0));
+        let f = alone.explained_by_pair(&pair(2.0, 2.1));
+        assert_eq!(f.second_effect, Some(Effect::CoulombFriction));
+        assert_eq!(f.gap_after_percent, 2.0);
     }
 
     #[test]

@@ -24,7 +24,10 @@
 //!    the best one's excess over the noise floor are tied with it, and among them the one with
 //!    the lowest cross-validated force error on the sine steps goes first if that error is below
 //!    0.9 times the best's and it explains the gap by itself; a candidate whose error on the
-//!    steps is below half the best's goes first even without a tie ([`step_tie_break`]). The best pair of the top four is tried too.
+//!    steps is below half the best's goes first even without a tie ([`step_tie_break`]). The second
+//!    effect is then searched on what the top one leaves ([`pairs`]): every other candidate fitted
+//!    jointly with the top one and scored the same way; the best addition ranks second when the
+//!    pair scores better than the top candidate alone.
 //! 4. **Verdict** ([`findings`], shared with the live and the axis diagnosis), with `floor` the noise floor estimated from the data:
 //!    - a candidate's shrink is *significant* when its score beats the baseline's and it
 //!      removes more than `max(floor, 10 % of the gap, 0.2 %-points)`;
@@ -43,6 +46,7 @@ pub mod findings;
 pub mod fit;
 pub mod locate;
 pub mod output_error;
+pub mod pairs;
 pub mod phasor;
 pub mod score;
 pub mod search;
@@ -102,7 +106,7 @@ pub struct DiagnoseOptions {
     pub holdout_steps: Vec<usize>,
     /// Candidate effects to try (default: all).
     pub effects: Vec<Effect>,
-    /// Whether to try the best pair of the top four single effects.
+    /// Whether to search a second effect jointly with the top one ([`pairs`]).
     pub pairs: bool,
 }
 
@@ -464,46 +468,40 @@ pub fn diagnose(
         let i = order.remove(k);
         order.insert(0, i);
     }
-    let ranked: Vec<RankedEffect> = order.iter().map(|&i| ranked[i].clone()).collect();
+    let mut ranked: Vec<RankedEffect> = order.iter().map(|&i| ranked[i].clone()).collect();
     let mut fits: Vec<Option<(Fitted, Vec<HeldOut>)>> = fits.into_iter().map(Some).collect();
     let top_fit = order.first().and_then(|&i| fits[i].take());
 
     let best_pair = if options.pairs && ranked.len() >= 2 {
-        let top: Vec<&search::PhasorCandidate> = order
-            .iter()
-            .take(4)
-            .map(|&i| &search.candidates[cand_idx[i]])
-            .collect();
-        let mut best: Option<PairResult> = None;
-        for i in 0..top.len() {
-            for j in i + 1..top.len() {
-                let s = top[i].structure.combine(&top[j].structure);
-                let cycles = search::cycles_for(setup, &analyses, &s.transform)?;
-                let Ok(f) = fit::fit(baseline, &s, &cycles, None) else {
-                    continue;
-                };
-                if !search::physical(&f) {
-                    continue;
-                }
-                let Ok(h) = heldout_all(&f, mass_kg, &heldout) else {
-                    continue;
-                };
-                let after = mean_nmse(&h);
-                let score = penalised(after, s.extra_parameters, n_eff);
-                if best.as_ref().is_none_or(|b| score < b.score_percent) {
-                    best = Some(PairResult {
-                        effects: [top[i].effect, top[j].effect],
-                        gap_after_percent: after,
-                        score_percent: score,
-                        added_parameters: parameter_values(f.added_parameters()),
-                    });
-                }
-            }
-        }
-        best
+        let ctx = pairs::PairContext {
+            setup,
+            baseline,
+            analyses: &analyses,
+            search: &search,
+            mass_kg,
+            heldout: &heldout,
+            n_eff,
+        };
+        let structure = |i: usize| {
+            let c = &search.candidates[cand_idx[i]];
+            (c.effect, &c.structure)
+        };
+        let others: Vec<(Effect, &effects::Structure)> =
+            order.iter().skip(1).map(|&i| structure(i)).collect();
+        pairs::forward_pair(&ctx, structure(order[0]).1, &others)?
     } else {
         None
     };
+    // The best addition to the top candidate ranks second, ahead of the alternatives to it,
+    // when the pair scores better than the top one alone.
+    if let (Some(p), Some(top)) = (&best_pair, ranked.first())
+        && p.score_percent < top.score_percent
+        && let Some(k) = ranked.iter().position(|r| r.effect == p.effects[1])
+        && k > 1
+    {
+        let r = ranked.remove(k);
+        ranked.insert(1, r);
+    }
 
     let mut findings = Findings::decide(
         Evidence::HeldOutNmse,

@@ -1,0 +1,132 @@
+//! Two effects planted together in the wide forms' world: the second is searched on what the
+//! first leaves (fitted jointly with it), so both are the two best-ranked and the verdict names
+//! the pair; one effect alone is not reported as a pair.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how they report failure"
+)]
+
+use forcemap_eval::diagnose_eval::world::{Term, World, WorldEffect, WorldKind, simulate};
+use forcemap_math::diagnose::{DiagnoseOptions, Diagnosis, Verdict, diagnose};
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::recipe::Setup;
+use forcemap_math::sim::rig::PAPER_RIG_MASS_KG;
+
+/// Coulomb friction of `level_n`, 20 % stronger in one direction than the other (wider than
+/// the candidate's symmetric form).
+fn coulomb(level_n: f64) -> WorldEffect {
+    WorldEffect::of_terms(
+        "coulomb_friction",
+        WorldKind::Library,
+        [
+            Some(Term::Coulomb {
+                level_n,
+                asymmetry: 0.2,
+            }),
+            None,
+        ],
+    )
+}
+
+/// A hardening spring of `force_n` at 6 mm, 95 % x^3 and 5 % x^5 (the candidate is x^3).
+fn cubic(force_n: f64) -> WorldEffect {
+    let x = 0.006f64;
+    let odd = |coef, exponent| Term::OddPower {
+        coef,
+        exponent,
+        on_velocity: false,
+    };
+    WorldEffect::of_terms(
+        "cubic_stiffness",
+        WorldKind::Library,
+        [
+            Some(odd(0.95 * force_n / x.powi(3), 3.0)),
+            Some(odd(0.05 * force_n / x.powi(5), 5.0)),
+        ],
+    )
+}
+
+fn diagnosed(effects: &[WorldEffect], snr_db: f64, seed: u64) -> Diagnosis {
+    let world = World::of(effects);
+    let run = simulate(&world, snr_db, seed).unwrap();
+    let baseline = Model::by_name(world.baseline, &ModelOptions::default()).unwrap();
+    let setup = Setup::BaseExcited {
+        mass_kg: PAPER_RIG_MASS_KG,
+    };
+    let d = diagnose(
+        &setup,
+        &baseline,
+        &run.records,
+        &[],
+        &DiagnoseOptions::default(),
+    )
+    .unwrap()
+    .diagnosis;
+    println!(
+        "{}: {} (truth {:.2} %)",
+        world.baseline,
+        d.findings.headline(),
+        run.truth_nmse_percent
+    );
+    for r in &d.ranked_effects {
+        println!(
+            "  {:<20} {:8.3} % score {:8.3}",
+            r.effect.name(),
+            r.gap_after_percent,
+            r.score_percent
+        );
+    }
+    if let Some(p) = &d.best_pair {
+        println!(
+            "  pair {} + {}: {:.3} % score {:.3}",
+            p.effects[0].name(),
+            p.effects[1].name(),
+            p.gap_after_percent,
+            p.score_percent
+        );
+    }
+    d
+}
+
+fn top_two(d: &Diagnosis) -> Vec<&'static str> {
+    d.ranked_effects
+        .iter()
+        .take(2)
+        .map(|r| r.effect.name())
+        .collect()
+}
+
+#[test]
+fn coulomb_friction_with_cubic_stiffness_is_named_as_the_pair() {
+    let d = diagnosed(&[coulomb(10.0), cubic(3.0)], 30.0, 7);
+    let top = top_two(&d);
+    assert!(
+        top.contains(&"coulomb_friction") && top.contains(&"cubic_stiffness"),
+        "{top:?}"
+    );
+    assert_eq!(d.findings.verdict, Verdict::Explained);
+    let h = d.findings.headline();
+    assert!(
+        h.starts_with("explained by coulomb_friction together with cubic_stiffness")
+            || h.starts_with("explained by cubic_stiffness together with coulomb_friction"),
+        "{h}"
+    );
+}
+
+#[test]
+fn one_effect_alone_is_not_named_as_a_pair() {
+    for (effects, name) in [
+        (vec![cubic(20.0)], "cubic_stiffness"),
+        (vec![coulomb(8.0)], "coulomb_friction"),
+    ] {
+        let d = diagnosed(&effects, 30.0, 7);
+        assert_eq!(d.findings.verdict, Verdict::Explained);
+        assert_eq!(
+            d.findings
+                .top_effect
+                .map(forcemap_math::diagnose::Effect::name),
+            Some(name)
+        );
+        assert_eq!(d.findings.second_effect, None, "{}", d.findings.headline());
+    }
+}
