@@ -44,9 +44,9 @@ pub enum Planted {
     Two {
         effects: [Effect; 2],
     },
-    /// Out of the library: the damper's oil is compressible, so its force lags (a spring
-    /// `oil_stiffness_n_per_m` in series with the damper): a frequency-dependent stiffness
-    /// and damping.
+    /// The damper's oil is compressible, so its force lags (a spring `oil_stiffness_n_per_m`
+    /// in series with the damper): a frequency-dependent stiffness and damping. Out of the
+    /// library until series_compliance joined it; now a series_compliance case (label, group).
     CompressibleOil {
         oil_stiffness_n_per_m: f64,
     },
@@ -67,7 +67,7 @@ impl Planted {
             Planted::None => "none".into(),
             Planted::One { effect, .. } => effect.name().into(),
             Planted::Two { effects } => format!("{}+{}", effects[0].name(), effects[1].name()),
-            Planted::CompressibleOil { .. } => "out_of_library".into(),
+            Planted::CompressibleOil { .. } => Effect::SeriesCompliance.name().into(),
             Planted::Wide { effect } => match effect.kind {
                 world::WorldKind::OutOfLibrary => format!("out_of_library:{}", effect.name),
                 _ => effect.name.into(),
@@ -79,7 +79,7 @@ impl Planted {
     /// One effect with a name the diagnosis should give (a library effect, or a new name).
     pub fn is_single(&self) -> bool {
         match self {
-            Planted::One { .. } => true,
+            Planted::One { .. } | Planted::CompressibleOil { .. } => true,
             Planted::Wide { effect } => effect.kind != world::WorldKind::OutOfLibrary,
             _ => false,
         }
@@ -88,7 +88,6 @@ impl Planted {
     /// Out of the library: any library name is wrong.
     pub fn is_out_of_library(&self) -> bool {
         match self {
-            Planted::CompressibleOil { .. } => true,
             Planted::Wide { effect } => effect.kind == world::WorldKind::OutOfLibrary,
             _ => false,
         }
