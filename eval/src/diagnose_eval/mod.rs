@@ -44,9 +44,9 @@ pub enum Planted {
     Two {
         effects: [Effect; 2],
     },
-    /// Out of the library: the damper's oil is compressible, so its force lags (a spring
-    /// `oil_stiffness_n_per_m` in series with the damper): a frequency-dependent stiffness
-    /// and damping.
+    /// The damper's oil is compressible, so its force lags (a spring `oil_stiffness_n_per_m`
+    /// in series with the damper): a frequency-dependent stiffness and damping. Out of the
+    /// library until series_compliance joined it; now a series_compliance case (label, group).
     CompressibleOil {
         oil_stiffness_n_per_m: f64,
     },
@@ -67,7 +67,7 @@ impl Planted {
             Planted::None => "none".into(),
             Planted::One { effect, .. } => effect.name().into(),
             Planted::Two { effects } => format!("{}+{}", effects[0].name(), effects[1].name()),
-            Planted::CompressibleOil { .. } => "out_of_library".into(),
+            Planted::CompressibleOil { .. } => Effect::SeriesCompliance.name().into(),
             Planted::Wide { effect } => match effect.kind {
                 world::WorldKind::OutOfLibrary => format!("out_of_library:{}", effect.name),
                 _ => effect.name.into(),
@@ -79,7 +79,7 @@ impl Planted {
     /// One effect with a name the diagnosis should give (a library effect, or a new name).
     pub fn is_single(&self) -> bool {
         match self {
-            Planted::One { .. } => true,
+            Planted::One { .. } | Planted::CompressibleOil { .. } => true,
             Planted::Wide { effect } => effect.kind != world::WorldKind::OutOfLibrary,
             _ => false,
         }
@@ -88,7 +88,6 @@ impl Planted {
     /// Out of the library: any library name is wrong.
     pub fn is_out_of_library(&self) -> bool {
         match self {
-            Planted::CompressibleOil { .. } => true,
             Planted::Wide { effect } => effect.kind == world::WorldKind::OutOfLibrary,
             _ => false,
         }
@@ -123,13 +122,18 @@ pub struct CaseSpec {
 }
 
 /// The effects the rig evaluation plants, in the order its cases draw them: the library's
-/// effects that can show on the base-excited rig (a preload only moves its equilibrium).
+/// effects that can show on the base-excited rig (a preload only moves its equilibrium), but
+/// not the new names of issue 13 (series compliance, drift), which only the wide forms' world
+/// plants: the exact forms' draws stay those of the published figures.
 fn planted_effects() -> Vec<Effect> {
     Effect::ALL
         .into_iter()
-        .filter(|e| e.applies_to(SetupKind::BaseExcited))
+        .filter(|e| e.applies_to(SetupKind::BaseExcited) && !NOT_PLANTED.contains(e))
         .collect()
 }
+
+/// The library effects the exact forms do not plant (see [`planted_effects`]).
+const NOT_PLANTED: [Effect; 2] = [Effect::SeriesCompliance, Effect::Drift];
 
 /// The paper's rig values: k [N/m] and c [N s/m] (the Coulomb level is that of `TruthElement::rig_coulomb`).
 const RIG_K: f64 = 6380.0;
@@ -151,6 +155,8 @@ fn magnitude(effect: Effect, severity: u8) -> f64 {
         Effect::SensorLowpass => [12.0, 7.0, 4.0],
         Effect::MassError => [1.05, 1.1, 1.2],
         Effect::Preload => [20.0, 50.0, 100.0],
+        // Not planted here (`NOT_PLANTED`).
+        Effect::SeriesCompliance | Effect::Drift => [0.0; 3],
     };
     table[i]
 }
@@ -208,6 +214,8 @@ fn plant(truth: &mut Truth, effect: Effect, m: f64) {
         Effect::SensorLowpass => truth.effects.sensor_lowpass_hz = Some(m),
         Effect::MassError => truth.effects.mass_factor = m,
         Effect::Preload => e.preload_n = m,
+        // Not planted here (`NOT_PLANTED`): the wide forms' world has them.
+        Effect::SeriesCompliance | Effect::Drift => {}
     }
 }
 

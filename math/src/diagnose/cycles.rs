@@ -14,6 +14,9 @@ use crate::recipe::Setup;
 pub struct StepCycle {
     pub step: usize,
     pub frequency_hz: f64,
+    /// Middle of the averaged periods [s since the start of the run] (the drift candidate's
+    /// time of the step).
+    pub time_s: f64,
     /// First-harmonic amplitude of the relative displacement [m].
     pub amplitude_m: f64,
     pub displacement_m: Vec<f64>,
@@ -126,6 +129,7 @@ pub fn step_cycle(
     Ok(StepCycle {
         step: an.step,
         frequency_hz: an.frequency_hz,
+        time_s: an.t_ref_s + 0.5 * an.periods_used as f64 / an.frequency_hz,
         amplitude_m: state.displacement.get(1).map_or(0.0, |c| c.norm()),
         displacement_m: x,
         velocity_mps: v,

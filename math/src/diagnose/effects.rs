@@ -29,10 +29,12 @@ pub enum Effect {
     SensorLowpass,
     MassError,
     Preload,
+    SeriesCompliance,
+    Drift,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 12] = [
+    pub const ALL: [Effect; 14] = [
         Effect::CoulombFriction,
         Effect::StribeckFriction,
         Effect::QuadraticDamping,
@@ -45,6 +47,8 @@ impl Effect {
         Effect::SensorLowpass,
         Effect::MassError,
         Effect::Preload,
+        Effect::SeriesCompliance,
+        Effect::Drift,
     ];
 
     /// Whether the effect can show in data of a `kind` setup: a constant force (preload) only
@@ -72,6 +76,8 @@ impl Effect {
             Effect::SensorLowpass => "sensor_lowpass",
             Effect::MassError => "mass_error",
             Effect::Preload => "preload",
+            Effect::SeriesCompliance => "series_compliance",
+            Effect::Drift => "drift",
         }
     }
 
@@ -102,6 +108,12 @@ impl Effect {
             }
             Effect::MassError => "the true mass is the nominal one times f, searched",
             Effect::Preload => "f0, a constant force",
+            Effect::SeriesCompliance => {
+                "the damper c x' in series with a spring ks: per harmonic F (1 + i n w c / ks) = i n w c X; relaxation c / ks searched, c fitted inside"
+            }
+            Effect::Drift => {
+                "the damping drifts over the run: c (1 + r t) x', t the time since the start of the run (each step at its own time), r fitted"
+            }
         }
     }
 
@@ -144,6 +156,12 @@ impl Effect {
             Effect::Preload => {
                 "a force that depends on neither displacement nor velocity (a damper's gas force, a mount's static load): the DC of the element force alone; where the force is measured (element test, drive point)"
             }
+            Effect::SeriesCompliance => {
+                "the damping force lags the velocity by a phase growing with frequency and an in-phase (stiffness) part grows as w^2: the steps' damping falls and their stiffness rises with frequency; oil compressibility, rubber mounts"
+            }
+            Effect::Drift => {
+                "the steps' damping changes with the time they were run at, whatever their frequency and amplitude, and records run later are predicted with the damping of their time: thermal fade"
+            }
         }
     }
 }
@@ -162,6 +180,11 @@ pub struct Structure {
     pub searched: Vec<(String, f64)>,
     /// Parameters this structure adds to the baseline (fitted coefficients and searched values).
     pub extra_parameters: usize,
+    /// The baseline's damper `c x'` in series with a spring of relaxation time c / ks [s]
+    /// ([`super::series`]).
+    pub series_relaxation_s: Option<f64>,
+    /// The baseline's damping drifts linearly with the time of the run ([`super::drift`]).
+    pub drift: bool,
 }
 
 /// A transformation of the measured channels.
@@ -205,6 +228,8 @@ impl Structure {
             },
             searched,
             extra_parameters: self.extra_parameters + other.extra_parameters,
+            series_relaxation_s: self.series_relaxation_s.or(other.series_relaxation_s),
+            drift: self.drift || other.drift,
         }
     }
 }
@@ -223,6 +248,12 @@ pub const LOWPASS_CUTOFF_MULTIPLES: [f64; 9] = [0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6
 /// within the excitation band.
 pub const LOWPASS_SECOND_ORDER_MULTIPLES: [f64; 5] = [1.0, 1.5, 2.0, 3.0, 4.0];
 pub const LOWPASS_SECOND_ORDER_DAMPING: f64 = 0.7;
+/// Series-compliance relaxation times searched (then refined, [`super::series::refine`]), as
+/// multiples of 1 / (2 pi f_max): from a spring 50 times stiffer than the damper at the top
+/// frequency to one 6 times softer.
+pub const SERIES_RELAXATION_MULTIPLES: [f64; 12] = [
+    0.02, 0.034, 0.057, 0.097, 0.16, 0.28, 0.47, 0.8, 1.35, 2.3, 3.9, 6.5,
+];
 /// Mass factors searched.
 pub const MASS_FACTORS: [f64; 6] = [0.8, 0.9, 0.95, 1.05, 1.1, 1.25];
 
@@ -236,6 +267,8 @@ pub struct SearchGrid {
     pub free_play_gap_fractions: &'static [f64],
     pub lowpass_cutoff_multiples: &'static [f64],
     pub mass_factors: &'static [f64],
+    /// Series-compliance relaxation times c / ks, as multiples of 1 / (2 pi f_max).
+    pub series_relaxation_multiples: &'static [f64],
 }
 
 impl SearchGrid {
@@ -245,6 +278,7 @@ impl SearchGrid {
         free_play_gap_fractions: &FREE_PLAY_GAP_FRACTIONS,
         lowpass_cutoff_multiples: &LOWPASS_CUTOFF_MULTIPLES,
         mass_factors: &MASS_FACTORS,
+        series_relaxation_multiples: &SERIES_RELAXATION_MULTIPLES,
     };
 }
 
@@ -380,7 +414,38 @@ pub fn structures_on(
             })
             .collect(),
         Effect::Preload => vec![one(effect, vec![Arc::new(Constant)])],
-        Effect::ExciterDelay => Vec::new(),
+        // Both act on the baseline's damper c x'; without one they have nothing to act on.
+        Effect::SeriesCompliance if has_damper(baseline) => grid
+            .series_relaxation_multiples
+            .iter()
+            .map(|m| series_structure(m / (std::f64::consts::TAU * scales.max_frequency_hz)))
+            .collect(),
+        Effect::Drift if has_damper(baseline) => vec![Structure {
+            effects: vec![effect],
+            drift: true,
+            extra_parameters: 1,
+            ..Structure::default()
+        }],
+        Effect::SeriesCompliance | Effect::Drift | Effect::ExciterDelay => Vec::new(),
+    }
+}
+
+/// Whether the baseline has the viscous damper `c x'` that series compliance and drift act on.
+pub fn has_damper(baseline: &Model) -> bool {
+    baseline
+        .terms
+        .iter()
+        .any(|t| t.symbol() == super::series::DAMPER_SYMBOL)
+}
+
+/// The series_compliance structure with relaxation time `tau_s` = c / ks.
+pub fn series_structure(tau_s: f64) -> Structure {
+    Structure {
+        effects: vec![Effect::SeriesCompliance],
+        series_relaxation_s: Some(tau_s),
+        searched: vec![("relaxation_s".into(), tau_s)],
+        extra_parameters: 1,
+        ..Structure::default()
     }
 }
 

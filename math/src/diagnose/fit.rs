@@ -10,6 +10,7 @@ use num_complex::Complex64;
 
 use super::cycles::{StepCycle, harmonics_of, synthesize};
 use super::effects::{Structure, Transform};
+use super::{drift, series};
 use crate::basis::Term;
 use crate::element::{Element, Friction};
 use crate::lstsq::{self, LstsqError};
@@ -37,11 +38,7 @@ pub struct Fitted {
     pub residual_percent: f64,
 }
 
-fn columns(
-    terms: &[Arc<dyn Term>],
-    hysteresis_yield_m: Option<f64>,
-    c: &StepCycle,
-) -> Vec<Vec<f64>> {
+fn columns(terms: &[Arc<dyn Term>], s: &Structure, c: &StepCycle) -> Vec<Vec<f64>> {
     let mut cols: Vec<Vec<f64>> = terms
         .iter()
         .map(|t| {
@@ -52,19 +49,37 @@ fn columns(
                 .collect()
         })
         .collect();
-    if let Some(zy) = hysteresis_yield_m {
+    // Series compliance replaces the damper's column by the velocity through the spring's
+    // low-pass (linear in c for a given relaxation time); drift adds t times that column.
+    let damper = damper_index(terms);
+    if let (Some(tau), Some(i)) = (s.series_relaxation_s, damper) {
+        cols[i] = series::damper_column(&c.velocity_mps, c.frequency_hz, tau);
+    }
+    let drift_col = match (s.drift, damper) {
+        (true, Some(i)) => Some(cols[i].iter().map(|v| v * c.time_s).collect()),
+        _ => None,
+    };
+    if let Some(zy) = s.hysteresis_yield_m {
         cols.push(bouc_wen::steady_cycle(
             &c.velocity_mps,
             1.0 / c.frequency_hz,
             zy,
         ));
     }
+    cols.extend(drift_col);
     // The measured force is rebuilt from harmonics 0..=N only; a model force is compared in
     // the same band (a jump rebuilt from N harmonics rings, and so must the prediction), and
     // through the same sensor low-pass, if the cycle's state had one undone.
     cols.iter()
         .map(|col| as_measured(col, c.harmonics, c.force_response.as_deref()))
         .collect()
+}
+
+/// Index of the baseline's viscous damper term among `terms`.
+fn damper_index(terms: &[Arc<dyn Term>]) -> Option<usize> {
+    terms
+        .iter()
+        .position(|t| t.symbol() == series::DAMPER_SYMBOL)
 }
 
 /// `h` (one period on a uniform grid) keeping only harmonics 0..=n, each multiplied by its
@@ -109,6 +124,9 @@ pub fn fit(
     if s.hysteresis_yield_m.is_some() {
         names.push("alpha".into());
     }
+    if s.drift && damper_index(&terms).is_some() {
+        names.push(drift::RATE_SYMBOL.into());
+    }
     let p = names.len();
     let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
     let mut independent = 0.0;
@@ -116,7 +134,7 @@ pub fn fit(
         if Some(k) == skip || c.stuck {
             continue;
         }
-        let cols = columns(&terms, s.hysteresis_yield_m, c);
+        let cols = columns(&terms, s, c);
         let wt = 1.0 / c.force_noise_n;
         for (i, keep) in kept(c).iter().enumerate() {
             if *keep {
@@ -154,7 +172,7 @@ pub fn fit(
 impl Fitted {
     /// The model's element force over the cycle.
     pub fn predict(&self, c: &StepCycle) -> Vec<f64> {
-        let cols = columns(&self.terms, self.structure.hysteresis_yield_m, c);
+        let cols = columns(&self.terms, &self.structure, c);
         (0..c.force_n.len())
             .map(|i| {
                 cols.iter()
@@ -167,7 +185,7 @@ impl Fitted {
 
     /// The force the structure adds (everything but the baseline terms) over the cycle.
     pub fn added_force(&self, c: &StepCycle) -> Vec<f64> {
-        let cols = columns(&self.terms, self.structure.hysteresis_yield_m, c);
+        let cols = columns(&self.terms, &self.structure, c);
         (0..c.force_n.len())
             .map(|i| {
                 cols.iter()
@@ -179,15 +197,31 @@ impl Fitted {
             .collect()
     }
 
-    /// The element the simulators can run.
+    /// The element the simulators can run, for a record that starts at the start of the run.
     pub fn element(&self) -> FittedElement {
+        self.element_at(0.0)
+    }
+
+    /// The element the simulators can run, for a record that starts `start_time_s` after the
+    /// start of the run (a drifting damper has the damping of its time).
+    pub fn element_at(&self, start_time_s: f64) -> FittedElement {
+        let n = self.terms.len();
+        let damper = damper_index(&self.terms);
         FittedElement {
             terms: self.terms.clone(),
-            theta: self.theta[..self.terms.len()].to_vec(),
+            theta: self.theta[..n].to_vec(),
             hysteresis: self
                 .structure
                 .hysteresis_yield_m
-                .map(|zy| (self.theta[self.terms.len()], zy)),
+                .map(|zy| (self.theta[n], zy)),
+            series: self
+                .structure
+                .series_relaxation_s
+                .and_then(|tau| damper.map(|i| (i, tau))),
+            drift: match (self.structure.drift, damper) {
+                (true, Some(i)) => self.theta.last().map(|rate| (i, *rate, start_time_s)),
+                _ => None,
+            },
         }
     }
 
@@ -212,6 +246,13 @@ impl Fitted {
                 .iter()
                 .map(|(n, v)| (n.clone(), *v, f64::NAN)),
         );
+        // The shapes of the damper effects in the units they are reported in.
+        if let Some(ks) = series::stiffness_n_per_m(self) {
+            out.push(("series_stiffness_n_per_m".into(), ks, f64::NAN));
+        }
+        if let Some((_, r)) = drift::rate(self) {
+            out.push(("drift_per_s".into(), r, f64::NAN));
+        }
         if self.structure.transform.delay_s != 0.0 {
             out.push(("delay_s".into(), self.structure.transform.delay_s, f64::NAN));
         }
@@ -263,19 +304,42 @@ pub struct FittedElement {
     pub theta: Vec<f64>,
     /// (alpha [N/m], yield displacement [m]).
     pub hysteresis: Option<(f64, f64)>,
+    /// (index of the damper term, relaxation time c / ks [s]): that term's force is the
+    /// series spring's, an internal state with `f' = (c x' - f) / tau`.
+    pub series: Option<(usize, f64)>,
+    /// (index of the damper term, its rate [N s/m per s], the run's time at the record's
+    /// start [s]): the damper's force is `(c + rate t) x'`, t from an internal clock state.
+    pub drift: Option<(usize, f64, f64)>,
+}
+
+impl FittedElement {
+    /// Offsets of the (series force, clock) internal states, after the hysteresis state.
+    fn state_offsets(&self) -> (usize, usize) {
+        let h = usize::from(self.hysteresis.is_some());
+        (h, h + usize::from(self.series.is_some()))
+    }
 }
 
 impl Element for FittedElement {
     fn smooth_force(&self, x: f64, v: f64, z: &[f64]) -> f64 {
+        let (is, it) = self.state_offsets();
+        let series_term = self.series.map(|(i, _)| i);
         let mut f: f64 = self
             .terms
             .iter()
             .zip(&self.theta)
-            .filter(|(t, _)| !t.jumps_at_zero_velocity())
-            .map(|(t, th)| th * t.eval(x, v))
+            .enumerate()
+            .filter(|(i, (t, _))| !t.jumps_at_zero_velocity() && Some(*i) != series_term)
+            .map(|(_, (t, th))| th * t.eval(x, v))
             .sum();
         if let (Some((alpha, _)), Some(zz)) = (self.hysteresis, z.first()) {
             f += alpha * zz;
+        }
+        if self.series.is_some() {
+            f += z[is];
+        }
+        if let Some((i, rate, t0)) = self.drift {
+            f += rate * (t0 + z[it]) * self.terms[i].eval(x, v);
         }
         f
     }
@@ -310,12 +374,20 @@ impl Element for FittedElement {
     }
 
     fn internal_states(&self) -> usize {
-        usize::from(self.hysteresis.is_some())
+        let (_, it) = self.state_offsets();
+        it + usize::from(self.drift.is_some())
     }
 
-    fn internal_rates(&self, _x: f64, v: f64, z: &[f64], dz: &mut [f64]) {
+    fn internal_rates(&self, x: f64, v: f64, z: &[f64], dz: &mut [f64]) {
         if let (Some((_, zy)), Some(&zz), Some(d)) = (self.hysteresis, z.first(), dz.first_mut()) {
             *d = v - (v.abs() * zz + v * zz.abs()) / (2.0 * zy);
+        }
+        let (is, it) = self.state_offsets();
+        if let Some((i, tau)) = self.series {
+            dz[is] = (self.theta[i] * self.terms[i].eval(x, v) - z[is]) / tau;
+        }
+        if self.drift.is_some() {
+            dz[it] = 1.0;
         }
     }
 }

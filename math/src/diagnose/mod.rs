@@ -40,6 +40,7 @@
 //! The phasor-only variant for a live stream of harmonic analyses is [`PhasorDiagnosis`].
 
 pub mod cycles;
+pub mod drift;
 pub mod effects;
 pub mod exciter;
 pub mod findings;
@@ -51,6 +52,7 @@ pub mod phasor;
 pub mod score;
 pub mod search;
 pub mod sensor;
+pub mod series;
 pub mod time_domain;
 
 use serde::Serialize;
@@ -285,6 +287,17 @@ fn keep_best_member<T>(
     }
 }
 
+/// The family member a fit stands for and its fitted shape (sensor_lowpass, series_compliance,
+/// drift; see [`RankedEffect::member`]).
+pub fn member_of(f: &Fitted, run: Option<&drift::RunDissipation>) -> Option<String> {
+    f.structure
+        .transform
+        .sensor
+        .map(|s| s.describe())
+        .or_else(|| series::describe(f))
+        .or_else(|| drift::describe(f, run))
+}
+
 fn mass_of(setup: &Setup) -> Result<f64, DiagnoseError> {
     setup
         .rig_mass_kg()
@@ -296,10 +309,10 @@ fn heldout_all(
     mass_kg: f64,
     records: &[&Record],
 ) -> Result<Vec<HeldOut>, DiagnoseError> {
-    let element = fitted.element();
     records
         .iter()
         .map(|r| {
+            let element = fitted.element_at(r.start_time_s);
             predict_record(&element, mass_kg, r, &fitted.transform()).map_err(|source| {
                 DiagnoseError::Simulation {
                     step: r.step,
@@ -409,6 +422,7 @@ pub fn diagnose(
             "the kinematic identity (x_o - x = x_i) shows the base the rig receives amplified over the recorded one, by {gain:.3} at {f:.2} Hz: exciter dynamics with a gain above 1 (a resonance of the exciter, its mount or the fixture), which no delay or lag gives, or a low-pass on the base displacement channel (the sensor_lowpass family); exciter_delay not offered"
         ));
     }
+    let dissipation = drift::run_dissipation(records, mass_kg);
     let mut cand_idx = Vec::new();
     for (ci, c) in search.candidates.iter().enumerate() {
         // A candidate whose fitted model cannot be simulated (e.g. an unstable negative
@@ -425,7 +439,7 @@ pub fn diagnose(
         let score = penalised(after, extra, n_eff);
         ranked.push(RankedEffect {
             effect: c.effect,
-            member: c.structure.transform.sensor.map(|f| f.describe()),
+            member: member_of(&c.fitted, dissipation.as_ref()),
             gap_after_percent: after,
             shrink_percent: gap_before - after,
             score_percent: score,

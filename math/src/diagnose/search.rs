@@ -12,6 +12,7 @@ use super::effects::{
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
 use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit};
 use super::sensor::{Consistency, SubsetMember, best_subset_member, exact_for};
+use super::series;
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
@@ -153,6 +154,13 @@ pub fn search(
             }
         }
         if let Some(b) = best {
+            let b = if effect == Effect::SeriesCompliance {
+                series::refine(b, |s| {
+                    evaluate(setup, baseline, analyses, &cycles, effect, s)
+                })?
+            } else {
+                b
+            };
             candidates.push(b);
         }
         // The sensor family's single-channel member, when the channel identities show one: a
@@ -232,4 +240,7 @@ pub fn physical(f: &Fitted) -> bool {
     f.added_parameters()
         .iter()
         .all(|(n, v, _)| !POSITIVE_SYMBOLS.contains(&n.as_str()) || *v > 0.0)
+        // A series spring needs a positive damper to be one.
+        && (f.structure.series_relaxation_s.is_none()
+            || series::damping(f).is_some_and(|c| c > 0.0))
 }
