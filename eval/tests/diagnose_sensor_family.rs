@@ -164,6 +164,7 @@ fn no_sensor_effect_is_given_none() {
         assert!(
             d.ranked_effects
                 .iter()
+                .filter(|r| r.effect == Effect::SensorLowpass)
                 .filter_map(|r| r.member.as_deref())
                 .all(|m| m.starts_with("all channels")),
             "{d:#?}"
