@@ -7,10 +7,10 @@
     reason = "test helpers outside #[test] fns: a panic is how they report failure"
 )]
 
-use forcemap_eval::diagnose_eval::world::{Term, World, WorldEffect, WorldKind, simulate};
-use forcemap_math::diagnose::{DiagnoseOptions, Diagnosis, Effect, Verdict, diagnose, drift};
-use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::recipe::Setup;
+mod common;
+
+use forcemap_eval::diagnose_eval::world::{Term, WorldEffect, WorldKind};
+use forcemap_math::diagnose::{Diagnosis, Effect, Verdict, drift};
 use forcemap_math::record::{Channel, Record};
 use forcemap_math::signal::differentiate::central_difference_at_rate;
 use forcemap_math::sim::rig::PAPER_RIG_MASS_KG;
@@ -25,35 +25,7 @@ fn diagnosed(name: &'static str, term: Option<Term>, seed: u64) -> (Diagnosis, V
         .map(|t| WorldEffect::of_terms(name, WorldKind::NewName, [Some(t), None]))
         .into_iter()
         .collect();
-    let world = World::of(&effects);
-    let run = simulate(&world, 30.0, seed).unwrap();
-    let baseline = Model::by_name(world.baseline, &ModelOptions::default()).unwrap();
-    let setup = Setup::BaseExcited {
-        mass_kg: PAPER_RIG_MASS_KG,
-    };
-    let d = diagnose(
-        &setup,
-        &baseline,
-        &run.records,
-        &[],
-        &DiagnoseOptions::default(),
-    )
-    .unwrap()
-    .diagnosis;
-    println!(
-        "{name}: {} (truth {:.2} %)",
-        d.findings.headline(),
-        run.truth_nmse_percent
-    );
-    for r in &d.ranked_effects {
-        println!(
-            "  {:<20} {:8.3} % {:?} {:?}",
-            r.effect.name(),
-            r.gap_after_percent,
-            r.member,
-            r.added_parameters
-        );
-    }
+    let (d, run) = common::diagnose_world(name, &effects, 30.0, seed);
     (d, run.records)
 }
 

@@ -6,11 +6,10 @@
     reason = "test helpers outside #[test] fns: a panic is how they report failure"
 )]
 
-use forcemap_eval::diagnose_eval::world::{Term, World, WorldEffect, WorldKind, simulate};
-use forcemap_math::diagnose::{DiagnoseOptions, Diagnosis, Verdict, diagnose};
-use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::recipe::Setup;
-use forcemap_math::sim::rig::PAPER_RIG_MASS_KG;
+mod common;
+
+use forcemap_eval::diagnose_eval::world::{Term, WorldEffect, WorldKind};
+use forcemap_math::diagnose::{Diagnosis, Verdict};
 
 /// Coulomb friction of `level_n`, 20 % stronger in one direction than the other (wider than
 /// the candidate's symmetric form).
@@ -47,45 +46,8 @@ fn cubic(force_n: f64) -> WorldEffect {
 }
 
 fn diagnosed(effects: &[WorldEffect], snr_db: f64, seed: u64) -> Diagnosis {
-    let world = World::of(effects);
-    let run = simulate(&world, snr_db, seed).unwrap();
-    let baseline = Model::by_name(world.baseline, &ModelOptions::default()).unwrap();
-    let setup = Setup::BaseExcited {
-        mass_kg: PAPER_RIG_MASS_KG,
-    };
-    let d = diagnose(
-        &setup,
-        &baseline,
-        &run.records,
-        &[],
-        &DiagnoseOptions::default(),
-    )
-    .unwrap()
-    .diagnosis;
-    println!(
-        "{}: {} (truth {:.2} %)",
-        world.baseline,
-        d.findings.headline(),
-        run.truth_nmse_percent
-    );
-    for r in &d.ranked_effects {
-        println!(
-            "  {:<20} {:8.3} % score {:8.3}",
-            r.effect.name(),
-            r.gap_after_percent,
-            r.score_percent
-        );
-    }
-    if let Some(p) = &d.best_pair {
-        println!(
-            "  pair {} + {}: {:.3} % score {:.3}",
-            p.effects[0].name(),
-            p.effects[1].name(),
-            p.gap_after_percent,
-            p.score_percent
-        );
-    }
-    d
+    let names: Vec<&str> = effects.iter().map(|e| e.name).collect();
+    common::diagnose_world(&names.join(" + "), effects, snr_db, seed).0
 }
 
 fn top_two(d: &Diagnosis) -> Vec<&'static str> {

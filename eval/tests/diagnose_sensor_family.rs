@@ -6,13 +6,11 @@
     reason = "test helpers outside #[test] fns: a panic is how they report failure"
 )]
 
-use forcemap_eval::diagnose_eval::world::{
-    SensorDynamics, World, WorldEffect, WorldKind, simulate,
-};
-use forcemap_math::diagnose::{DiagnoseOptions, Diagnosis, Effect, Verdict, diagnose};
-use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::recipe::Setup;
-use forcemap_math::sim::rig::{PAPER_RIG_MASS_KG, RIG_CHANNELS};
+mod common;
+
+use forcemap_eval::diagnose_eval::world::{SensorDynamics, WorldEffect, WorldKind};
+use forcemap_math::diagnose::{Diagnosis, Effect, Verdict};
+use forcemap_math::sim::rig::RIG_CHANNELS;
 
 /// RIG_CHANNELS bit of the channel named `name` (its `short_name`).
 fn mask(name: &str) -> u8 {
@@ -33,37 +31,7 @@ fn diagnosed(sensor: Option<SensorDynamics>, snr_db: f64, seed: u64) -> Diagnosi
         })
         .into_iter()
         .collect();
-    let world = World::of(&effects);
-    let run = simulate(&world, snr_db, seed).unwrap();
-    let baseline = Model::by_name(world.baseline, &ModelOptions::default()).unwrap();
-    let setup = Setup::BaseExcited {
-        mass_kg: PAPER_RIG_MASS_KG,
-    };
-    let d = diagnose(
-        &setup,
-        &baseline,
-        &run.records,
-        &[],
-        &DiagnoseOptions::default(),
-    )
-    .unwrap()
-    .diagnosis;
-    println!(
-        "{:?}: {} (truth {:.2} %)",
-        sensor,
-        d.findings.headline(),
-        run.truth_nmse_percent
-    );
-    for r in &d.ranked_effects {
-        println!(
-            "  {:<20} {:8.3} % {:?} {:?}",
-            r.effect.name(),
-            r.gap_after_percent,
-            r.member,
-            r.added_parameters
-        );
-    }
-    d
+    common::diagnose_world(&format!("{sensor:?}"), &effects, snr_db, seed).0
 }
 
 fn searched(d: &Diagnosis, name: &str) -> f64 {

@@ -1,0 +1,63 @@
+//! What the wide-forms diagnosis tests share: a world simulated and diagnosed, with its ranking
+//! printed so that a failing assertion shows why.
+
+use forcemap_eval::diagnose_eval::world::{World, WorldEffect, WorldRun, simulate};
+use forcemap_math::diagnose::{DiagnoseOptions, Diagnosis, diagnose};
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::recipe::Setup;
+use forcemap_math::sim::rig::PAPER_RIG_MASS_KG;
+
+/// The world of `effects` (none: the paper's rig alone) over the paper's rig run at `snr_db`
+/// from `seed`, diagnosed against the world's baseline; prints the headline, every ranked
+/// candidate and the best pair under `label`.
+#[allow(
+    clippy::unwrap_used,
+    reason = "a test helper: a panic is how it reports failure"
+)]
+pub fn diagnose_world(
+    label: &str,
+    effects: &[WorldEffect],
+    snr_db: f64,
+    seed: u64,
+) -> (Diagnosis, WorldRun) {
+    let world = World::of(effects);
+    let run = simulate(&world, snr_db, seed).unwrap();
+    let baseline = Model::by_name(world.baseline, &ModelOptions::default()).unwrap();
+    let setup = Setup::BaseExcited {
+        mass_kg: PAPER_RIG_MASS_KG,
+    };
+    let d = diagnose(
+        &setup,
+        &baseline,
+        &run.records,
+        &[],
+        &DiagnoseOptions::default(),
+    )
+    .unwrap()
+    .diagnosis;
+    println!(
+        "{label}: {} (truth {:.2} %)",
+        d.findings.headline(),
+        run.truth_nmse_percent
+    );
+    for r in &d.ranked_effects {
+        println!(
+            "  {:<20} {:8.3} % score {:8.3} {:?} {:?}",
+            r.effect.name(),
+            r.gap_after_percent,
+            r.score_percent,
+            r.member,
+            r.added_parameters
+        );
+    }
+    if let Some(p) = &d.best_pair {
+        println!(
+            "  pair {} + {}: {:.3} % score {:.3}",
+            p.effects[0].name(),
+            p.effects[1].name(),
+            p.gap_after_percent,
+            p.score_percent
+        );
+    }
+    (d, run)
+}
