@@ -25,7 +25,7 @@ from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from cyclone_interop import Header_, IdentifiedParameters_, Time_  # noqa: E402
+from cyclone_interop import Header_, IdentifiedParameters_, Time_, print_last_theta  # noqa: E402
 
 
 @final
@@ -95,21 +95,7 @@ def main():
     if load_w is not None:
         load_w.wait_for_acks(duration(seconds=30))
 
-    last = None
-    t0 = time.time()
-    while time.time() - t0 < timeout_s:
-        for t in theta_r.take(N=16):
-            last = t
-        if last is not None and len(last.steps_used) >= expected_steps:
-            break
-        time.sleep(0.05)
-    if last is None:
-        sys.exit("no theta received on rt/rig/theta")
-    print(json.dumps({
-        "model": last.model, "method": last.method, "names": list(last.parameter_names),
-        "values": list(last.values), "steps_used": list(last.steps_used),
-        "equations": last.equations,
-    }))
+    print_last_theta(theta_r, expected_steps, timeout_s)
 
 
 if __name__ == "__main__":

@@ -94,6 +94,26 @@ def header(h):
     return Header_(stamp=Time_(sec=h["stamp"]["sec"], nanosec=h["stamp"]["nanosec"]), frame_id=h["frame_id"])
 
 
+def print_last_theta(theta_r, expected_steps, timeout_s):
+    """Takes thetas until one uses `expected_steps` steps (or `timeout_s` passes) and prints the
+    last as one JSON line, as the Rust tests read it."""
+    last = None
+    t0 = time.time()
+    while time.time() - t0 < timeout_s:
+        for t in theta_r.take(N=16):
+            last = t
+        if last is not None and len(last.steps_used) >= expected_steps:
+            break
+        time.sleep(0.05)
+    if last is None:
+        sys.exit("no theta received on rt/rig/theta")
+    print(json.dumps({
+        "model": last.model, "method": last.method, "names": list(last.parameter_names),
+        "values": list(last.values), "steps_used": list(last.steps_used),
+        "equations": last.equations,
+    }))
+
+
 def main():
     domain, path, expected_steps, timeout_s = int(sys.argv[1]), sys.argv[2], int(sys.argv[3]), float(sys.argv[4])
     messages = json.load(open(path))
@@ -146,21 +166,7 @@ def main():
     s_w.wait_for_acks(duration(seconds=30))
     ex_w.wait_for_acks(duration(seconds=30))
 
-    last = None
-    t0 = time.time()
-    while time.time() - t0 < timeout_s:
-        for t in theta_r.take(N=16):
-            last = t
-        if last is not None and len(last.steps_used) >= expected_steps:
-            break
-        time.sleep(0.05)
-    if last is None:
-        sys.exit("no theta received on rt/rig/theta")
-    print(json.dumps({
-        "model": last.model, "method": last.method, "names": list(last.parameter_names),
-        "values": list(last.values), "steps_used": list(last.steps_used),
-        "equations": last.equations,
-    }))
+    print_last_theta(theta_r, expected_steps, timeout_s)
 
 
 if __name__ == "__main__":
