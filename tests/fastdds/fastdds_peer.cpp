@@ -196,6 +196,22 @@ static void write_reliably(DataWriter* w, M& m) {
   }
 }
 
+// Waits for a theta that uses `expected_steps` steps (each theta is printed by the listener),
+// then deletes the participant; exits with a failure after `timeout_s`.
+static int await_theta_and_close(DomainParticipant* p, ThetaListener& listener, int expected_steps,
+                                 double timeout_s) {
+  auto t0 = Clock::now();
+  while (listener.last_steps < expected_steps) {
+    if (std::chrono::duration<double>(Clock::now() - t0).count() > timeout_s)
+      fail("no theta with " + std::to_string(expected_steps) + " steps within the timeout (" +
+           std::to_string(listener.count) + " thetas received)");
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  p->delete_contained_entities();
+  DomainParticipantFactory::get_instance()->delete_participant(p);
+  return 0;
+}
+
 static int run_publish(int domain, const std::string& path, int expected_steps, double timeout_s) {
   std::ifstream in(path);
   if (!in) fail("cannot read " + path);
@@ -274,16 +290,7 @@ static int run_publish(int domain, const std::string& path, int expected_steps, 
   s_w->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(30, 0));
   e_w->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(30, 0));
 
-  t0 = Clock::now();
-  while (listener.last_steps < expected_steps) {
-    if (std::chrono::duration<double>(Clock::now() - t0).count() > timeout_s)
-      fail("no theta with " + std::to_string(expected_steps) + " steps within the timeout (" +
-           std::to_string(listener.count) + " thetas received)");
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  p->delete_contained_entities();
-  DomainParticipantFactory::get_instance()->delete_participant(p);
-  return 0;
+  return await_theta_and_close(p, listener, expected_steps, timeout_s);
 }
 
 // A bench publishing its own standard topics (for forcemap's foreign node): lines
@@ -352,16 +359,7 @@ static int run_bench(int domain, const std::string& path, int expected_steps, do
             << " wrenches" << std::endl;
   j_w->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(30, 0));
   l_w->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(30, 0));
-  t0 = Clock::now();
-  while (listener.last_steps < expected_steps) {
-    if (std::chrono::duration<double>(Clock::now() - t0).count() > timeout_s)
-      fail("no theta with " + std::to_string(expected_steps) + " steps within the timeout (" +
-           std::to_string(listener.count) + " thetas received)");
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  p->delete_contained_entities();
-  DomainParticipantFactory::get_instance()->delete_participant(p);
-  return 0;
+  return await_theta_and_close(p, listener, expected_steps, timeout_s);
 }
 
 static int run_late(int domain, double listen_s) {
