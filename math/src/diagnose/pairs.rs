@@ -9,7 +9,8 @@
 //! second member is ranked second when the pair beats the top one alone clearly
 //! ([`second_stands_out`]).
 
-use super::effects::{Effect, Structure, structures};
+use super::cycles::StepCycle;
+use super::effects::{Effect, Structure, Transform, structures};
 use super::fit::{cross_validated_percent, fit};
 use super::score::{HeldOut, penalised};
 use super::search::{PhasorSearch, cycles_for, physical};
@@ -40,11 +41,32 @@ const RESEARCHED: [Effect; 3] = [
     Effect::Hysteresis,
 ];
 
+/// The sine steps' cycles under a transform: the search's own for the identity, else rebuilt
+/// once per transform (a top effect's joint fits and their scoring share its transform, so the
+/// rebuild is done once, not per joint fit).
+struct Cycles<'a> {
+    ctx: &'a PairContext<'a>,
+    rebuilt: Option<(Transform, Vec<StepCycle>)>,
+}
+
+impl Cycles<'_> {
+    fn under(&mut self, t: &Transform) -> Result<&[StepCycle], DiagnoseError> {
+        if *t == Transform::default() {
+            return Ok(&self.ctx.search.cycles);
+        }
+        if self.rebuilt.as_ref().is_none_or(|(r, _)| r != t) {
+            self.rebuilt = Some((*t, cycles_for(self.ctx.setup, self.ctx.analyses, t)?));
+        }
+        Ok(self.rebuilt.as_ref().map_or(&[][..], |(_, c)| c.as_slice()))
+    }
+}
+
 /// The top structure combined with each member of `second`'s family worth trying, best by
 /// cross-validated force error of the joint fit on the sine steps (in-sample residual with
 /// fewer than 3 steps); None when no joint fit is physical.
 fn joint_structure(
     ctx: &PairContext,
+    cycles: &mut Cycles,
     top: &Structure,
     second: Effect,
     alone: &Structure,
@@ -57,12 +79,7 @@ fn joint_structure(
     let mut best: Option<(f64, Structure)> = None;
     for o in options {
         let s = top.combine(&o);
-        let cycles = if s.transform == Default::default() {
-            None
-        } else {
-            Some(cycles_for(ctx.setup, ctx.analyses, &s.transform)?)
-        };
-        let cycles = cycles.as_deref().unwrap_or(&ctx.search.cycles);
+        let cycles = cycles.under(&s.transform)?;
         let Ok(f) = fit(ctx.baseline, &s, cycles, None) else {
             continue;
         };
@@ -81,10 +98,10 @@ fn joint_structure(
 /// the fit fails, is not physical or cannot be simulated.
 fn scored(
     ctx: &PairContext,
+    cycles: &mut Cycles,
     s: &Structure,
 ) -> Result<Option<(PairResult, Vec<HeldOut>)>, DiagnoseError> {
-    let cycles = cycles_for(ctx.setup, ctx.analyses, &s.transform)?;
-    let Ok(f) = fit(ctx.baseline, s, &cycles, None) else {
+    let Ok(f) = fit(ctx.baseline, s, cycles.under(&s.transform)?, None) else {
         return Ok(None);
     };
     if !physical(&f) {
@@ -114,11 +131,12 @@ pub fn forward_pair(
     others: &[(Effect, &Structure)],
 ) -> Result<Option<PairResult>, DiagnoseError> {
     let mut best: Option<PairResult> = None;
+    let mut cycles = Cycles { ctx, rebuilt: None };
     for (effect, alone) in others {
-        let Some(s) = joint_structure(ctx, top, *effect, alone)? else {
+        let Some(s) = joint_structure(ctx, &mut cycles, top, *effect, alone)? else {
             continue;
         };
-        let Some((p, _)) = scored(ctx, &s)? else {
+        let Some((p, _)) = scored(ctx, &mut cycles, &s)? else {
             continue;
         };
         if best
