@@ -10,11 +10,29 @@ use crate::model::{IdentifiedModel, Model};
 pub(crate) struct ModelElement {
     smooth: IdentifiedModel,
     friction: Option<Friction>,
+    /// The element sees `x_offset_m + x` (an element test's stroke about its mid position).
+    x_offset_m: f64,
+    /// A constant force on the moving mass, taken off the element's (a force drive's static
+    /// part).
+    force_offset_n: f64,
 }
 
 /// Checks that the simulators can run `model` exactly: every term that jumps where x' changes
 /// sign must be sgn(x') (the Coulomb level) or the Stribeck excess.
 pub(crate) fn check_model(model: &Model) -> Result<(), IdentifyError> {
+    // The friction law has one Stribeck velocity: excesses at two cannot be simulated.
+    let mut velocities = model.terms.iter().filter_map(|t| t.stribeck_velocity_mps());
+    if let Some(first) = velocities.next()
+        && let Some(other) = velocities.find(|v| *v != first)
+    {
+        return Err(IdentifyError::Step {
+            step: 0,
+            problem: format!(
+                "output error simulates the friction exactly, with one Stribeck velocity; model {} has Stribeck excesses at {first} and {other} m/s",
+                model.name
+            ),
+        });
+    }
     for t in model.terms.iter().filter(|t| t.jumps_at_zero_velocity()) {
         let sgn = t.formula() == "sgn(x')";
         if !sgn && t.stribeck_velocity_mps().is_none() {
@@ -64,6 +82,18 @@ impl ModelElement {
         ModelElement {
             smooth: IdentifiedModel::new(model.clone(), theta.to_vec()),
             friction,
+            x_offset_m: 0.0,
+            force_offset_n: 0.0,
+        }
+    }
+
+    /// The element at displacement `x_offset_m + x`, less the constant force `force_offset_n`:
+    /// an element test whose drive has an offset, simulated with a drive without one.
+    pub(crate) fn with_offsets(self, x_offset_m: f64, force_offset_n: f64) -> ModelElement {
+        ModelElement {
+            x_offset_m,
+            force_offset_n,
+            ..self
         }
     }
 }
@@ -71,7 +101,7 @@ impl ModelElement {
 impl Element for ModelElement {
     fn smooth_force(&self, x: f64, v: f64, z: &[f64]) -> f64 {
         // IdentifiedModel's smooth force leaves every jumping term out.
-        self.smooth.smooth_force(x, v, z)
+        self.smooth.smooth_force(self.x_offset_m + x, v, z) - self.force_offset_n
     }
 
     fn friction(&self) -> Option<Friction> {
@@ -79,7 +109,9 @@ impl Element for ModelElement {
     }
 
     fn linear_coefficients(&self) -> Option<(f64, f64)> {
-        self.smooth.linear_coefficients()
+        // With an offset the force is affine in x, not linear.
+        let offset = self.x_offset_m != 0.0 || self.force_offset_n != 0.0;
+        self.smooth.linear_coefficients().filter(|_| !offset)
     }
 }
 

@@ -11,11 +11,13 @@
 //! - the drive-point 3-DOF example ([`three_dof`]): x, x_d and F, with the far side of the
 //!   element and each step's force amplitude fitted too;
 //! - the base-excited rig ([`rig`]): base displacement, relative displacement and mass
-//!   acceleration, the rig driven by a sine per step whose amplitude and phase are fitted too.
-//!
-//! The element setup is not covered yet.
+//!   acceleration, the rig driven by a sine per step whose amplitude and phase are fitted too;
+//! - the element test ([`element_test`]): x, F and the mass acceleration, the element driven by
+//!   a fitted sine per step of its stroke (damper dyno) or of its force (shaker), whichever
+//!   channel is the purer sine.
 
 mod element;
+mod element_test;
 mod lm;
 pub mod rig;
 mod three_dof;
@@ -46,16 +48,19 @@ pub fn refine_output_error(
     first: &Identification,
 ) -> Result<Identification, IdentifyError> {
     match setup {
-        Setup::DrivePoint { .. } => {
-            three_dof::refine(model, setup, records, analyses, first)
-        }
+        Setup::DrivePoint { .. } => three_dof::refine(model, setup, records, analyses, first),
         Setup::BaseExcited { mass_kg } => {
             RigOutputError::new(model, *mass_kg, records, analyses, RigDrive::FittedSine)?
                 .refine(first)
         }
-        Setup::Element { .. } => Err(unsupported(
-            "output-error refinement is implemented for the rig and the drive-point (3-DOF) setups; not yet for the element setup".into(),
-        )),
+        Setup::Element { moving_mass_kg } => element_test::ElementOutputError::new(
+            model,
+            *moving_mass_kg,
+            records,
+            analyses,
+            element_test::drive_of(analyses),
+        )?
+        .refine(first),
     }
 }
 
@@ -85,6 +90,40 @@ fn sine_records<'a>(
         next = r.start_time_s + r.len() as f64 / fs;
     }
     Ok(recs)
+}
+
+/// Whether each of the `n` samples of a simulated record is kept in a channel that jumps at
+/// the simulation's stick/slip events (a rig's or a force-driven mass's acceleration, a
+/// displacement-driven element's force): a sample within a sample interval of an event changes
+/// by a jump when the event crosses it, so the misfit would have cliffs that stall the fit.
+/// The two samples around each sample interval with an event and one more on each side are
+/// dropped (an event may move by a sample interval during a pass without reaching a kept
+/// sample).
+fn event_mask(trace: &crate::sim::RecordTrace, n: usize) -> Vec<bool> {
+    let state: Vec<i8> = trace
+        .samples
+        .iter()
+        .map(|t| {
+            if t.stuck {
+                0
+            } else {
+                t.relative_velocity_mps.signum() as i8
+            }
+        })
+        .collect();
+    let mut kept = vec![true; n];
+    for i in 1..state.len().min(n) {
+        if state[i] != state[i - 1] {
+            for k in kept
+                .iter_mut()
+                .take((i + 2).min(n))
+                .skip(i.saturating_sub(2))
+            {
+                *k = false;
+            }
+        }
+    }
+    kept
 }
 
 /// Noise std of each of `channels` per step: the residual of its harmonic fit, floored at
@@ -117,8 +156,8 @@ fn channel_noise<const N: usize>(
         .collect()
 }
 
-/// The identification of the model's parameters (the first `model.terms.len()` of the fit),
-/// with the misfit warning and the r contributions of `first` rescaled to the refined values.
+/// The identification of the parameters of `first` (the first of the fit: the model's, then
+/// the setup's, as an element test's moving mass), with the misfit warning and the r contributions of `first` rescaled to the refined values.
 fn identification(
     model: &Model,
     first: &Identification,
@@ -126,7 +165,7 @@ fn identification(
     steps_used: Vec<usize>,
     note: String,
 ) -> Identification {
-    let p_model = model.terms.len();
+    let p_model = first.parameters.len();
     let p = &fit.p;
     let cov = fit.covariance();
     let rms = fit.rms();

@@ -27,7 +27,7 @@ use super::element::{ModelElement, check_model};
 use super::lm::{
     Limits, Partial, Problem, jacobian, levenberg_marquardt, levenberg_marquardt_within,
 };
-use super::{channel_noise, identification, sine_records, unsupported};
+use super::{channel_noise, event_mask, identification, sine_records, unsupported};
 use crate::identify::{Identification, IdentifyError};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
@@ -203,40 +203,13 @@ impl<'a> RigOutputError<'a> {
     }
 
     /// The problem with the mass acceleration samples next to a stick/slip event of the
-    /// simulation at `p` left out. The acceleration jumps where the element sticks or reverses,
-    /// so a sample within a sample interval of an event changes by a jump when the event
-    /// crosses it: the misfit would have cliffs that stall the fit. The two samples around each
-    /// sample interval with an event and one more on each side are dropped (an event may move
-    /// by a sample interval during a pass without reaching a kept sample); the mask stays
-    /// fixed during a pass.
+    /// simulation at `p` left out ([`event_mask`]: the acceleration jumps where the element
+    /// sticks or reverses); the mask stays fixed during a pass.
     pub fn masked_at(&self, p: &[f64]) -> Result<RigOutputError<'a>, IdentifyError> {
         let sim = self.simulate(p)?;
         let mut out = self.clone();
         for (kept, trace) in out.acceleration_kept.iter_mut().zip(&sim.traces) {
-            let state: Vec<i8> = trace
-                .samples
-                .iter()
-                .map(|t| {
-                    if t.stuck {
-                        0
-                    } else {
-                        t.relative_velocity_mps.signum() as i8
-                    }
-                })
-                .collect();
-            kept.iter_mut().for_each(|k| *k = true);
-            let n = kept.len();
-            for i in 1..state.len().min(n) {
-                if state[i] != state[i - 1] {
-                    for k in kept
-                        .iter_mut()
-                        .take((i + 2).min(n))
-                        .skip(i.saturating_sub(2))
-                    {
-                        *k = false;
-                    }
-                }
-            }
+            *kept = event_mask(trace, kept.len());
         }
         Ok(out.with_blocks())
     }
