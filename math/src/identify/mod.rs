@@ -31,7 +31,9 @@ pub use cycle::{Cycle, rebuilt_cycle};
 
 pub use fd::{ElementHarmonics, element_harmonics, step_equations};
 pub use multisine::{identify_with_multisines, multisine_equations};
-pub use output_error::{RigDrive, RigMisfit, RigOutputError, refine_output_error};
+pub use output_error::{
+    ElementOutputError, RigDrive, RigMisfit, RigOutputError, element_drive_of, refine_output_error,
+};
 pub use td::{td_range_equations, td_step_equations};
 
 use nalgebra::{DMatrix, DVector};

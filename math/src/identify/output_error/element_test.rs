@@ -6,7 +6,7 @@
 //! The drive ([`ElementDrive`]) is the channel that is a sine: the stroke on a damper dyno or
 //! mount tester, the force on a shaker-driven single-DOF system. The data do not say which, so
 //! it is the channel whose harmonics above the first are the smaller share of it
-//! ([`drive_of`]); the other channel is the element's response and carries its distortion.
+//! ([`element_drive_of`]); the other channel is the element's response and carries its distortion.
 //! The drive is a sine per step whose amplitude and phase are fitted with the element, plus one
 //! offset for the run (the stroke's mid position, or a static force), started from the drive
 //! channel's phasors; its samples are measurements like the others.
@@ -27,10 +27,11 @@
 
 use std::ops::Range;
 
+use nalgebra::DMatrix;
 use num_complex::Complex64;
 
 use super::element::{ModelElement, check_model};
-use super::lm::{Problem, levenberg_marquardt};
+use super::lm::{Problem, jacobian, levenberg_marquardt};
 use super::{channel_noise, event_mask, identification, sine_records, unsupported};
 use crate::identify::{Identification, IdentifyError};
 use crate::model::Model;
@@ -79,7 +80,7 @@ fn distortion(analyses: &[HarmonicAnalysis], c: Channel) -> f64 {
 
 /// The drive of an element test: the channel of x and F that is the purer sine. (A linear
 /// element leaves both pure; either drive then describes the data.)
-pub(crate) fn drive_of(analyses: &[HarmonicAnalysis]) -> ElementDrive {
+pub fn element_drive_of(analyses: &[HarmonicAnalysis]) -> ElementDrive {
     if distortion(analyses, Channel::RelativeDisplacementM) <= distortion(analyses, Channel::ForceN)
     {
         ElementDrive::Displacement
@@ -92,7 +93,7 @@ pub(crate) fn drive_of(analyses: &[HarmonicAnalysis]) -> ElementDrive {
 /// is identified, each step's drive amplitude and phase at the record's start [rad], then the
 /// drive's offset.
 #[derive(Clone)]
-pub(crate) struct ElementOutputError<'a> {
+pub struct ElementOutputError<'a> {
     model: Model,
     /// The known moving mass; None: fitted (the parameter after the model's).
     mass_kg: Option<f64>,
@@ -110,7 +111,9 @@ pub(crate) struct ElementOutputError<'a> {
 }
 
 impl<'a> ElementOutputError<'a> {
-    pub(crate) fn new(
+    /// The problem of the sine records of an element test driven as `drive` says (see
+    /// [`element_drive_of`]), with their harmonic analyses; `moving_mass_kg` None: the mass is fitted.
+    pub fn new(
         model: &Model,
         moving_mass_kg: Option<f64>,
         records: &'a [Record],
@@ -205,6 +208,34 @@ impl<'a> ElementOutputError<'a> {
         self.settled[k].clone().filter(move |i| !masked || kept[*i])
     }
 
+    /// Replaces the measured noise std of each channel by `sigma` (x, F, then the mass
+    /// acceleration when fitted), e.g. the true noise for the Cramer-Rao bound.
+    pub fn with_noise(mut self, sigma: &[f64]) -> Self {
+        for s in &mut self.sigma {
+            for (v, t) in s.iter_mut().zip(sigma) {
+                *v = *t;
+            }
+        }
+        self
+    }
+
+    /// The covariance `(J^T W J)^-1` of every parameter at `p` (the Cramer-Rao bound when `p`
+    /// is the truth and the noise the true one): the element's parameters, each step's drive
+    /// amplitude and phase, the drive's offset.
+    pub fn covariance_at(&self, p: &[f64]) -> Result<DMatrix<f64>, IdentifyError> {
+        let scale = self.scale(p);
+        let masked = self.masked_at(p)?;
+        let r = masked.residual(p)?;
+        let jac = jacobian(&masked, p, &r, &scale)?;
+        let np = p.len();
+        let inv = (jac.transpose() * &jac)
+            .try_inverse()
+            .unwrap_or_else(|| DMatrix::from_element(np, np, f64::NAN));
+        Ok(DMatrix::from_fn(np, np, |i, j| {
+            inv[(i, j)] * scale[i] * scale[j]
+        }))
+    }
+
     /// The problem with the jumping channel's samples next to a stick/slip event of the
     /// simulation at `p` left out (fixed during a pass; see [`super::event_mask`]).
     fn masked_at(&self, p: &[f64]) -> Result<ElementOutputError<'a>, IdentifyError> {
@@ -239,7 +270,7 @@ impl<'a> ElementOutputError<'a> {
 
     /// Refines `first` (fd-multi on the same data): two passes, the second with each channel's
     /// noise per step re-estimated from the first fit's misfit (as the rig's refinement).
-    pub(crate) fn refine(&self, first: &Identification) -> Result<Identification, IdentifyError> {
+    pub fn refine(&self, first: &Identification) -> Result<Identification, IdentifyError> {
         let mut start = first.theta();
         start.truncate(self.p_element());
         if start.len() != self.p_element() {

@@ -17,7 +17,7 @@
 //!   channel is the purer sine.
 
 mod element;
-mod element_test;
+pub mod element_test;
 mod lm;
 pub mod rig;
 mod three_dof;
@@ -28,6 +28,7 @@ use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
 use crate::record::{Channel, Record};
 
+pub use element_test::{ElementOutputError, element_drive_of};
 pub use rig::{RigDrive, RigMisfit, RigOutputError};
 
 /// Floor of each channel's noise std, relative to its fundamental.
@@ -58,7 +59,7 @@ pub fn refine_output_error(
             *moving_mass_kg,
             records,
             analyses,
-            element_test::drive_of(analyses),
+            element_test::element_drive_of(analyses),
         )?
         .refine(first),
     }
