@@ -168,7 +168,8 @@ pub struct IdentifyArgs {
     pub model: String,
     /// fd (the paper's FD-FSM, first harmonic only), fd-multi (all harmonics, slip-phase
     /// aware), td (time-domain FSM, 20 points per step; td-N, td-all), output-error (fd-multi
-    /// refined against the exact stick-slip simulation; rig and 3-DOF drive-point setups).
+    /// refined against the exact stick-slip simulation; rig, 3-DOF drive-point and element
+    /// setups).
     #[arg(long, default_value = "fd-multi")]
     pub method: Method,
     /// Time points per step for --method td ("all" for every settled sample; default 20).

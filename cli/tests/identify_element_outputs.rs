@@ -202,3 +202,48 @@ fn the_summary_prints_the_table_only_for_an_element_test() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(!String::from_utf8_lossy(&o.stdout).contains("dynamic stiffness"));
 }
+
+/// `--method output-error` on element data: a dyno's CSV export (40 dB) and the committed dyno
+/// bag are refined against the simulated stroke and force, every parameter within 1 % of the
+/// truth, with the drive it found named in the warnings.
+#[test]
+fn output_error_on_a_dyno_csv_and_the_committed_bag() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dyno_csv(dir.path(), Some(40.0));
+    let bag = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../bags/damper_dyno_40db");
+    for (data, extra) in [
+        (csv.as_path(), vec!["--mass-kg", "0.8"]),
+        (bag.as_path(), vec![]),
+    ] {
+        let mut args = vec![
+            "identify",
+            data.to_str().unwrap(),
+            "--model",
+            "damper",
+            "--method",
+            "output-error",
+            "--json",
+        ];
+        args.extend(extra);
+        let o = common::forcemap(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(v["method"], "output-error");
+        let warnings = v["warnings"].to_string();
+        assert!(
+            warnings.contains("driven by its displacement"),
+            "{warnings}"
+        );
+        let params = v["parameters"].as_array().unwrap();
+        assert_eq!(params.len(), RunSpec::DAMPER_DYNO_THETA.len());
+        for (p, (name, t)) in params.iter().zip(RunSpec::DAMPER_DYNO_THETA) {
+            assert_eq!(p["name"], name);
+            let value = num(p, "value");
+            assert!(
+                (value / t - 1.0).abs() < 0.01,
+                "{}: {name} = {value} (truth {t})",
+                data.display()
+            );
+        }
+    }
+}

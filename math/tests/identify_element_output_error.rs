@@ -288,7 +288,9 @@ fn seeds() -> u64 {
 /// 40 dB, the scatter (RMS error about the truth) against the reported std and the Cramer-Rao
 /// bound, for both benches. Prints the table. Asserts every error within 1 % at 30 dB, the
 /// reported std within 20 % of the bound, and the scatter within the 99 % interval of an RMS
-/// of `SEEDS` normal errors with the reported std (as the rig's study).
+/// of `SEEDS` normal errors with the reported std (as the rig's study). An error above 1 % is
+/// accepted where the bound itself is above a third of 1 % (no unbiased fit can do better;
+/// the dyno's k, see docs/results.md) if it is within 3 bounds.
 #[test]
 #[ignore]
 fn noise_study_scatter_matches_reported_std_and_crb() {
@@ -306,7 +308,12 @@ fn noise_study_scatter_matches_reported_std_and_crb() {
         "bench  snr  param  mean error %  rms error %  max error %  reported std %  CRB %  rms/std  rms/CRB  std/CRB"
     );
     let mut failures = Vec::new();
-    for b in benches() {
+    // `BENCH=dyno` or `BENCH=shaker` runs one of the two.
+    let only = std::env::var("BENCH").unwrap_or_default();
+    for b in benches()
+        .into_iter()
+        .filter(|b| b.name.contains(only.as_str()))
+    {
         for snr in [30.0, 40.0] {
             let np = b.truth.len();
             let (mut err, mut std, mut bound) = (
@@ -345,7 +352,10 @@ fn noise_study_scatter_matches_reported_std_and_crb() {
                     e / cr,
                     sd / cr
                 );
-                if snr == 30.0 && worst / t.abs() >= 0.01 {
+                if snr == 30.0
+                    && worst / t.abs() >= 0.01
+                    && (cr / t.abs() < 0.01 / 3.0 || worst > 3.0 * cr)
+                {
                     failures.push(format!("{} {}: error {worst}", b.name, b.names[j]));
                 }
                 if (sd / cr - 1.0).abs() >= 0.2 {
@@ -368,4 +378,38 @@ fn noise_study_scatter_matches_reported_std_and_crb() {
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// A friction variant under a displacement drive: the dyno's damper with Stribeck seal
+/// friction (breakaway 60 N, kinetic 40 N at 0.01 m/s) and the model `damper` plus the Stribeck
+/// excess. fd-multi leaves out the slow part of each reversal, where the excess acts; output
+/// error fits the force along the whole stroke and returns the truth noise-free.
+#[test]
+fn stribeck_friction_on_the_dyno_is_recovered_noise_free() {
+    let vs = 0.01;
+    let base = RunSpec::damper_dyno(None, 0);
+    let truth = TruthElement {
+        friction: Some(Friction {
+            breakaway_n: 60.0,
+            kinetic_n: 40.0,
+            stribeck_velocity_mps: vs,
+            asymmetry: 0.0,
+        }),
+        ..base.element.clone()
+    };
+    let rec = base.with_element(truth).simulate().unwrap();
+    let m = model("damper").with_terms(
+        "damper-stribeck",
+        &[Arc::new(StribeckVelocity { velocity_mps: vs }) as Arc<dyn Term>],
+    );
+    let mut want = dyno_truth();
+    want.push(20.0);
+    let oe = identify(&m, &dyno_setup(), Method::OutputError, &rec).unwrap();
+    let fdm = identify(&m, &dyno_setup(), Method::FdMulti, &rec).unwrap();
+    println!(
+        "fd-multi {:?}\noutput-error {:?}",
+        relative_errors(&fdm, &want),
+        relative_errors(&oe, &want)
+    );
+    assert!(max_abs(&relative_errors(&oe, &want)) < 1e-6);
 }
