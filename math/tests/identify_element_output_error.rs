@@ -276,6 +276,80 @@ fn crb(b: &Bench, noisy: &[Record], snr_db: f64) -> Vec<f64> {
     (0..b.truth.len()).map(|i| cov[(i, i)].sqrt()).collect()
 }
 
+/// The error of the linearised estimate for the noise draw of `noisy`: the Gauss-Newton step
+/// from the truth with the true noise std (see [`crb`]).
+fn linearised_error(b: &Bench, noisy: &[Record], snr_db: f64) -> Vec<f64> {
+    let spec = (b.run)(None, 0);
+    let clean = spec.simulate().unwrap();
+    let (analyses, _) = analyse_sine_steps(noisy, &PhasorOptions::for_identification()).unwrap();
+    let sigma = [
+        Channel::RelativeDisplacementM,
+        Channel::ForceN,
+        Channel::MassAccelerationMps2,
+    ]
+    .map(|c| run_rms(&clean, c).unwrap() / 10f64.powf(snr_db / 20.0));
+    let Setup::Element { moving_mass_kg } = (b.setup)() else {
+        panic!("element setup")
+    };
+    let problem = ElementOutputError::new(
+        &model(b.model),
+        moving_mass_kg,
+        noisy,
+        &analyses,
+        element_drive_of(&analyses),
+    )
+    .unwrap()
+    .with_noise(&sigma);
+    let mut d = problem
+        .gauss_newton_step_at(&true_parameters(&spec, &b.truth))
+        .unwrap();
+    d.truncate(b.truth.len());
+    d
+}
+
+/// Whether the scatter above the bound is the noise draws' or the fit's: each seed's error
+/// against the linearised estimate's for the same draw (`BENCH`, `SEEDS` as the study).
+#[test]
+#[ignore]
+fn errors_against_the_linearised_estimate() {
+    let only = std::env::var("BENCH").unwrap_or_default();
+    for b in benches()
+        .into_iter()
+        .filter(|b| b.name.contains(only.as_str()))
+    {
+        let np = b.truth.len();
+        let (mut fit, mut lin) = (vec![0.0; np], vec![0.0; np]);
+        for seed in 0..seeds() {
+            let rec = (b.run)(Some(30.0), seed).simulate().unwrap();
+            let d = linearised_error(&b, &rec, 30.0);
+            let id = identify(&model(b.model), &(b.setup)(), Method::OutputError, &rec).unwrap();
+            let e: Vec<f64> = id
+                .theta()
+                .iter()
+                .zip(&b.truth)
+                .map(|(v, t)| v - t)
+                .collect();
+            println!(
+                "{} seed {seed}: error / linearised error {:.3?}",
+                b.name,
+                e.iter().zip(&d).map(|(a, l)| a / l).collect::<Vec<_>>()
+            );
+            for j in 0..np {
+                fit[j] += e[j] * e[j];
+                lin[j] += d[j] * d[j];
+            }
+        }
+        println!(
+            "{}: RMS error / RMS linearised error {:.3?}",
+            b.name,
+            fit.iter()
+                .zip(&lin)
+                .map(|(a, l)| (a / l).sqrt())
+                .collect::<Vec<_>>()
+        );
+    }
+}
+
 /// Seeds of the noise study: `SEEDS` (default 10).
 fn seeds() -> u64 {
     std::env::var("SEEDS")

@@ -236,6 +236,22 @@ impl<'a> ElementOutputError<'a> {
         }))
     }
 
+    /// The Gauss-Newton step from `p` in every parameter: when `p` is the truth and the noise
+    /// the true one, the error of the linearised maximum-likelihood estimate for this noise
+    /// draw (whose covariance is [`ElementOutputError::covariance_at`]).
+    pub fn gauss_newton_step_at(&self, p: &[f64]) -> Result<Vec<f64>, IdentifyError> {
+        let scale = self.scale(p);
+        let masked = self.masked_at(p)?;
+        let r = masked.residual(p)?;
+        let jac = jacobian(&masked, p, &r, &scale)?;
+        let rhs = jac.transpose() * nalgebra::DVector::from_column_slice(&r);
+        let step = (jac.transpose() * &jac)
+            .lu()
+            .solve(&rhs)
+            .ok_or_else(|| unsupported("singular information at the truth".into()))?;
+        Ok(step.iter().zip(&scale).map(|(d, s)| d * s).collect())
+    }
+
     /// The problem with the jumping channel's samples next to a stick/slip event of the
     /// simulation at `p` left out (fixed during a pass; see [`super::event_mask`]).
     fn masked_at(&self, p: &[f64]) -> Result<ElementOutputError<'a>, IdentifyError> {
