@@ -24,7 +24,18 @@ use forcemap_io::params::{Params, read_params};
 pub mod qos {
     use super::*;
 
+    /// The samples writer's history: also its reliable window (unacknowledged samples before
+    /// a publish blocks).
     pub const SAMPLES_DEPTH: usize = 10_000;
+    /// The samples readers' history: how far a subscribing node may fall behind the samples
+    /// that have arrived before it loses any. A reader acknowledges a sample when it reaches
+    /// the reader's cache, not when the node takes it, so the writer is never held back by a
+    /// slow node, and a KeepLast cache replaces the oldest samples, read or not, once it holds
+    /// its depth. With the writer's 10 000, a recorder or harmonic node descheduled for 0.1 s
+    /// while the sensor published as fast as acknowledged (about 100 000 samples/s) lost
+    /// samples (docs/benchmarks.md, flat memory); 100 000 is 10 s of a 10 kHz rig in real
+    /// time and about 1 s flooded, for about 25 MB more per subscriber.
+    pub const SAMPLES_READER_DEPTH: usize = 100_000;
     pub const PHASORS_DEPTH: usize = 1_000;
 
     pub fn samples() -> QosProfile {
@@ -33,6 +44,13 @@ pub mod qos {
             .history(History::KeepLast {
                 depth: SAMPLES_DEPTH,
             })
+    }
+
+    /// For nodes that subscribe to samples (history [`SAMPLES_READER_DEPTH`]).
+    pub fn samples_reader() -> QosProfile {
+        samples().history(History::KeepLast {
+            depth: SAMPLES_READER_DEPTH,
+        })
     }
 
     pub fn latched(depth: usize) -> QosProfile {

@@ -144,7 +144,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         QosProfile::subscription_default().reliability_best_effort()
     }
     .history(ros2_client::qos::History::KeepLast {
-        depth: qos::SAMPLES_DEPTH,
+        depth: qos::SAMPLES_READER_DEPTH,
     });
     for (k, t) in foreign.topics().iter().enumerate() {
         let name = Name::parse(&t.name).map_err(|e| anyhow::anyhow!("topic {}: {e:?}", t.name))?;

@@ -285,7 +285,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let fq = setup.fully_qualified_name();
 
     let mut ros = RosNode::start(setup.clone())?;
-    let samples = ros.subscription::<RigSample>(topics::SAMPLES, qos::samples())?;
+    let samples = ros.subscription::<RigSample>(topics::SAMPLES, qos::samples_reader())?;
     let excitation = ros.subscription::<ExcitationState>(topics::EXCITATION, qos::excitation())?;
     let phasors_pub = ros.publisher::<HarmonicPhasors>(topics::PHASORS, qos::phasors())?;
     let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;

@@ -282,7 +282,14 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let mut ros = RosNode::start(setup.clone())?;
     let (tx, mut rx) = mpsc::unbounded_channel::<Received>();
     for (i, (name, known)) in plan.iter().enumerate() {
-        (known.subscribe)(&mut ros, name, (known.qos)(), i, tx.clone())?;
+        // Samples come fast: subscribe with the readers' deeper history (the bag still
+        // records the QoS they are published with).
+        let reader_qos = if known.topic_base == topics::SAMPLES {
+            qos::samples_reader()
+        } else {
+            (known.qos)()
+        };
+        (known.subscribe)(&mut ros, name, reader_qos, i, tx.clone())?;
     }
     drop(tx);
     log_line!("recording {} topics into {}", plan.len(), bag.display());
