@@ -208,14 +208,8 @@ pub fn track_records_with_analyses(
             last: an,
         })
         .collect();
-    let mut track = identify::track_steps_within(
-        model,
-        setup,
-        method,
-        &steps,
-        fd_options,
-        factor_per_step,
-    )?;
+    let mut track =
+        identify::track_steps_within(model, setup, method, &steps, fd_options, factor_per_step)?;
     if track.is_empty() {
         // No step determined theta; forgetting does not change which parameters the equations
         // determine, so the converged solve gives the reason (or, equally, the one theta).

@@ -352,10 +352,12 @@ pub fn track_steps(
             last: an,
         })
         .collect();
-    Ok(track_steps_within(model, setup, method, &steps, options, factor_per_step)?
-        .into_iter()
-        .map(|t| t.identification)
-        .collect())
+    Ok(
+        track_steps_within(model, setup, method, &steps, options, factor_per_step)?
+            .into_iter()
+            .map(|t| t.identification)
+            .collect(),
+    )
 }
 
 /// One step to track: the provisional analyses of its samples so far, in order

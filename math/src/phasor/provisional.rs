@@ -18,7 +18,10 @@ pub struct ProvisionalUpdates {
 impl ProvisionalUpdates {
     /// Every `update_period_s` [s] at `sample_rate_hz` [Hz]; `update_period_s` must be finite
     /// and positive.
-    pub fn new(update_period_s: f64, sample_rate_hz: f64) -> Result<ProvisionalUpdates, PhasorError> {
+    pub fn new(
+        update_period_s: f64,
+        sample_rate_hz: f64,
+    ) -> Result<ProvisionalUpdates, PhasorError> {
         if !(update_period_s.is_finite() && update_period_s > 0.0) {
             return Err(PhasorError::InvalidOptions {
                 reason: format!("update_period_s = {update_period_s}: expected a period > 0 s"),
@@ -44,7 +47,9 @@ impl ProvisionalUpdates {
     /// Whether provisional phasors are due after `samples` samples of a step that will have
     /// `expected` (0: not known).
     pub fn due(&self, samples: usize, expected: usize) -> bool {
-        samples > 0 && samples % self.samples_per_update == 0 && (expected == 0 || samples < expected)
+        samples > 0
+            && samples % self.samples_per_update == 0
+            && (expected == 0 || samples < expected)
     }
 }
 
@@ -116,7 +121,9 @@ mod tests {
         assert!(!u.due(2000, 2000));
         assert!(u.due(2000, 0));
         for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-            let e = ProvisionalUpdates::new(bad, 1000.0).unwrap_err().to_string();
+            let e = ProvisionalUpdates::new(bad, 1000.0)
+                .unwrap_err()
+                .to_string();
             assert!(e.contains("update_period_s"), "{e}");
         }
     }

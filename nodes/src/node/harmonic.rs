@@ -251,10 +251,7 @@ impl HarmonicState {
             .stream
             .get_or_insert_with(|| StepStream::new(step, plan.as_ref()));
         stream.push(&sample, &self.options);
-        if let Some(p) = self
-            .update_period_s
-            .and_then(|t| stream.provisional(t))
-        {
+        if let Some(p) = self.update_period_s.and_then(|t| stream.provisional(t)) {
             let origin = self.assembler.origin().unwrap_or(Time::ZERO);
             done.push(Outcome::Provisional(Box::new(p), origin));
         }
@@ -323,9 +320,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;
     // Only a node giving provisional phasors has their writer (the graph is otherwise as before).
     let provisional_pub = match update_period_s {
-        Some(_) => Some(
-            ros.publisher::<HarmonicPhasors>(topics::PROVISIONAL_PHASORS, qos::phasors())?,
-        ),
+        Some(_) => {
+            Some(ros.publisher::<HarmonicPhasors>(topics::PROVISIONAL_PHASORS, qos::phasors())?)
+        }
         None => None,
     };
 

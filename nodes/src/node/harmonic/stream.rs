@@ -3,8 +3,7 @@
 
 use forcemap_io::steps::{StepPlan, StepSample};
 use forcemap_math::phasor::{
-    HarmonicAnalysis, PhasorError, PhasorOptions, PhasorStream, ProvisionalUpdates,
-    analyse_record,
+    HarmonicAnalysis, PhasorError, PhasorOptions, PhasorStream, ProvisionalUpdates, analyse_record,
 };
 use forcemap_math::record::{Excitation, Record};
 
@@ -105,9 +104,7 @@ impl StepStream {
     pub(super) fn provisional(&self, update_period_s: f64) -> Option<PhasorStream> {
         let s = self.phasors.as_ref()?;
         let updates = ProvisionalUpdates::new(update_period_s, s.sample_rate_hz()).ok()?;
-        updates
-            .due(s.samples(), self.expected)
-            .then(|| s.clone())
+        updates.due(s.samples(), self.expected).then(|| s.clone())
     }
 
     /// The stream if it holds exactly the samples of `record` at its rate.

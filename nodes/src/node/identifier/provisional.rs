@@ -39,8 +39,7 @@ impl IdentifierCore {
         let fresh;
         let st = match &self.state {
             Some(st) => {
-                if st.setup != recipe.setup.to_string() || admit(st, step, ph.t_ref) != Admit::Add
-                {
+                if st.setup != recipe.setup.to_string() || admit(st, step, ph.t_ref) != Admit::Add {
                     return out;
                 }
                 st
