@@ -19,7 +19,7 @@
 //!
 //! With `update_period_s: T` (default: off), a step in progress also gives provisional phasors
 //! every T seconds of its samples once they have settled periods (a copy of its stream,
-//! finished: [`provisional_analysis`]), published on `phasors/provisional` in order with the
+//! finished: [`provisional_analysis`](forcemap_math::phasor::provisional_analysis)), published on `phasors/provisional` in order with the
 //! steps' phasors, so that a tracking identifier follows a drift within a long step.
 //!
 //! Parameters: `max_harmonic` (100, as `forcemap identify`), `min_periods` (the phasor
@@ -31,7 +31,6 @@ use std::time::{Duration, Instant};
 
 use forcemap_math::phasor::{
     IDENTIFICATION_MAX_HARMONIC, PhasorOptions, PhasorStream, ProvisionalUpdates,
-    provisional_analysis,
 };
 use forcemap_math::record::{Excitation, Record};
 use forcemap_msgs::builtin_interfaces::Time;
@@ -41,6 +40,7 @@ use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
 pub mod find_steps;
+mod provisional;
 mod stream;
 
 use find_steps::StepFinder;
@@ -364,20 +364,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             let (analysis, origin) = match job {
                 Outcome::Analyse(analysis, origin) => (analysis, origin),
                 Outcome::Provisional(stream, origin) => {
-                    let found =
-                        tokio::task::spawn_blocking(move || provisional_analysis(&stream)).await;
-                    if let (Ok(Some(an)), Some(p)) = (found, &provisional_pub) {
-                        let msg = HarmonicPhasors::from_analysis(
-                            &an,
-                            origin,
-                            Header::new(now_time(), &frame_w),
-                        );
-                        if let Err(e) = p.async_publish(msg).await {
-                            log_line!(
-                                "error: publishing provisional phasors of step {}: {e:?}",
-                                an.step
-                            );
-                        }
+                    if let Some(p) = &provisional_pub {
+                        provisional::publish(stream, origin, p, &frame_w).await;
                     }
                     continue;
                 }
