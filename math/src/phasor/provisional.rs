@@ -48,7 +48,7 @@ impl ProvisionalUpdates {
     /// `expected` (0: not known).
     pub fn due(&self, samples: usize, expected: usize) -> bool {
         samples > 0
-            && samples % self.samples_per_update == 0
+            && samples.is_multiple_of(self.samples_per_update)
             && (expected == 0 || samples < expected)
     }
 }
