@@ -145,6 +145,7 @@ fn expected_endpoints() -> Vec<(&'static str, BTreeSet<(String, String)>)> {
                 "identifier",
                 &[
                     ("R", "rt/rig/phasors"),
+                    ("R", "rt/rig/phasors/provisional"),
                     ("R", "rt/rig/parameters"),
                     ("W", "rt/rig/theta"),
                     ("W", "rt/diagnostics"),

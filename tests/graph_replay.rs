@@ -19,6 +19,17 @@ fn replay(
     identifier_params: &[String],
     offline_args: &[&str],
 ) -> (Theta, Theta) {
+    replay_with(bag, domain_id, &[], identifier_params, offline_args).0
+}
+
+/// [`replay`] with parameters for the harmonic node too; also returns the identifier's log.
+fn replay_with(
+    bag: &str,
+    domain_id: u16,
+    harmonic_params: &[String],
+    identifier_params: &[String],
+    offline_args: &[&str],
+) -> ((Theta, Theta), Vec<String>) {
     let dir = tempfile::tempdir().unwrap();
     let summary = dir.path().join("summary.json");
     let bag = repo().join(bag);
@@ -31,12 +42,15 @@ fn replay(
             "timeout_s:=120.0".into(),
         ],
     );
-    let _harmonic = NodeProcess::start("harmonic", domain_id, &[]);
-    let _identifier = NodeProcess::start("identifier", domain_id, identifier_params);
+    let _harmonic = NodeProcess::start("harmonic", domain_id, harmonic_params);
+    let identifier = NodeProcess::start("identifier", domain_id, identifier_params);
     let mut sensor = play_bag(domain_id, &bag, 0.0);
     assert!(sensor.wait_exit(Duration::from_secs(120)).success());
     assert!(monitor.wait_exit(Duration::from_secs(60)).success());
-    (summary_theta(&summary), offline_theta(&bag, offline_args))
+    (
+        (summary_theta(&summary), offline_theta(&bag, offline_args)),
+        identifier.lines(),
+    )
 }
 
 #[test]
@@ -107,4 +121,33 @@ fn damper_dyno_bag_replayed_live_gives_the_offline_theta_and_the_truth() {
         let err = (v - truth).abs() / truth;
         assert!(err < 0.01, "{n} = {v}, truth {truth}: {:.2} %", 100.0 * err);
     }
+}
+
+/// Tracking within the steps live: the harmonic node publishes provisional phasors every
+/// second, the identifier solves with them in place and ends on the theta `forcemap identify
+/// --forgetting-per-step 0.8 --update-period-s 1` ends on.
+#[test]
+fn damper_dyno_bag_tracked_within_steps_live_gives_the_offline_track_end() {
+    let ((live, offline), log) = replay_with(
+        "bags/damper_dyno_40db",
+        domain(57),
+        &["update_period_s:=1.0".into()],
+        &["model:=damper".into(), "forgetting_per_step:=0.8".into()],
+        &[
+            "--model",
+            "damper",
+            "--forgetting-per-step",
+            "0.8",
+            "--update-period-s",
+            "1",
+        ],
+    );
+    assert_same_theta(&live, &offline, 1e-9);
+    let provisional = log.iter().filter(|l| l.contains("(provisional,")).count();
+    assert!(
+        provisional > 0,
+        "no provisional theta in the log:\n{}",
+        log.join("\n")
+    );
+    println!("{provisional} provisional thetas live");
 }

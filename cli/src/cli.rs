@@ -184,6 +184,11 @@ pub struct IdentifyArgs {
     /// 1 (the default) converges over the whole run.
     #[arg(long, default_value_t = 1.0)]
     pub forgetting_per_step: f64,
+    /// Track within each long step too: theta every T seconds of a step's samples once they
+    /// have settled periods (the provisional phasors the live harmonic node publishes with
+    /// `update_period_s: T`), each replaced by the next or by the step's final theta.
+    #[arg(long, value_name = "T")]
+    pub update_period_s: Option<f64>,
     /// Mass of the rig [kg] (overrides the params file).
     #[arg(long)]
     pub mass_kg: Option<f64>,

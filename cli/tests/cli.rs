@@ -217,6 +217,55 @@ fn identify_tracking_reports_theta_after_every_step() {
     assert_ne!(values(&forgetting), values(&converged));
 }
 
+/// Tracking within each step (`--update-period-s`): provisional rows between the steps' rows,
+/// which are the per-step track's exactly (provisional phasors never enter the equations);
+/// every row says when its data end. A period that is not positive is refused by name.
+#[test]
+fn identify_tracking_within_steps_adds_provisional_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = rig_csv(dir.path());
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "identify",
+            csv.to_str().unwrap(),
+            "--model",
+            "coulomb",
+            "--mass-kg",
+            "36",
+            "--forgetting-per-step",
+            "0.8",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        forcemap(&args)
+    };
+    let track = |o: &Output| {
+        assert!(o.status.success(), "{}", stderr(o));
+        let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        j["track"].as_array().unwrap().clone()
+    };
+    let per_step = track(&run(&[]));
+    let within = track(&run(&["--update-period-s", "1"]));
+    let finals: Vec<_> = within
+        .iter()
+        .filter(|r| !r["provisional"].as_bool().unwrap())
+        .collect();
+    assert!(within.len() > per_step.len(), "{} rows", within.len());
+    assert_eq!(finals.len(), per_step.len());
+    for (a, b) in finals.iter().zip(&per_step) {
+        assert_eq!(a["parameters"], b["parameters"]);
+        assert_eq!(a["data_end_s"], b["data_end_s"]);
+    }
+    let ends: Vec<f64> = within
+        .iter()
+        .map(|r| r["data_end_s"].as_f64().unwrap())
+        .collect();
+    assert!(ends.windows(2).all(|w| w[0] < w[1]), "{ends:?}");
+    let o = run(&["--update-period-s", "0"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("update_period_s = 0"), "{}", stderr(&o));
+}
+
 #[test]
 fn three_dof_export_needs_its_substructure_and_is_identified_with_it() {
     let dir = tempfile::tempdir().unwrap();

@@ -33,6 +33,11 @@ rig_topic!(
     PHASORS, RIG_PHASORS, "phasors"
 );
 rig_topic!(
+    /// `forcemap_msgs/msg/HarmonicPhasors` of the step in progress (the harmonic node's
+    /// `update_period_s`): provisional, each replaced by the next or by the step's phasors.
+    PROVISIONAL_PHASORS, RIG_PROVISIONAL_PHASORS, "phasors/provisional"
+);
+rig_topic!(
     /// The identifier's `forcemap_msgs/msg/IdentifiedParameters`.
     THETA, RIG_THETA, "theta"
 );
@@ -55,6 +60,7 @@ mod tests {
             (EXCITATION, RIG_EXCITATION),
             (PARAMETERS, RIG_PARAMETERS),
             (PHASORS, RIG_PHASORS),
+            (PROVISIONAL_PHASORS, RIG_PROVISIONAL_PHASORS),
             (THETA, RIG_THETA),
             (DIAGNOSIS, RIG_DIAGNOSIS),
         ] {

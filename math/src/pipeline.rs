@@ -155,9 +155,13 @@ pub fn identify_analysed(
 }
 
 /// Tracks `model` on the sine steps of `records`: theta after every step, the steps before it
-/// weighed by `factor_per_step` each time a step is added ([`identify::track_steps`]), and the
-/// harmonic analyses. The last theta is the current one and carries the analysis notes. The
-/// periodic multisine records are refused: forgetting is per step.
+/// weighed by `factor_per_step` each time a step is added ([`identify::track_steps_within`]),
+/// and the harmonic analyses. With `update_period_s`, also theta within each step, every that
+/// many seconds of its samples once they have settled periods (the provisional phasors the
+/// live harmonic node publishes with the same period). The last theta is the current one and
+/// carries the analysis notes. The periodic multisine records are refused: forgetting is per
+/// step.
+#[allow(clippy::too_many_arguments)]
 pub fn track_records_with_analyses(
     model: &Model,
     setup: &Setup,
@@ -166,7 +170,8 @@ pub fn track_records_with_analyses(
     phasor_options: &PhasorOptions,
     fd_options: &FdMultiOptions,
     factor_per_step: f64,
-) -> Result<(Vec<Identification>, Vec<HarmonicAnalysis>), PipelineError> {
+    update_period_s: Option<f64>,
+) -> Result<(Vec<identify::TrackPoint>, Vec<HarmonicAnalysis>), PipelineError> {
     if let Some(r) = records.iter().find(|r| {
         matches!(
             r.excitation,
@@ -181,17 +186,44 @@ pub fn track_records_with_analyses(
         }));
     }
     let (analyses, notes) = analyse_sine_steps(records, phasor_options)?;
+    let mut provisional = Vec::with_capacity(analyses.len());
+    for r in records
+        .iter()
+        .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
+    {
+        provisional.push(match update_period_s {
+            Some(t) => crate::phasor::provisional_analyses(
+                r,
+                phasor_options,
+                crate::phasor::ProvisionalUpdates::new(t, r.sample_rate_hz)?,
+            )?,
+            None => Vec::new(),
+        });
+    }
+    let steps: Vec<identify::TrackedStep> = provisional
+        .iter()
+        .zip(&analyses)
+        .map(|(p, an)| identify::TrackedStep {
+            provisional: p,
+            last: an,
+        })
+        .collect();
     let mut track =
-        identify::track_steps(model, setup, method, &analyses, fd_options, factor_per_step)?;
+        identify::track_steps_within(model, setup, method, &steps, fd_options, factor_per_step)?;
     if track.is_empty() {
         // No step determined theta; forgetting does not change which parameters the equations
         // determine, so the converged solve gives the reason (or, equally, the one theta).
-        track.push(identify::identify(
-            model, setup, method, records, &analyses, fd_options,
-        )?);
+        let id = identify::identify(model, setup, method, records, &analyses, fd_options)?;
+        let last = analyses.last();
+        track.push(identify::TrackPoint {
+            identification: id,
+            step: last.map_or(0, |a| a.step),
+            provisional: false,
+            data_end_s: last.map_or(f64::NAN, HarmonicAnalysis::data_end_s),
+        });
     }
     if let Some(last) = track.last_mut() {
-        last.warnings.splice(0..0, notes);
+        last.identification.warnings.splice(0..0, notes);
     }
     Ok((track, analyses))
 }

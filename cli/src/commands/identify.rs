@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Context, anyhow};
-use forcemap_math::identify::{Identification, Method, rebuilt_cycle};
+use forcemap_math::identify::{Identification, Method, TrackPoint, rebuilt_cycle};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::{HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
@@ -81,7 +81,8 @@ fn load(args: &IdentifyArgs) -> anyhow::Result<(forcemap_io::input::Loaded, Opti
         && args.channels.is_none()
         && args.plot.is_none()
         && matches!(method(args)?, Method::Fd | Method::FdMulti)
-        && Tracking::from_factor(args.forgetting_per_step)? == Tracking::Converged;
+        && Tracking::from_factor(args.forgetting_per_step)? == Tracking::Converged
+        && args.update_period_s.is_none();
     if !streams {
         let import = forcemap_io::input::load_mapped(&args.file, args.channels.as_deref())?;
         return Ok((import, None));
@@ -135,8 +136,8 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     };
     // Tracking: theta after every step, as the live identifier publishes it; the last is the
     // current one. Converged: one theta from every step.
-    let (id, track, analyses) = match recipe.tracking {
-        Tracking::Converged => {
+    let (id, track, analyses) = match (recipe.tracking, args.update_period_s) {
+        (Tracking::Converged, None) => {
             let (id, analyses) = match streamed.take() {
                 Some(analysed) => analysed.and_then(|(analyses, notes)| {
                     pipeline::identify_analysed(
@@ -161,7 +162,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
             .with_context(what)?;
             (id, Vec::new(), analyses)
         }
-        Tracking::Forgetting { factor_per_step } => {
+        (tracking, update_period_s) => {
             let (track, analyses) = pipeline::track_records_with_analyses(
                 &model,
                 &setup,
@@ -169,10 +170,14 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
                 &import.records,
                 &recipe.phasor,
                 &recipe.fd_options(),
-                factor_per_step,
+                tracking.factor_per_step(),
+                update_period_s,
             )
             .with_context(|| format!("{} (tracking)", what()))?;
-            let id = track.last().cloned().context("tracking gave no theta")?;
+            let id = track
+                .last()
+                .map(|t| t.identification.clone())
+                .context("tracking gave no theta")?;
             (id, track, analyses)
         }
     };
@@ -222,8 +227,11 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
                 .iter()
                 .map(|t| {
                     json!({
-                        "steps_used": t.steps_used,
-                        "parameters": t.parameters.iter().map(|p| json!({"name": p.name, "value": p.value, "std": p.std})).collect::<Vec<_>>(),
+                        "step": t.step,
+                        "provisional": t.provisional,
+                        "data_end_s": t.data_end_s,
+                        "steps_used": t.identification.steps_used,
+                        "parameters": t.identification.parameters.iter().map(|p| json!({"name": p.name, "value": p.value, "std": p.std})).collect::<Vec<_>>(),
                     })
                 })
                 .collect();
@@ -330,23 +338,34 @@ pub fn identification_json(
     })
 }
 
-/// Theta after every step of a tracking identification, one row per step.
-fn print_track(track: &[Identification]) {
+/// Theta after every step of a tracking identification, one row per step (and per update
+/// within a step, marked provisional), with the end of the data it describes.
+fn print_track(track: &[TrackPoint]) {
     let Some(first) = track.first() else {
         return;
     };
     println!("tracked theta after each step (the table above is the last row):");
-    let names: Vec<&str> = first.parameters.iter().map(|p| p.name.as_str()).collect();
+    let names: Vec<&str> = first
+        .identification
+        .parameters
+        .iter()
+        .map(|p| p.name.as_str())
+        .collect();
     println!(
-        "{:>6} {}",
+        "{:>6} {:>12} {:>12} {}",
         "step",
+        "",
+        "data end [s]",
         names.iter().map(|n| format!("{n:>14}")).collect::<String>()
     );
     for t in track {
         println!(
-            "{:>6} {}",
-            t.steps_used.last().copied().unwrap_or(0),
-            t.parameters
+            "{:>6} {:>12} {:>12.3} {}",
+            t.step,
+            if t.provisional { "provisional" } else { "" },
+            t.data_end_s,
+            t.identification
+                .parameters
                 .iter()
                 .map(|p| format!("{:>14.6e}", p.value))
                 .collect::<String>()

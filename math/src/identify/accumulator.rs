@@ -72,6 +72,20 @@ impl EquationAccumulator {
         self.forgotten_blocks += (1.0 - factor) * (self.blocks as f64 - self.forgotten_blocks);
     }
 
+    /// The equations as they would be with the step in progress, `blk`, added after forgetting
+    /// by `factor`, leaving these as they are: a provisional step is solved this way, and the
+    /// next provisional block or the step's final one replaces it (it is never added twice).
+    pub fn with_provisional(
+        &self,
+        factor: f64,
+        blk: &StepEquations,
+    ) -> Result<EquationAccumulator, IdentifyError> {
+        let mut acc = self.clone();
+        acc.forget(factor);
+        acc.add(blk)?;
+        Ok(acc)
+    }
+
     /// Whether this state holds equations of `model` by `method` (the model's parameters
     /// first, then any its setup added).
     pub fn is_for(&self, model: &Model, method: Method) -> bool {

@@ -347,24 +347,97 @@ pub fn track_steps(
     options: &FdMultiOptions,
     factor_per_step: f64,
 ) -> Result<Vec<Identification>, IdentifyError> {
+    let steps: Vec<TrackedStep> = analyses
+        .iter()
+        .map(|an| TrackedStep {
+            provisional: &[],
+            last: an,
+        })
+        .collect();
+    Ok(
+        track_steps_within(model, setup, method, &steps, options, factor_per_step)?
+            .into_iter()
+            .map(|t| t.identification)
+            .collect(),
+    )
+}
+
+/// One step to track: the provisional analyses of its samples so far, in order
+/// ([`provisional_analyses`](crate::phasor::provisional_analyses)), and its final one.
+#[derive(Debug, Clone, Copy)]
+pub struct TrackedStep<'a> {
+    pub provisional: &'a [HarmonicAnalysis],
+    pub last: &'a HarmonicAnalysis,
+}
+
+/// A theta of a track and the data it describes.
+#[derive(Debug, Clone)]
+pub struct TrackPoint {
+    pub identification: Identification,
+    /// The newest step in it.
+    pub step: usize,
+    /// Whether that step was provisional (its samples so far).
+    pub provisional: bool,
+    /// The end of the data it includes [s since the start of the run]: the end of the newest
+    /// step's last fitted period ([`HarmonicAnalysis::data_end_s`]).
+    pub data_end_s: f64,
+}
+
+/// [`track_steps`] with updates within each step: each provisional analysis is solved with the
+/// steps before it ([`EquationAccumulator::with_provisional`], as the live identifier does) and
+/// then replaced by the next or by the step's final analysis, which is added for good.
+pub fn track_steps_within(
+    model: &Model,
+    setup: &Setup,
+    method: Method,
+    steps: &[TrackedStep],
+    options: &FdMultiOptions,
+    factor_per_step: f64,
+) -> Result<Vec<TrackPoint>, IdentifyError> {
     if !matches!(method, Method::Fd | Method::FdMulti) {
         return Err(IdentifyError::NotPerStep(method.name()));
     }
     let mut acc = EquationAccumulator::new(model, setup, method);
     let mut out = Vec::new();
-    for an in analyses {
-        let blk = step_equations(model, setup, method, an, options)?;
+    for st in steps {
+        for an in st.provisional {
+            let blk = step_equations(model, setup, method, an, options)?;
+            let solved = acc.with_provisional(factor_per_step, &blk)?.solve();
+            if let Some(id) = determined(solved)? {
+                out.push(TrackPoint {
+                    identification: id,
+                    step: an.step,
+                    provisional: true,
+                    data_end_s: an.data_end_s(),
+                });
+            }
+        }
+        let blk = step_equations(model, setup, method, st.last, options)?;
         acc.forget(factor_per_step);
         acc.add(&blk)?;
-        match acc.solve() {
-            Ok(id) => out.push(id),
-            Err(IdentifyError::Lstsq(
-                LstsqError::Underdetermined { .. } | LstsqError::IllConditioned { .. },
-            )) => {}
-            Err(e) => return Err(e),
+        if let Some(id) = determined(acc.solve())? {
+            out.push(TrackPoint {
+                identification: id,
+                step: st.last.step,
+                provisional: false,
+                data_end_s: st.last.data_end_s(),
+            });
         }
     }
     Ok(out)
+}
+
+/// A solve's theta, `None` while the equations do not determine it yet.
+fn determined(
+    solved: Result<Identification, IdentifyError>,
+) -> Result<Option<Identification>, IdentifyError> {
+    match solved {
+        Ok(id) => Ok(Some(id)),
+        Err(IdentifyError::Lstsq(
+            LstsqError::Underdetermined { .. } | LstsqError::IllConditioned { .. },
+        )) => Ok(None),
+        Err(e) => Err(e),
+    }
 }
 
 /// Identifies `model` from stepped-sine steps. FD methods use the harmonic analyses; TD uses the

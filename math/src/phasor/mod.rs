@@ -71,11 +71,13 @@
 mod fit;
 pub mod multisine;
 mod periods;
+pub mod provisional;
 mod stream;
 pub mod sweep;
 mod types;
 
 pub use multisine::{MultisineAnalysis, MultisineError, MultisineOptions, analyse_multisine};
+pub use provisional::{ProvisionalUpdates, provisional_analyses, provisional_analysis};
 pub use stream::PhasorStream;
 pub use sweep::{SweepKind, SweepLaw, SweepOptions, analyse_sweep};
 pub use types::{

@@ -17,13 +17,21 @@
 //! channel of the buffered samples ([`find_steps`]: the segmentation of an unlabelled export),
 //! each analysed in batch once the next step has begun; excitation states are then ignored.
 //!
+//! With `update_period_s: T` (default: off), a step in progress also gives provisional phasors
+//! every T seconds of its samples once they have settled periods (a copy of its stream,
+//! finished: [`provisional_analysis`](forcemap_math::phasor::provisional_analysis)), published on `phasors/provisional` in order with the
+//! steps' phasors, so that a tracking identifier follows a drift within a long step.
+//!
 //! Parameters: `max_harmonic` (100, as `forcemap identify`), `min_periods` (the phasor
-//! analysis' minimum of settled periods), `find_steps` (false), `frame_id`.
+//! analysis' minimum of settled periods), `find_steps` (false), `update_period_s` (off),
+//! `frame_id`.
 
 use std::collections::{BTreeMap, VecDeque};
 use std::time::{Duration, Instant};
 
-use forcemap_math::phasor::{IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
+use forcemap_math::phasor::{
+    IDENTIFICATION_MAX_HARMONIC, PhasorOptions, PhasorStream, ProvisionalUpdates,
+};
 use forcemap_math::record::{Excitation, Record};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
@@ -32,6 +40,7 @@ use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
 pub mod find_steps;
+mod provisional;
 mod stream;
 
 use find_steps::StepFinder;
@@ -62,6 +71,8 @@ pub enum Input {
 pub enum Outcome {
     /// A complete sine step to analyse, with the run's time origin.
     Analyse(Analysis, Time),
+    /// The stream of a step in progress, due for provisional phasors, with the run's origin.
+    Provisional(Box<PhasorStream>, Time),
     /// A complete random record: kept for validation, no phasors.
     Skipped(usize, String),
     Dropped(StepError),
@@ -81,6 +92,8 @@ pub struct HarmonicState {
     finder: Option<StepFinder>,
     /// When the last sample came (finding steps: the run ends `PLAN_WAIT` after it).
     last_sample_at: Option<Instant>,
+    /// Provisional phasors every this many seconds of a step's samples (`None`: off).
+    update_period_s: Option<f64>,
 }
 
 impl Default for HarmonicState {
@@ -106,7 +119,18 @@ impl HarmonicState {
             idle_since: None,
             finder: None,
             last_sample_at: None,
+            update_period_s: None,
         }
+    }
+
+    /// The same state giving provisional phasors of the step in progress every
+    /// `update_period_s` of its samples (see the module docs); refused unless it is positive.
+    pub fn with_updates(self, update_period_s: f64) -> anyhow::Result<HarmonicState> {
+        ProvisionalUpdates::new(update_period_s, 1.0)?;
+        Ok(HarmonicState {
+            update_period_s: Some(update_period_s),
+            ..self
+        })
     }
 
     /// The same state finding the steps in the samples ([`find_steps`]); excitation states
@@ -227,6 +251,10 @@ impl HarmonicState {
             .stream
             .get_or_insert_with(|| StepStream::new(step, plan.as_ref()));
         stream.push(&sample, &self.options);
+        if let Some(p) = self.update_period_s.and_then(|t| stream.provisional(t)) {
+            let origin = self.assembler.origin().unwrap_or(Time::ZERO);
+            done.push(Outcome::Provisional(Box::new(p), origin));
+        }
         let mut previous = previous;
         for r in self.assembler.push_sample(&sample, plan.as_ref()) {
             let r = r.map(|a| a.record);
@@ -281,6 +309,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         options.min_periods = m;
     }
     let find_steps = p.opt_bool("find_steps")?.unwrap_or(false);
+    let update_period_s = p.opt_f64("update_period_s")?;
     let frame = p.opt_str("frame_id")?.unwrap_or("rig").to_string();
     let fq = setup.fully_qualified_name();
 
@@ -289,6 +318,13 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let excitation = ros.subscription::<ExcitationState>(topics::EXCITATION, qos::excitation())?;
     let phasors_pub = ros.publisher::<HarmonicPhasors>(topics::PHASORS, qos::phasors())?;
     let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;
+    // Only a node giving provisional phasors has their writer (the graph is otherwise as before).
+    let provisional_pub = match update_period_s {
+        Some(_) => {
+            Some(ros.publisher::<HarmonicPhasors>(topics::PROVISIONAL_PHASORS, qos::phasors())?)
+        }
+        None => None,
+    };
 
     let (tx, mut rx) = mpsc::unbounded_channel::<Input>();
     forward(
@@ -314,7 +350,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     });
 
     // Analysis runs on its own task, in step order, so sample intake never waits for it.
-    let (atx, mut arx) = mpsc::unbounded_channel::<(Analysis, Time)>();
+    let (atx, mut arx) = mpsc::unbounded_channel::<Outcome>();
     let status_name = format!("{fq}: harmonic analysis");
     let diag_pub = std::sync::Arc::new(diag_pub);
     let diag_for_worker = diag_pub.clone();
@@ -324,7 +360,17 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let worker = tokio::spawn(async move {
         let options = options_w;
         let mut analysed = 0usize;
-        while let Some((analysis, origin)) = arx.recv().await {
+        while let Some(job) = arx.recv().await {
+            let (analysis, origin) = match job {
+                Outcome::Analyse(analysis, origin) => (analysis, origin),
+                Outcome::Provisional(stream, origin) => {
+                    if let Some(p) = &provisional_pub {
+                        provisional::publish(stream, origin, p, &frame_w).await;
+                    }
+                    continue;
+                }
+                Outcome::Skipped(..) | Outcome::Dropped(_) => continue,
+            };
             let step = analysis.step();
             let how = if analysis.is_streamed() {
                 ""
@@ -377,6 +423,10 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     });
 
     let mut state = HarmonicState::with_options(options.clone());
+    if let Some(t) = update_period_s {
+        state = state.with_updates(t)?;
+        log_line!("provisional phasors of a step in progress every {t} s of its samples");
+    }
     if find_steps {
         state = state.finding_steps();
         log_line!("finding the steps in the samples (find_steps): excitation states are ignored");
@@ -394,8 +444,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         };
         for out in state.handle(input, Instant::now()) {
             match out {
-                Outcome::Analyse(analysis, origin) => {
-                    let _ = atx.send((analysis, origin));
+                job @ (Outcome::Analyse(..) | Outcome::Provisional(..)) => {
+                    let _ = atx.send(job);
                 }
                 Outcome::Skipped(step, why) => log_line!("step {step}: {why}"),
                 Outcome::Dropped(e) => {

@@ -102,6 +102,20 @@ impl SetupGate {
     }
 }
 
+impl SetupGate {
+    /// The analysis and setup of phasors that are not to be held (a step in progress, whose
+    /// next phasors replace these): `None` when they are refused or their setup is not known
+    /// yet (nothing is logged; the step's final phasors say why).
+    pub fn resolve_now(&self, ph: &HarmonicPhasors) -> Option<(HarmonicAnalysis, SetupSpec)> {
+        let analysis = ph.to_analysis(Time::ZERO).ok()?;
+        let kind =
+            SetupKind::of_channels(|c| analysis.channels.iter().any(|ch| ch.channel == c)).ok()?;
+        let constants = self.given.clone().or(self.carried.clone());
+        let setup = setup_of(kind, &constants).ok()??;
+        Some((analysis, setup))
+    }
+}
+
 /// The setup of `kind` with the constants known; `None` while a rig's mass is unknown. An
 /// error is a constant the node was given wrong (no later message fixes it).
 fn setup_of(kind: SetupKind, constants: &SetupConstants) -> anyhow::Result<Option<SetupSpec>> {

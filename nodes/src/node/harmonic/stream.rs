@@ -3,7 +3,7 @@
 
 use forcemap_io::steps::{StepPlan, StepSample};
 use forcemap_math::phasor::{
-    HarmonicAnalysis, PhasorError, PhasorOptions, PhasorStream, analyse_record,
+    HarmonicAnalysis, PhasorError, PhasorOptions, PhasorStream, ProvisionalUpdates, analyse_record,
 };
 use forcemap_math::record::{Excitation, Record};
 
@@ -96,6 +96,15 @@ impl StepStream {
             s.push(&values().collect::<Vec<_>>());
             self.phasors = Some(s);
         }
+    }
+
+    /// A copy of the stream when provisional phasors are due after the sample just pushed
+    /// (every `update_period_s` of the step's samples, not at its last: see
+    /// [`ProvisionalUpdates`]); the copy is analysed off the intake path.
+    pub(super) fn provisional(&self, update_period_s: f64) -> Option<PhasorStream> {
+        let s = self.phasors.as_ref()?;
+        let updates = ProvisionalUpdates::new(update_period_s, s.sample_rate_hz()).ok()?;
+        updates.due(s.samples(), self.expected).then(|| s.clone())
     }
 
     /// The stream if it holds exactly the samples of `record` at its rate.

@@ -15,6 +15,7 @@ use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
 use forcemap_msgs::std_msgs::Header;
 
+use super::provisional::data_end_time;
 use super::state::{Admit, IdentifierState, admit};
 use crate::node::setup_gate::{Input, Ready, SetupGate};
 use forcemap_io::params::Params;
@@ -139,9 +140,10 @@ impl IdentifierCore {
                     && let Ok(id) = s.accumulator.solve()
                 {
                     out.push(Output::Log(format!("resumed theta: {}", theta_line(&id))));
+                    let stamp = s.phasors.last().map_or(now, data_end_time);
                     out.push(Output::Theta(IdentifiedParameters::from_identification(
                         &id,
-                        Header::new(now, "rig"),
+                        Header::new(stamp, "rig"),
                     )));
                 }
                 state = Some(s);
@@ -318,8 +320,9 @@ impl IdentifierCore {
         Ok(true)
     }
 
-    /// Solves the equations so far and says so: a log line headed `what`, theta (stamped `now`
-    /// in `frame`) and the status, OK with `ok_message` unless a flag or an error says more.
+    /// Solves the equations so far and says so: a log line headed `what`, theta (stamped with
+    /// the time it describes, [`data_end_time`] of the newest step, or `now` without kept
+    /// phasors; in `frame`) and the status, OK with `ok_message` unless a flag or an error says more.
     pub(super) fn publish_solution(
         &self,
         what: &str,
@@ -339,9 +342,10 @@ impl IdentifierCore {
                     id.equations,
                     id.condition_number
                 )));
+                let stamp = st.phasors.last().map_or(now, data_end_time);
                 out.push(Output::Theta(IdentifiedParameters::from_identification(
                     &id,
-                    Header::new(now, frame),
+                    Header::new(stamp, frame),
                 )));
                 // Each flag (badly conditioned, few equations) is a WARN; the first is the
                 // message.

@@ -17,17 +17,24 @@
 //!   every step (empty: not persisted). A restarted identifier resumes from it and skips the
 //!   steps it already has.
 //!
+//! Provisional phasors of a step in progress (`phasors/provisional`, the harmonic node's
+//! `update_period_s`) give a theta with that step in place, never added to the equations
+//! ([`IdentifierCore::handle_provisional`]). Every theta's header stamp is the time it
+//! describes: the end of the data of its newest step ([`data_end_time`]).
+//!
 //! The parameter services answer list/get/describe for all of them; `model`, `method`,
 //! `weighting` and `forgetting_per_step` can be set while it runs (the kept phasors of every
 //! step are re-solved and theta is published before the set is answered), the others are
 //! read-only.
 
 mod core;
+mod provisional;
 mod reconfigure;
 mod state;
 
 pub use crate::node::setup_gate::Input;
 pub use core::{IdentifierCore, Output, RecipeParameters, theta_line};
+pub use provisional::data_end_time;
 pub use reconfigure::{ParameterSetResults, Refusal, SETTABLE, Setting};
 pub use state::{Admit, IdentifierState, admit};
 
@@ -66,6 +73,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let (sets_tx, mut sets) = mpsc::unbounded_channel::<SetRequest>();
     let mut ros = RosNode::start_with_parameters(setup.clone(), table.clone(), Some(sets_tx))?;
     let phasors = ros.subscription::<HarmonicPhasors>(topics::PHASORS, qos::phasors())?;
+    let provisional =
+        ros.subscription::<HarmonicPhasors>(topics::PROVISIONAL_PHASORS, qos::phasors())?;
     let rig = ros.subscription::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
     let theta_pub = ros.publisher::<IdentifiedParameters>(topics::THETA, qos::theta())?;
     let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;
@@ -74,6 +83,13 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     forward(phasors, tx.clone(), OnTakeError::Warn("phasors"), |m, _| {
         Some(Input::Phasors(Box::new(m)))
     });
+    let (ptx, mut provisionals) = mpsc::unbounded_channel::<HarmonicPhasors>();
+    forward(
+        provisional,
+        ptx,
+        OnTakeError::Warn("provisional phasors"),
+        |m, _| Some(m),
+    );
     forward(rig, tx, OnTakeError::Warn("the rig constants"), |m, _| {
         rig_mass_kg(&m).map(Input::RigMass)
     });
@@ -95,6 +111,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     shell.apply(&core, startup).await?;
     loop {
         tokio::select! {
+            // A step's phasors before provisional ones of the next step queued with them.
+            biased;
             i = rx.recv() => match i {
                 Some(input) => {
                     let outputs = core.handle(input, now_time())?;
@@ -102,6 +120,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                 }
                 None => break,
             },
+            Some(ph) = provisionals.recv() => {
+                shell.apply(&core, core.handle_provisional(&ph)).await?;
+            }
             Some(request) = sets.recv() => {
                 let (done, outputs) =
                     core.apply_parameters(&request.params, request.atomically, now_time());

@@ -1,0 +1,82 @@
+//! Theta within a long step: the provisional phasors of the step in progress (the harmonic
+//! node's `update_period_s`) solved with the steps so far, never added to them. The next
+//! provisional phasors of the step, or its final ones, replace them; with forgetting, the
+//! provisional step is the newest (the steps so far are weighed as if it had been added).
+
+use forcemap_math::identify::step_equations;
+use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
+use forcemap_msgs::std_msgs::Header;
+
+use super::core::{IdentifierCore, Output, theta_line};
+use super::state::{Admit, IdentifierState, admit};
+
+/// The time a theta describes: the end of the data of the newest step in it, the end of that
+/// step's last fitted whole period, `t_ref + periods_used / frequency_hz` (less than one
+/// sample interval after the last sample fitted). Theta's header stamp.
+pub fn data_end_time(ph: &HarmonicPhasors) -> Time {
+    ph.t_ref
+        .add_secs_f64(f64::from(ph.periods_used) / ph.frequency_hz)
+}
+
+impl IdentifierCore {
+    /// Provisional phasors of the step in progress: theta of the steps so far with them in
+    /// place of that step, stamped with the end of their data. Nothing when they are of a step
+    /// already added (its final phasors overtook them), of another setup than the equations',
+    /// or when their setup is not known yet or the equations do not determine theta; the
+    /// accumulated state is never changed.
+    pub fn handle_provisional(&self, ph: &HarmonicPhasors) -> Vec<Output> {
+        let mut out = Vec::new();
+        let step = ph.step;
+        let Some((analysis, spec)) = self.gate.resolve_now(ph) else {
+            return out;
+        };
+        let recipe = self.parameters.recipe(spec);
+        let Ok(setup) = recipe.setup.setup() else {
+            return out;
+        };
+        let (model, method) = (&self.model, self.parameters.method);
+        let fresh;
+        let st = match &self.state {
+            Some(st) => {
+                if st.setup != recipe.setup.to_string() || admit(st, step, ph.t_ref) != Admit::Add {
+                    return out;
+                }
+                st
+            }
+            None => {
+                fresh = IdentifierState::new(
+                    model,
+                    method,
+                    self.parameters.weighting,
+                    &setup,
+                    &recipe.setup,
+                );
+                &fresh
+            }
+        };
+        let solved = step_equations(model, &setup, method, &analysis, &recipe.fd_options())
+            .and_then(|blk| {
+                st.accumulator
+                    .with_provisional(self.parameters.tracking.factor_per_step(), &blk)
+            })
+            .and_then(|acc| acc.solve());
+        match solved {
+            Ok(id) => {
+                out.push(Output::Log(format!(
+                    "step {step} (provisional, {} periods): {}",
+                    ph.periods_used,
+                    theta_line(&id)
+                )));
+                out.push(Output::Theta(IdentifiedParameters::from_identification(
+                    &id,
+                    Header::new(data_end_time(ph), &ph.header.frame_id),
+                )));
+            }
+            Err(e) => out.push(Output::Log(format!(
+                "step {step} (provisional): no theta: {e}"
+            ))),
+        }
+        out
+    }
+}

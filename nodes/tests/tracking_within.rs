@@ -1,0 +1,345 @@
+//! Tracking within long steps through the nodes' pure state machines: a dyno damper whose
+//! damping falls 30 % over a run of long steps is streamed sample by sample through the
+//! harmonic node's state (provisional phasors every `update_period_s`) into the identifier's
+//! core, and the theta it publishes (provisional and final, each stamped with the end of its
+//! data) is the track `forcemap identify --forgetting-per-step F --update-period-s T` gives
+//! offline ([`track_records_with_analyses`]); the tracked c follows the truth within 3 % after
+//! its lag. Also: provisional phasors never enter the equations (a converged identifier
+//! publishes the same finals bit for bit with or without them), and a step's provisional
+//! theta with all its periods in is its final theta.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
+use std::time::Instant;
+
+use forcemap_io::params::ParamValue;
+use forcemap_io::rig_messages::{RigMessage, rig_messages};
+use forcemap_math::identify::{FdMultiOptions, Method};
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::phasor::{PhasorOptions, provisional_analysis};
+use forcemap_math::pipeline::track_records_with_analyses;
+use forcemap_math::recipe::{Setup, SetupSpec};
+use forcemap_math::record::Record;
+use forcemap_math::sim::{AsymmetricDamping, ElementDrive, RunSpec, StepSpec};
+use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
+use forcemap_msgs::std_msgs::Header;
+use forcemap_nodes::node::harmonic::{HarmonicState, Input as HarmonicInput, Outcome};
+use forcemap_nodes::node::identifier::{IdentifierCore, Input};
+
+mod common;
+
+use common::*;
+
+const STEPS: usize = 40;
+const SAMPLE_RATE_HZ: f64 = 1000.0;
+/// 8 s steps: twice the tracking test's (math/tests/tracking.rs).
+const STEP_SAMPLES: usize = 8_000;
+const FADE: f64 = 0.30;
+const MOVING_MASS_KG: f64 = 0.8;
+const NOMINAL_C: f64 = 1750.0;
+
+fn step_duration_s() -> f64 {
+    STEP_SAMPLES as f64 / SAMPLE_RATE_HZ
+}
+
+/// The damper's c (mean of rebound and compression) during step `j`: constant within a step,
+/// falling linearly from step to step.
+fn true_c(j: usize) -> f64 {
+    NOMINAL_C * (1.0 - FADE * j as f64 / (STEPS - 1) as f64)
+}
+
+/// The truth as a function of time: the line through the steps' c at their mid-times.
+fn true_c_at(t_s: f64) -> f64 {
+    let j = (t_s - 0.5 * step_duration_s()) / step_duration_s();
+    NOMINAL_C * (1.0 - FADE * j / (STEPS - 1) as f64)
+}
+
+/// The run: the dyno damper of `RunSpec::damper_dyno` driven at 1, 2, 4, 8 Hz in turn, its
+/// damping scaled per step, 30 dB SNR, the steps back to back.
+fn fading_run() -> Vec<Record> {
+    let base = RunSpec::damper_dyno(None, 0).element;
+    (0..STEPS)
+        .map(|j| {
+            let scale = true_c(j) / NOMINAL_C;
+            let mut element = base.clone();
+            element.asymmetric_damping = Some(AsymmetricDamping {
+                rebound_n_s_per_m: 2500.0 * scale,
+                compression_n_s_per_m: 1000.0 * scale,
+            });
+            let run = RunSpec {
+                snr_db: Some(30.0),
+                seed: 300 + j as u64,
+                ..RunSpec::element_test(
+                    ElementDrive::Displacement,
+                    MOVING_MASS_KG,
+                    element,
+                    vec![StepSpec::Sine {
+                        frequency_hz: [1.0, 2.0, 4.0, 8.0][j % 4],
+                        amplitude: 0.01,
+                    }],
+                    SAMPLE_RATE_HZ,
+                    STEP_SAMPLES,
+                )
+            };
+            let mut r = run.simulate().unwrap().remove(0);
+            r.step = j;
+            r.start_time_s = j as f64 * step_duration_s();
+            r
+        })
+        .collect()
+}
+
+fn identifier(factor: f64) -> IdentifierCore {
+    core(&params(&[
+        ("model", ParamValue::String("damper".into())),
+        ("mass_kg", ParamValue::Double(MOVING_MASS_KG)),
+        ("forgetting_per_step", ParamValue::Double(factor)),
+    ]))
+}
+
+/// What the graph publishes for `records`: the harmonic node's state fed every message (with
+/// provisional phasors every `update_period_s`), its phasors fed to the identifier's core;
+/// the thetas in order, with whether each came from provisional phasors.
+fn live_track(
+    records: &[Record],
+    factor: f64,
+    update_period_s: Option<f64>,
+) -> Vec<(bool, IdentifiedParameters)> {
+    let options = PhasorOptions::for_identification();
+    let mut h = HarmonicState::with_options(options.clone());
+    if let Some(t) = update_period_s {
+        h = h.with_updates(t).unwrap();
+    }
+    let mut c = identifier(factor);
+    let t = Instant::now();
+    let mut out = Vec::new();
+    let driven = RunSpec::damper_dyno(None, 0).driven_channel();
+    for m in rig_messages(records, driven, None, RUN_START, "rig") {
+        let input = match m {
+            RigMessage::Sample(s) => HarmonicInput::Sample(s),
+            RigMessage::Excitation(e) => HarmonicInput::Excitation(e),
+            RigMessage::Parameters(_) => continue,
+        };
+        for o in h.handle(input, t) {
+            let header = Header::new(RUN_START, "rig");
+            match o {
+                Outcome::Provisional(stream, origin) => {
+                    if let Some(an) = provisional_analysis(&stream) {
+                        let ph = HarmonicPhasors::from_analysis(&an, origin, header);
+                        let o = c.handle_provisional(&ph);
+                        out.extend(thetas(&o).into_iter().map(|t| (true, t.clone())));
+                    }
+                }
+                Outcome::Analyse(a, origin) => {
+                    let an = a.run(&options).unwrap();
+                    let ph = HarmonicPhasors::from_analysis(&an, origin, header);
+                    let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
+                    out.extend(thetas(&o).into_iter().map(|t| (false, t.clone())));
+                }
+                Outcome::Skipped(..) | Outcome::Dropped(_) => panic!("every step is a sine step"),
+            }
+        }
+    }
+    assert_eq!(
+        c.recipe().unwrap().setup,
+        SetupSpec::Element {
+            moving_mass_kg: Some(MOVING_MASS_KG)
+        }
+    );
+    out
+}
+
+fn c_of(t: &IdentifiedParameters) -> f64 {
+    let i = t.parameter_names.iter().position(|n| n == "c").unwrap();
+    t.values[i]
+}
+
+/// (lag [s], largest relative error against the truth that lag earlier, RMS of that error)
+/// over the thetas whose data ends after a warm-up of the first 4 steps and twice the lag.
+fn lag_and_error(track: &[(f64, f64)]) -> (f64, f64, f64) {
+    // The lag: the median delay of the tracked c behind the line of the truth.
+    let slope = -NOMINAL_C * FADE / ((STEPS - 1) as f64 * step_duration_s());
+    let warm = 4.0 * step_duration_s();
+    let mut lags: Vec<f64> = track
+        .iter()
+        .filter(|(t, _)| *t > warm)
+        .map(|(t, c)| t - (t + (c - true_c_at(*t)) / slope))
+        .collect();
+    lags.sort_by(f64::total_cmp);
+    let lag = lags[lags.len() / 2];
+    let errors: Vec<f64> = track
+        .iter()
+        .filter(|(t, _)| *t > warm + 2.0 * lag.max(0.0))
+        .map(|(t, c)| c / true_c_at(t - lag) - 1.0)
+        .collect();
+    let max = errors.iter().map(|e| e.abs()).fold(0.0, f64::max);
+    let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    (lag, max, rms)
+}
+
+#[test]
+fn the_live_track_within_steps_is_the_offline_track_and_follows_a_fading_damper() {
+    let records = fading_run();
+    let model = Model::by_name("damper", &ModelOptions::default()).unwrap();
+    let setup = Setup::Element {
+        moving_mass_kg: Some(MOVING_MASS_KG),
+    };
+    println!(
+        "{STEPS} steps of {} s, c falling {} %; update period, forgetting factor: lag, max |error| and RMS error after the lag, thetas",
+        step_duration_s(),
+        100.0 * FADE
+    );
+    let mut figures = Vec::new();
+    for (update_period_s, factor) in [
+        (None, 0.8),
+        (Some(2.0), 0.8),
+        (None, 0.6),
+        (Some(2.0), 0.6),
+        (Some(2.0), 0.4),
+    ] {
+        let live = live_track(&records, factor, update_period_s);
+        let (offline, _) = track_records_with_analyses(
+            &model,
+            &setup,
+            Method::FdMulti,
+            &records,
+            &PhasorOptions::for_identification(),
+            &FdMultiOptions::default(),
+            factor,
+            update_period_s,
+        )
+        .unwrap();
+        // The same thetas, in the same order, for the same data.
+        assert_eq!(live.len(), offline.len(), "{update_period_s:?} {factor}");
+        for ((provisional, l), o) in live.iter().zip(&offline) {
+            assert_eq!(*provisional, o.provisional);
+            assert_eq!(*l.steps_used.last().unwrap() as usize, o.step);
+            for (a, p) in l.values.iter().zip(&o.identification.parameters) {
+                assert!(
+                    (a - p.value).abs() <= 1e-9 * p.value.abs(),
+                    "{}: live {a} offline {}",
+                    p.name,
+                    p.value
+                );
+            }
+            let stamp = l.header.stamp.secs_since(RUN_START);
+            assert!(
+                (stamp - o.data_end_s).abs() < 1e-6,
+                "stamp {stamp} s, data end {} s",
+                o.data_end_s
+            );
+        }
+        let track: Vec<(f64, f64)> = offline
+            .iter()
+            .map(|o| {
+                let c = o
+                    .identification
+                    .parameters
+                    .iter()
+                    .find(|p| p.name == "c")
+                    .unwrap()
+                    .value;
+                (o.data_end_s, c)
+            })
+            .collect();
+        assert!(
+            live.iter()
+                .zip(&track)
+                .all(|((_, l), (_, c))| c_of(l) == *c || (c_of(l) / c - 1.0).abs() < 1e-9)
+        );
+        let (lag, max, rms) = lag_and_error(&track);
+        println!(
+            "{:>8} {factor:>4}: lag {lag:>6.1} s, max |error| {:>5.2} %, RMS {:>5.2} %, {} thetas",
+            update_period_s.map_or("per step".to_string(), |t| format!("{t} s")),
+            100.0 * max,
+            100.0 * rms,
+            track.len()
+        );
+        figures.push((update_period_s, factor, lag, max));
+    }
+    for (update, factor, _, max) in &figures {
+        assert!(*max < 0.03, "{update:?} {factor}: {figures:?}");
+    }
+    // Updates within the steps shorten the lag at the same forgetting factor.
+    for factor in [0.8, 0.6] {
+        let lag = |u: Option<f64>| {
+            figures
+                .iter()
+                .find(|f| f.0 == u && f.1 == factor)
+                .unwrap()
+                .2
+        };
+        assert!(lag(Some(2.0)) < lag(None), "{figures:?}");
+    }
+}
+
+/// The committed rig bag's steps as final phasors, and a core that identifies them.
+fn rig_core(factor: f64) -> IdentifierCore {
+    core(&rig_params(&[(
+        "forgetting_per_step",
+        ParamValue::Double(factor),
+    )]))
+}
+
+#[test]
+fn a_provisional_step_with_all_its_periods_in_gives_the_final_theta() {
+    for factor in [1.0, 0.7] {
+        let mut c = rig_core(factor);
+        for ph in phasor_messages() {
+            // The step's phasors as provisional ones: the theta the final ones will give...
+            let provisional = c.handle_provisional(&ph);
+            let final_ = c
+                .handle(Input::Phasors(Box::new(ph.clone())), RUN_START)
+                .unwrap();
+            let (p, f) = (thetas(&provisional), thetas(&final_));
+            assert_eq!((p.len(), f.len()), (1, 1), "step {}", ph.step);
+            assert_eq!(p[0].values, f[0].values, "step {}", ph.step);
+            assert_eq!(p[0].covariance, f[0].covariance);
+            assert_eq!(p[0].header.stamp, f[0].header.stamp);
+            // ...and once the step is in, its phasors are never added again.
+            assert!(c.handle_provisional(&ph).is_empty(), "step {}", ph.step);
+        }
+    }
+}
+
+#[test]
+fn provisional_phasors_leave_the_equations_as_they_are() {
+    let finals = phasor_messages();
+    for factor in [1.0, 0.7] {
+        let mut plain = rig_core(factor);
+        let mut with = rig_core(factor);
+        for (j, ph) in finals.iter().enumerate() {
+            let a = plain
+                .handle(Input::Phasors(Box::new(ph.clone())), RUN_START)
+                .unwrap();
+            // Before each step, provisional phasors (another step's, renumbered as this one).
+            let mut stand_in = finals[(j + 3) % finals.len()].clone();
+            stand_in.step = ph.step;
+            stand_in.t_ref = ph.t_ref;
+            assert!(!thetas(&with.handle_provisional(&stand_in)).is_empty() || j == 0);
+            let b = with
+                .handle(Input::Phasors(Box::new(ph.clone())), RUN_START)
+                .unwrap();
+            assert_eq!(thetas(&a), thetas(&b), "step {}", ph.step);
+            assert_eq!(plain.state(), with.state());
+        }
+    }
+}
+
+/// Every theta is stamped with the end of its newest step's data, whatever the clock says.
+#[test]
+fn theta_is_stamped_with_the_end_of_its_data() {
+    let mut c = rig_core(1.0);
+    for ph in phasor_messages() {
+        let o = c
+            .handle(Input::Phasors(Box::new(ph.clone())), RUN_START)
+            .unwrap();
+        let end = ph
+            .t_ref
+            .add_secs_f64(f64::from(ph.periods_used) / ph.frequency_hz);
+        assert_eq!(thetas(&o)[0].header.stamp, end);
+        assert_eq!(forcemap_nodes::node::identifier::data_end_time(&ph), end);
+    }
+}
