@@ -82,6 +82,10 @@ pub(crate) struct RigSystem<'a> {
     /// (start, end, index) of the piece of the true base that held at the last `t_ref`
     /// (start and end in the undelayed time of the signal).
     piece: Cell<(f64, f64, usize)>,
+    /// (piece, time, value) of the last true base acceleration taken from a Taylor window:
+    /// the sample's channels ask again for the value the sub-step ending there computed, and
+    /// the same window gives it again to the bit, so it is not evaluated twice.
+    last_d2: Cell<Option<(usize, f64, f64)>>,
 }
 
 impl RigSystem<'_> {
@@ -113,15 +117,28 @@ impl RigSystem<'_> {
         let piece = &sig.pieces[j];
         let tl = t - sig.shift;
         let slot = usize::from(order == 0);
-        InputWindow::eval(&mut self.windows.borrow_mut()[slot], order, j, piece, tl).unwrap_or_else(
-            || match piece {
-                Piece::Spline(s) if order == 2 => spline_d2(s, tl, t_ref - sig.shift),
-                _ => {
-                    let d = piece.eval(tl, t_ref - sig.shift);
-                    if order == 0 { d.value } else { d.d2 }
-                }
-            },
-        )
+        if order == 2
+            && let Some((lj, lt, v)) = self.last_d2.get()
+            && lj == j
+            && lt == t
+        {
+            return v;
+        }
+        if let Some(v) =
+            InputWindow::eval(&mut self.windows.borrow_mut()[slot], order, j, piece, tl)
+        {
+            if order == 2 {
+                self.last_d2.set(Some((j, t, v)));
+            }
+            return v;
+        }
+        match piece {
+            Piece::Spline(s) if order == 2 => spline_d2(s, tl, t_ref - sig.shift),
+            _ => {
+                let d = piece.eval(tl, t_ref - sig.shift);
+                if order == 0 { d.value } else { d.d2 }
+            }
+        }
     }
 
     /// The true base acceleration at `t` (piece of `t_ref`).
@@ -146,13 +163,15 @@ impl RigSystem<'_> {
         let piece = &sig.pieces[j];
         let tl = [t[0] - sig.shift, t[1] - sig.shift];
         let mut windows = self.windows.borrow_mut();
-        InputWindow::eval_pair(&mut windows[0], 2, j, piece, tl).unwrap_or_else(|| {
-            let tr = t_ref - sig.shift;
-            match piece {
-                Piece::Spline(s) => [spline_d2(s, tl[0], tr), spline_d2(s, tl[1], tr)],
-                _ => [piece.eval(tl[0], tr).d2, piece.eval(tl[1], tr).d2],
-            }
-        })
+        if let Some(v) = InputWindow::eval_pair(&mut windows[0], 2, j, piece, tl) {
+            self.last_d2.set(Some((j, t[1], v[1])));
+            return v;
+        }
+        let tr = t_ref - sig.shift;
+        match piece {
+            Piece::Spline(s) => [spline_d2(s, tl[0], tr), spline_d2(s, tl[1], tr)],
+            _ => [piece.eval(tl[0], tr).d2, piece.eval(tl[1], tr).d2],
+        }
     }
 
     /// Relative acceleration x'' and friction force in `mode`, with base acceleration `b_d2`.
@@ -364,6 +383,7 @@ pub(crate) fn run_rig_streamed(
         linear: element.linear_coefficients(),
         windows: RefCell::new([None, None]),
         piece: Cell::new((0.0, 0.0, 0)),
+        last_d2: Cell::new(None),
     };
     let mut y = vec![0.0; sys.dim()];
     let b0 = sys.base_true.eval_right(0.0);
@@ -422,8 +442,7 @@ pub fn simulate_rig(
     solver: &SolverOptions,
 ) -> Result<SimOutput, SimError> {
     let setup = program_setup(element, nominal_mass_kg, program, effects, init);
-    let (out, trace, stats) = run_rig(setup, solver)?;
-    Ok(split_records(program, &RIG_CHANNELS, &out, trace, &stats))
+    super::rig_records::simulate_rig_records(setup, program, solver)
 }
 
 /// The rig of [`simulate_rig`] under `program`.
