@@ -86,6 +86,13 @@ pub(crate) struct RigSystem<'a> {
     /// the sample's channels ask again for the value the sub-step ending there computed, and
     /// the same window gives it again to the bit, so it is not evaluated twice.
     last_d2: Cell<Option<(usize, f64, f64)>>,
+    /// The same for the true base displacement: the sub-step ending at a sample computes it
+    /// for the sample's channels in the pass of its acceleration pair, when its window covers
+    /// that time already.
+    last_value: Cell<Option<(usize, f64, f64)>>,
+    /// The run's sample rate: the displacement is computed beside a pair only at a sample's
+    /// time (`i / sample_rate_hz`), where the channels will ask for it.
+    sample_rate_hz: f64,
 }
 
 impl RigSystem<'_> {
@@ -117,8 +124,12 @@ impl RigSystem<'_> {
         let piece = &sig.pieces[j];
         let tl = t - sig.shift;
         let slot = usize::from(order == 0);
-        if order == 2
-            && let Some((lj, lt, v)) = self.last_d2.get()
+        let last = if order == 2 {
+            &self.last_d2
+        } else {
+            &self.last_value
+        };
+        if let Some((lj, lt, v)) = last.get()
             && lj == j
             && lt == t
         {
@@ -127,9 +138,7 @@ impl RigSystem<'_> {
         if let Some(v) =
             InputWindow::eval(&mut self.windows.borrow_mut()[slot], order, j, piece, tl)
         {
-            if order == 2 {
-                self.last_d2.set(Some((j, t, v)));
-            }
+            last.set(Some((j, t, v)));
             return v;
         }
         match piece {
@@ -163,8 +172,15 @@ impl RigSystem<'_> {
         let piece = &sig.pieces[j];
         let tl = [t[0] - sig.shift, t[1] - sig.shift];
         let mut windows = self.windows.borrow_mut();
-        if let Some(v) = InputWindow::eval_pair(&mut windows[0], 2, j, piece, tl) {
+        let [w_d2, w_value] = &mut *windows;
+        let i = (t[1] * self.sample_rate_hz).round();
+        let at_sample = i / self.sample_rate_hz == t[1];
+        let also = at_sample.then_some((&*w_value, 0, tl[1]));
+        if let Some((v, value)) = InputWindow::eval_pair_with(w_d2, 2, j, piece, tl, also) {
             self.last_d2.set(Some((j, t[1], v[1])));
+            if let Some(value) = value {
+                self.last_value.set(Some((j, t[1], value)));
+            }
             return v;
         }
         let tr = t_ref - sig.shift;
@@ -384,6 +400,8 @@ pub(crate) fn run_rig_streamed(
         windows: RefCell::new([None, None]),
         piece: Cell::new((0.0, 0.0, 0)),
         last_d2: Cell::new(None),
+        last_value: Cell::new(None),
+        sample_rate_hz,
     };
     let mut y = vec![0.0; sys.dim()];
     let b0 = sys.base_true.eval_right(0.0);
