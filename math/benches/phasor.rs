@@ -1,7 +1,7 @@
 //! Throughput of `analyse_record` in samples per second (per-channel samples counted once:
 //! `Throughput::Elements(record length)`, six channels each), and of the stream: the cost of
-//! pushing a sample (six channels) and of `PhasorStream::finish` after a step's last sample,
-//! against `analyse_record` of the same 13 s step at 10 kHz (what the harmonic node did then).
+//! pushing a sample (six channels) and of `PhasorStream::finish` after a step's last sample
+//! (the stream told the step's length, as the harmonic node is, or not), against `analyse_record` of the same 13 s step at 10 kHz (what the harmonic node did then).
 //!
 //! `cargo bench -p forcemap_math --bench phasor`
 #![allow(
@@ -93,6 +93,17 @@ fn bench(c: &mut Criterion) {
 
 /// A stream of `rec` fed `samples` of its samples.
 fn fed(rec: &Record, opts: &PhasorOptions, samples: usize) -> PhasorStream {
+    fed_told(rec, opts, samples, None)
+}
+
+/// A stream of `rec` told to expect `expected` samples (as the harmonic node is, from the
+/// plan) and fed `samples` of them.
+fn fed_told(
+    rec: &Record,
+    opts: &PhasorOptions,
+    samples: usize,
+    expected: Option<usize>,
+) -> PhasorStream {
     let channels = rec.channels.iter().map(|(c, _)| *c).collect();
     let mut s = PhasorStream::new(
         rec.step,
@@ -103,6 +114,9 @@ fn fed(rec: &Record, opts: &PhasorOptions, samples: usize) -> PhasorStream {
         opts,
     )
     .unwrap();
+    if let Some(n) = expected {
+        s.expect_samples(n);
+    }
     let mut values = vec![0.0; rec.channels.len()];
     for k in 0..samples {
         for (v, (_, x)) in values.iter_mut().zip(&rec.channels) {
@@ -142,6 +156,15 @@ fn bench_stream(c: &mut Criterion) {
     group.bench_function("stream_finish", |b| {
         b.iter_batched(
             || full.clone(),
+            |s| s.finish().unwrap(),
+            BatchSize::SmallInput,
+        );
+    });
+    // Told the step's length, the stream analyses it when its last whole period completes.
+    let told = fed_told(&step, &opts, step.len(), Some(step.len()));
+    group.bench_function("stream_finish_length_told", |b| {
+        b.iter_batched(
+            || told.clone(),
             |s| s.finish().unwrap(),
             BatchSize::SmallInput,
         );

@@ -27,6 +27,16 @@ fn stream_told(
     options: &PhasorOptions,
     told: bool,
 ) -> Result<HarmonicAnalysis, PhasorError> {
+    stream_expecting(record, options, told.then_some(record.len()))
+}
+
+/// The record's samples pushed one at a time, the stream told to expect `expected` samples
+/// (which may be wrong: a plan's count when samples were lost or added).
+fn stream_expecting(
+    record: &Record,
+    options: &PhasorOptions,
+    expected: Option<usize>,
+) -> Result<HarmonicAnalysis, PhasorError> {
     let channels = record.channels.iter().map(|(c, _)| *c).collect();
     let mut s = PhasorStream::new(
         record.step,
@@ -36,8 +46,8 @@ fn stream_told(
         channels,
         options,
     )?;
-    if told {
-        s.expect_samples(record.len());
+    if let Some(n) = expected {
+        s.expect_samples(n);
     }
     let mut values = vec![0.0; record.channels.len()];
     for k in 0..record.len() {
@@ -184,6 +194,26 @@ fn stream_fails_where_the_batch_analysis_fails() {
             ..
         })
     ));
+}
+
+/// A stream told the step's length analyses it when the last whole period completes (before
+/// the step's last sample); that analysis must be the one `finish` would compute, to the bit,
+/// whether the step ends within a period or on its last sample, and a wrong count (samples
+/// lost or added against the plan) must give the analysis of the samples actually pushed.
+#[test]
+fn analysis_ahead_of_the_step_end_is_the_finish_analysis() {
+    let options = PhasorOptions::for_identification();
+    // 1000 / 2.2 = 454.5 samples per period: 2500 samples end 0.5 period after the 5th.
+    for len in [2500, 2273, 2272] {
+        let r = synthetic(1000.0, 2.2, len, 1e-3, 7);
+        let untold = stream_expecting(&r, &options, None).unwrap();
+        let batch = analyse_record(&r, &options).unwrap();
+        assert_same(&batch, &untold, &format!("{len} samples"));
+        for expected in [len, len - 300, len + 300, len - 1000, len + 1000] {
+            let told = stream_expecting(&r, &options, Some(expected)).unwrap();
+            assert_eq!(told, untold, "{len} samples, {expected} expected");
+        }
+    }
 }
 
 /// A transient that never settles within the step (`settled = false`) streams the same too.

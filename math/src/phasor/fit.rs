@@ -335,10 +335,19 @@ impl Factor {
 }
 
 /// Cholesky factors of per-window normal matrices, shared between windows of the same length
-/// and the same starting phase (to 1e-12 of a cycle), e.g. 2 kinds for 62.5 samples per period.
+/// and the same starting phase (to 1e-12 of a cycle), e.g. 2 kinds for 62.5 samples per period,
+/// each with the diagonal of its inverse once asked for (the noise of a per-period phasor).
 #[derive(Clone)]
 pub(crate) struct FactorCache {
-    entries: Vec<(usize, f64, Factor)>,
+    entries: Vec<CachedFactor>,
+}
+
+#[derive(Clone)]
+struct CachedFactor {
+    len: usize,
+    phase: f64,
+    factor: Factor,
+    inverse_diagonal: Option<Vec<f64>>,
 }
 
 impl FactorCache {
@@ -348,20 +357,38 @@ impl FactorCache {
         }
     }
 
-    pub fn get(&mut self, grid: &Grid, start: usize, len: usize) -> Option<&Factor> {
+    fn entry(&mut self, grid: &Grid, start: usize, len: usize) -> Option<&mut CachedFactor> {
         let phase = frac(start as f64 * grid.nu);
-        let hit = self.entries.iter().position(|(l, ph, _)| {
-            let d = (ph - phase).abs();
-            *l == len && d.min(1.0 - d) < 1e-12
+        let hit = self.entries.iter().position(|e| {
+            let d = (e.phase - phase).abs();
+            e.len == len && d.min(1.0 - d) < 1e-12
         });
         let i = match hit {
             Some(i) => i,
             None => {
-                let chol = Factor::new(&grid.normal_matrix(start, len), grid.params())?;
-                self.entries.push((len, phase, chol));
+                let factor = Factor::new(&grid.normal_matrix(start, len), grid.params())?;
+                self.entries.push(CachedFactor {
+                    len,
+                    phase,
+                    factor,
+                    inverse_diagonal: None,
+                });
                 self.entries.len() - 1
             }
         };
-        Some(&self.entries[i].2)
+        Some(&mut self.entries[i])
+    }
+
+    pub fn get(&mut self, grid: &Grid, start: usize, len: usize) -> Option<&Factor> {
+        Some(&self.entry(grid, start, len)?.factor)
+    }
+
+    /// [`Factor::inverse_diagonal`] of the window's factor, computed once per factor.
+    pub fn inverse_diagonal(&mut self, grid: &Grid, start: usize, len: usize) -> Option<&[f64]> {
+        let e = self.entry(grid, start, len)?;
+        Some(
+            e.inverse_diagonal
+                .get_or_insert_with(|| e.factor.inverse_diagonal()),
+        )
     }
 }

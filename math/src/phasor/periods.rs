@@ -97,7 +97,9 @@ impl<'a> Periods<'a> {
         }
     }
 
-    /// Fits the period from the last boundary to `end` from its sums and appends it.
+    /// Fits the period from the last boundary to `end` from its sums and appends it. The
+    /// diagonal of its factor's inverse (the noise of the last period's phasors, step 2) is
+    /// computed now, once per kind of period, rather than after the step's last sample.
     pub fn push_period(
         &mut self,
         end: usize,
@@ -112,6 +114,7 @@ impl<'a> Periods<'a> {
             end - start,
             sums,
         )?;
+        self.cache.inverse_diagonal(&self.grid, start, end - start);
         self.bounds.push(end);
         self.done.push(Some(f));
         Ok(())
@@ -191,14 +194,12 @@ impl<'a> Periods<'a> {
     /// the inverse normal matrix of period `p`, `a_n` and `b_n` added).
     fn per_period_variance_factors(&mut self, p: usize) -> Result<Vec<f64>, PhasorError> {
         let (start, len) = (self.bounds[p], self.bounds[p + 1] - self.bounds[p]);
-        let d = self
-            .cache
-            .get(&self.grid, start, len)
-            .ok_or(PhasorError::IllConditioned {
+        let d = self.cache.inverse_diagonal(&self.grid, start, len).ok_or(
+            PhasorError::IllConditioned {
                 step: self.step,
                 samples: len,
-            })?
-            .inverse_diagonal();
+            },
+        )?;
         Ok((0..=self.grid.harmonics)
             .map(|n| {
                 if n == 0 {

@@ -3,7 +3,10 @@
 //! accumulation, so the sums are the same to the last bit) and fits each period as it completes.
 //! When the step ends, [`PhasorStream::finish`] only runs steps 2-5 of the method (module docs),
 //! which work on the per-period fits: two joint normal matrices of `2N + 1` parameters, the
-//! settling walk and the noise, `O(N^3 + periods N channels)`, independent of the samples.
+//! settling walk and the noise, `O(N^3 + periods N channels)`, independent of the samples. A
+//! stream told the step's length ([`PhasorStream::expect_samples`]) runs them when the step's
+//! last whole period completes, so that after the last sample `finish` only hands the result
+//! over (unless the step ends on that period's last sample, where the two coincide).
 //!
 //! The result is [`analyse_record`](super::analyse_record)'s on the same samples, the same
 //! sample rate and the same options (tests `phasor_stream`): the same periods, settled part and
@@ -45,6 +48,9 @@ pub struct PhasorStream {
     /// Samples the step will have, when known: the joint fits of its end are then prepared
     /// while its last period streams in ([`PhasorStream::expect_samples`]).
     expected_samples: Option<usize>,
+    /// The analysis of the first `.0` periods, computed when the expected step's last whole
+    /// period completed; [`PhasorStream::finish`] returns it if the step has that many.
+    ready: Option<(usize, HarmonicAnalysis)>,
     /// The first problem met; [`PhasorStream::finish`] returns it.
     error: Option<PhasorError>,
 }
@@ -89,6 +95,7 @@ impl PhasorStream {
             sumsq: vec![0.0; nc],
             periods: Periods::streamed(grid, nc, step),
             expected_samples: None,
+            ready: None,
             error: None,
         })
     }
@@ -113,9 +120,9 @@ impl PhasorStream {
 
     /// Tells the stream how many samples the step will have (a plan's count), so that when
     /// the last whole period starts, the factors of the joint fits of the step's end (the tail,
-    /// and the settled part as it stands) are computed ahead: [`PhasorStream::finish`] then
-    /// only solves with them, unless the last period moves the start of the settled part.
-    /// The results are the same either way.
+    /// and the settled part as it stands) are computed ahead, and when it completes, the whole
+    /// analysis: [`PhasorStream::finish`] then returns it if the step has that many whole
+    /// periods. The results are the same either way.
     pub fn expect_samples(&mut self, samples: usize) {
         self.expected_samples = (samples > 0).then_some(samples);
     }
@@ -185,6 +192,13 @@ impl PhasorStream {
             if last >= 3 && done == last - 1 {
                 self.prefetch(last);
             }
+            if last >= 2 && done == last {
+                let info = step_info(self.step, &self.sine, self.start_time_s, &self.channels);
+                // An error is met again, and returned, by `finish`.
+                self.ready = settle_and_fit(&mut self.periods, &info, &self.options)
+                    .ok()
+                    .map(|a| (last, a));
+            }
         }
     }
 
@@ -195,14 +209,7 @@ impl PhasorStream {
         let end = boundary(last, spp);
         let tail = boundary(last - self.options.min_periods.max(2).min(last), spp);
         self.periods.prefetch_joint(tail, end - tail);
-        let info = StepInfo {
-            step: self.step,
-            frequency_hz: self.sine.frequency_hz,
-            amplitude: self.sine.amplitude,
-            start_time_s: self.start_time_s,
-            channels: &self.channels,
-            harmonic_cap: self.sine.cap,
-        };
+        let info = step_info(self.step, &self.sine, self.start_time_s, &self.channels);
         if let Ok(a) = settle_and_fit(&mut self.periods, &info, &self.options) {
             let start = self.periods.bound(a.periods_available - a.periods_used);
             self.periods.prefetch_joint(start, end - start);
@@ -238,15 +245,31 @@ impl PhasorStream {
                 ),
             });
         }
+        if let Some((n, analysis)) = self.ready
+            && n == periods
+        {
+            return Ok(analysis);
+        }
         work.truncate(periods);
-        let info = StepInfo {
-            step: self.step,
-            frequency_hz: self.sine.frequency_hz,
-            amplitude: self.sine.amplitude,
-            start_time_s: self.start_time_s,
-            channels: &self.channels,
-            harmonic_cap: self.sine.cap,
-        };
+        let info = step_info(self.step, &self.sine, self.start_time_s, &self.channels);
         settle_and_fit(&mut work, &info, &self.options)
+    }
+}
+
+/// What [`settle_and_fit`] needs to know of the stream's step besides its periods (the fields
+/// apart, so that the periods can be borrowed mutably beside them).
+fn step_info<'a>(
+    step: usize,
+    sine: &SineGrid,
+    start_time_s: f64,
+    channels: &'a [Channel],
+) -> StepInfo<'a> {
+    StepInfo {
+        step,
+        frequency_hz: sine.frequency_hz,
+        amplitude: sine.amplitude,
+        start_time_s,
+        channels,
+        harmonic_cap: sine.cap,
     }
 }

@@ -120,29 +120,84 @@ impl InputWindow {
         piece: &Piece,
         t: [f64; 2],
     ) -> Option<[f64; 2]> {
+        Self::eval_pair_with(window, order, index, piece, t, None).map(|(v, _)| v)
+    }
+
+    /// [`InputWindow::eval_pair`], and with it `also = (window, order, time)`: that window's
+    /// value at that time when the window is of the same piece and covers the time already
+    /// (it is never rebuilt here, so what it gives later is unchanged), in the same pass: the
+    /// chains are independent, so the third costs little more than its operations. Each value
+    /// is computed with the operations of [`InputWindow::eval`], to the bit.
+    pub fn eval_pair_with(
+        window: &mut Option<InputWindow>,
+        order: u32,
+        index: usize,
+        piece: &Piece,
+        t: [f64; 2],
+        also: Option<(&Option<InputWindow>, u32, f64)>,
+    ) -> Option<([f64; 2], Option<f64>)> {
         let t0 = match piece {
             Piece::Sine { t0, .. } | Piece::Multisine { t0, .. } => *t0,
             Piece::Const(_) | Piece::Spline(_) | Piece::Sweep { .. } => return None,
         };
         let tau = [t[0] - t0, t[1] - t0];
-        let covers = |w: &InputWindow| {
+        let covers = |w: &InputWindow, order: u32, tau: [f64; 2]| {
             w.piece == index
                 && w.order == order
                 && (tau[0] - w.centre_s).abs() <= w.half_width_s
                 && (tau[1] - w.centre_s).abs() <= w.half_width_s
         };
         let fresh = match window {
-            Some(w) if covers(w) => w,
+            Some(w) if covers(w, order, tau) => w,
             _ => {
                 let comps = components(piece)?;
                 window.insert(InputWindow::build(order, index, &comps, tau[0]))
             }
         };
+        let other = also.and_then(|(w, o, t)| {
+            let tau_o = t - t0;
+            w.as_ref()
+                .filter(|w| covers(w, o, [tau_o, tau_o]))
+                .map(|w| (w, tau_o))
+        });
+        let Some(other) = other else {
+            return Some((fresh.horner_pair(tau), None));
+        };
+        // Lanes: the pair, then the other window's value.
+        let (w2, tau2) = other;
+        let (c2, centre2) = (&w2.coeffs, w2.centre_s);
+        let c = [&fresh.coeffs, &fresh.coeffs, c2];
+        // Horner in s^2 on the even and the odd coefficients: independent chains.
+        let s = [
+            tau[0] - fresh.centre_s,
+            tau[1] - fresh.centre_s,
+            tau2 - centre2,
+        ];
+        let s2 = [s[0] * s[0], s[1] * s[1], s[2] * s[2]];
+        let (mut even, mut odd) = ([0.0; 3], [0.0; 3]);
+        for m in (0..=DEGREE / 2).rev() {
+            for i in 0..3 {
+                even[i] = even[i] * s2[i] + c[i][2 * m];
+                if 2 * m < DEGREE {
+                    odd[i] = odd[i] * s2[i] + c[i][2 * m + 1];
+                }
+            }
+        }
+        let v = [
+            even[0] + s[0] * odd[0],
+            even[1] + s[1] * odd[1],
+            even[2] + s[2] * odd[2],
+        ];
+        Some(([v[0], v[1]], Some(v[2])))
+    }
+
+    /// The window at two local times (each lane the operations of the three-lane pass).
+    fn horner_pair(&self, tau: [f64; 2]) -> [f64; 2] {
         // Horner in s^2 on the even and the odd coefficients: four independent chains.
-        let s = [tau[0] - fresh.centre_s, tau[1] - fresh.centre_s];
+        let s = [tau[0] - self.centre_s, tau[1] - self.centre_s];
         let s2 = [s[0] * s[0], s[1] * s[1]];
         let (mut even, mut odd) = ([0.0; 2], [0.0; 2]);
-        let c = &fresh.coeffs;
+        let c = &self.coeffs;
         for m in (0..=DEGREE / 2).rev() {
             for i in 0..2 {
                 even[i] = even[i] * s2[i] + c[2 * m];
@@ -151,7 +206,7 @@ impl InputWindow {
                 }
             }
         }
-        Some([even[0] + s[0] * odd[0], even[1] + s[1] * odd[1]])
+        [even[0] + s[0] * odd[0], even[1] + s[1] * odd[1]]
     }
 }
 
@@ -213,6 +268,47 @@ mod tests {
             }
         }
         assert!(InputWindow::eval(&mut None, 2, 0, &Piece::Const(1.0), 0.0).is_none());
+    }
+
+    /// The value computed beside a pair is the one `eval` gives later from the same window, to
+    /// the bit, and only when that window already covers the time (it is never rebuilt there):
+    /// a rig sample's displacement taken from its sub-step is what its channels computed.
+    #[test]
+    fn the_value_beside_a_pair_is_that_of_eval() {
+        let piece = Piece::Sine {
+            t0: 2.0,
+            amplitude: 0.006,
+            omega: 2.0 * std::f64::consts::PI * 3.4,
+            phase: 0.7,
+        };
+        let (mut w_d2, mut w_value) = (None, None);
+        let (mut beside, mut checked) = (0, 0);
+        let h = 1e-4;
+        for k in 0..20_000 {
+            let t = 2.0 + k as f64 * h;
+            let before = w_value.as_ref().map(|w: &InputWindow| w.centre_s);
+            let (pair, value) = InputWindow::eval_pair_with(
+                &mut w_d2,
+                2,
+                0,
+                &piece,
+                [t + 0.5 * h, t + h],
+                Some((&w_value, 0, t + h)),
+            )
+            .unwrap();
+            assert_eq!(before, w_value.as_ref().map(|w| w.centre_s));
+            let alone =
+                InputWindow::eval_pair(&mut w_d2.clone(), 2, 0, &piece, [t + 0.5 * h, t + h]);
+            assert_eq!(pair.map(f64::to_bits), alone.unwrap().map(f64::to_bits));
+            let later = InputWindow::eval(&mut w_value, 0, 0, &piece, t + h).unwrap();
+            if let Some(v) = value {
+                assert_eq!(v.to_bits(), later.to_bits(), "t = {t}");
+                checked += 1;
+            }
+            beside += usize::from(value.is_some());
+        }
+        // The displacement window is rebuilt every few hundred samples: most values beside.
+        assert!(checked > 19_000 && beside == checked, "{checked} of 20000");
     }
 
     #[test]

@@ -15,6 +15,7 @@ mod linear_step;
 pub mod noise;
 pub mod periodic_multisine;
 pub mod rig;
+mod rig_records;
 pub mod run;
 mod spline;
 mod stream;

@@ -82,6 +82,17 @@ pub(crate) struct RigSystem<'a> {
     /// (start, end, index) of the piece of the true base that held at the last `t_ref`
     /// (start and end in the undelayed time of the signal).
     piece: Cell<(f64, f64, usize)>,
+    /// (piece, time, value) of the last true base acceleration taken from a Taylor window:
+    /// the sample's channels ask again for the value the sub-step ending there computed, and
+    /// the same window gives it again to the bit, so it is not evaluated twice.
+    last_d2: Cell<Option<(usize, f64, f64)>>,
+    /// The same for the true base displacement: the sub-step ending at a sample computes it
+    /// for the sample's channels in the pass of its acceleration pair, when its window covers
+    /// that time already.
+    last_value: Cell<Option<(usize, f64, f64)>>,
+    /// The run's sample rate: the displacement is computed beside a pair only at a sample's
+    /// time (`i / sample_rate_hz`), where the channels will ask for it.
+    sample_rate_hz: f64,
 }
 
 impl RigSystem<'_> {
@@ -113,15 +124,30 @@ impl RigSystem<'_> {
         let piece = &sig.pieces[j];
         let tl = t - sig.shift;
         let slot = usize::from(order == 0);
-        InputWindow::eval(&mut self.windows.borrow_mut()[slot], order, j, piece, tl).unwrap_or_else(
-            || match piece {
-                Piece::Spline(s) if order == 2 => spline_d2(s, tl, t_ref - sig.shift),
-                _ => {
-                    let d = piece.eval(tl, t_ref - sig.shift);
-                    if order == 0 { d.value } else { d.d2 }
-                }
-            },
-        )
+        let last = if order == 2 {
+            &self.last_d2
+        } else {
+            &self.last_value
+        };
+        if let Some((lj, lt, v)) = last.get()
+            && lj == j
+            && lt == t
+        {
+            return v;
+        }
+        if let Some(v) =
+            InputWindow::eval(&mut self.windows.borrow_mut()[slot], order, j, piece, tl)
+        {
+            last.set(Some((j, t, v)));
+            return v;
+        }
+        match piece {
+            Piece::Spline(s) if order == 2 => spline_d2(s, tl, t_ref - sig.shift),
+            _ => {
+                let d = piece.eval(tl, t_ref - sig.shift);
+                if order == 0 { d.value } else { d.d2 }
+            }
+        }
     }
 
     /// The true base acceleration at `t` (piece of `t_ref`).
@@ -146,13 +172,22 @@ impl RigSystem<'_> {
         let piece = &sig.pieces[j];
         let tl = [t[0] - sig.shift, t[1] - sig.shift];
         let mut windows = self.windows.borrow_mut();
-        InputWindow::eval_pair(&mut windows[0], 2, j, piece, tl).unwrap_or_else(|| {
-            let tr = t_ref - sig.shift;
-            match piece {
-                Piece::Spline(s) => [spline_d2(s, tl[0], tr), spline_d2(s, tl[1], tr)],
-                _ => [piece.eval(tl[0], tr).d2, piece.eval(tl[1], tr).d2],
+        let [w_d2, w_value] = &mut *windows;
+        let i = (t[1] * self.sample_rate_hz).round();
+        let at_sample = i / self.sample_rate_hz == t[1];
+        let also = at_sample.then_some((&*w_value, 0, tl[1]));
+        if let Some((v, value)) = InputWindow::eval_pair_with(w_d2, 2, j, piece, tl, also) {
+            self.last_d2.set(Some((j, t[1], v[1])));
+            if let Some(value) = value {
+                self.last_value.set(Some((j, t[1], value)));
             }
-        })
+            return v;
+        }
+        let tr = t_ref - sig.shift;
+        match piece {
+            Piece::Spline(s) => [spline_d2(s, tl[0], tr), spline_d2(s, tl[1], tr)],
+            _ => [piece.eval(tl[0], tr).d2, piece.eval(tl[1], tr).d2],
+        }
     }
 
     /// Relative acceleration x'' and friction force in `mode`, with base acceleration `b_d2`.
@@ -364,6 +399,9 @@ pub(crate) fn run_rig_streamed(
         linear: element.linear_coefficients(),
         windows: RefCell::new([None, None]),
         piece: Cell::new((0.0, 0.0, 0)),
+        last_d2: Cell::new(None),
+        last_value: Cell::new(None),
+        sample_rate_hz,
     };
     let mut y = vec![0.0; sys.dim()];
     let b0 = sys.base_true.eval_right(0.0);
@@ -422,8 +460,7 @@ pub fn simulate_rig(
     solver: &SolverOptions,
 ) -> Result<SimOutput, SimError> {
     let setup = program_setup(element, nominal_mass_kg, program, effects, init);
-    let (out, trace, stats) = run_rig(setup, solver)?;
-    Ok(split_records(program, &RIG_CHANNELS, &out, trace, &stats))
+    super::rig_records::simulate_rig_records(setup, program, solver)
 }
 
 /// The rig of [`simulate_rig`] under `program`.
