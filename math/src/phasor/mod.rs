@@ -70,12 +70,14 @@
 
 mod fit;
 pub mod multisine;
+pub mod multisine_lines;
 mod periods;
 mod stream;
 pub mod sweep;
 mod types;
 
 pub use multisine::{MultisineAnalysis, MultisineError, MultisineOptions, analyse_multisine};
+pub use multisine_lines::{excited_lines, find_multisine_lines};
 pub use stream::PhasorStream;
 pub use sweep::{SweepKind, SweepLaw, SweepOptions, analyse_sweep};
 pub use types::{
