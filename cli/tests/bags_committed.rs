@@ -17,11 +17,12 @@ use forcemap_msgs::RosMessage;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
 
-const BAGS: [&str; 4] = [
+const BAGS: [&str; 5] = [
     "rig_40db",
     "three_dof_case_i",
     "three_dof_case_ii",
     "damper_dyno_40db",
+    "shaker_multisine_30db",
 ];
 
 fn bags_dir() -> PathBuf {
@@ -127,6 +128,15 @@ fn identification_on_the_committed_bags_finds_their_truth() {
     assert_eq!(theta.len(), truth.len());
     for (v, (name, t)) in theta.iter().zip(truth) {
         assert!((v / t - 1.0).abs() < 0.01, "dyno {name}: {theta:?}");
+    }
+    // The multisine bag: its lines found from the force, the moving mass identified.
+    let theta = common::identified_values(
+        &bags_dir().join("shaker_multisine_30db"),
+        &["--model", "cubic"],
+    );
+    assert_eq!(theta.len(), 4, "{theta:?}");
+    for (v, t) in theta.iter().zip([2e4, 60.0, 5e7, 2.0]) {
+        assert!((v / t - 1.0).abs() < 0.01, "shaker multisine: {theta:?}");
     }
 }
 

@@ -193,6 +193,7 @@ impl ExcitationState {
     pub const IDLE: u8 = 2;
     pub const SWEEP_LINEAR: u8 = 3;
     pub const SWEEP_LOG: u8 = 4;
+    pub const MULTISINE: u8 = 5;
 }
 
 /// `forcemap_msgs/msg/HarmonicPhasors`: phasors of one settled step. The arrays
