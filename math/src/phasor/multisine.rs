@@ -95,6 +95,40 @@ impl MultisineAnalysis {
     pub fn channel(&self, c: Channel) -> Option<&LineSpectrum> {
         self.channels.iter().find(|s| s.channel == c)
     }
+
+    /// The averaged period as harmonics `n = 0..=N/2` of the base frequency (what a phasor
+    /// message carries): the bins are exactly the harmonics of `f0` over a period, referenced
+    /// to `t_ref_s`. Not a fit: `residual_rms` is 0, the step settled by construction (the
+    /// transient periods left out) and `harmonic_cap` the last bin. `amplitude` is the
+    /// excitation's (its RMS).
+    pub fn as_harmonic_analysis(&self, amplitude: f64) -> super::HarmonicAnalysis {
+        let bins = self.channels.first().map_or(1, |c| c.phasors.len());
+        super::HarmonicAnalysis {
+            step: self.step,
+            frequency_hz: self.base_frequency_hz,
+            amplitude,
+            t_ref_s: self.t_ref_s,
+            periods_used: self.periods_used,
+            periods_available: self.periods_available,
+            first_settled_sample: self.first_used_sample,
+            samples_used: self.periods_used * self.samples_per_period,
+            settled: true,
+            harmonics: bins - 1,
+            harmonic_cap: bins - 1,
+            channels: self
+                .channels
+                .iter()
+                .map(|c| super::ChannelPhasors {
+                    channel: c.channel,
+                    phasors: c.phasors.clone(),
+                    noise_std: c.noise_std.clone(),
+                    residual_rms: 0.0,
+                    rate_per_s: Vec::new(),
+                })
+                .collect(),
+            frequency_rate_hz_per_s: 0.0,
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Error)]
