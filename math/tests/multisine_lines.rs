@@ -2,6 +2,10 @@
 //! designed line set (random-odd, odd, full) at 20 to 40 dB and noise-free, and refused with
 //! a clear error where no line stands out (noise only) or the power in the band does not
 //! repeat period after period (a band-random record).
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use forcemap_math::phasor::{MultisineError, MultisineOptions, find_multisine_lines};
 use forcemap_math::record::{Channel, Excitation, Record};
