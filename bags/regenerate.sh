@@ -10,7 +10,8 @@ if [ -z "${FORCEMAP:-}" ]; then
   FORCEMAP="$here/../target/release/forcemap"
 fi
 mkdir -p "$out"
-rm -rf "$out/rig_40db" "$out/three_dof_case_i" "$out/three_dof_case_ii" "$out/damper_dyno_40db"
+rm -rf "$out/rig_40db" "$out/three_dof_case_i" "$out/three_dof_case_ii" "$out/damper_dyno_40db" \
+  "$out/shaker_multisine_30db"
 # The suspension-rig stand-in: 10 stepped-sine steps (identification) then two band-random
 # records (validation), 40 dB SNR.
 "$FORCEMAP" simulate --system rig --snr-db 40 --seed 1 --bag "$out/rig_40db"
@@ -20,3 +21,8 @@ rm -rf "$out/rig_40db" "$out/three_dof_case_i" "$out/three_dof_case_ii" "$out/da
 # An element test: a twin-tube damper on a displacement-driven dyno (preload, gas spring,
 # rebound/compression damping, seal friction; 0.8 kg fixture), 4 frequencies x 3 strokes, 40 dB.
 "$FORCEMAP" simulate --system damper-dyno --snr-db 40 --seed 1 --bag "$out/damper_dyno_40db"
+# A force-driven single-DOF system with cubic stiffness (2 kg moving mass, identified): two
+# random-odd multisine realisations (0.5 Hz lines over 4-25 Hz, 60 N RMS, 9 periods at 2 kHz)
+# then a band-random validation record, 30 dB SNR. Its ExcitationState kind is MULTISINE.
+"$FORCEMAP" simulate --system shaker-sdof --excitation multisine --snr-db 30 --seed 1 \
+  --bag "$out/shaker_multisine_30db"

@@ -17,11 +17,12 @@ use forcemap_msgs::RosMessage;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
 
-const BAGS: [&str; 4] = [
+const BAGS: [&str; 5] = [
     "rig_40db",
     "three_dof_case_i",
     "three_dof_case_ii",
     "damper_dyno_40db",
+    "shaker_multisine_30db",
 ];
 
 fn bags_dir() -> PathBuf {
@@ -128,6 +129,15 @@ fn identification_on_the_committed_bags_finds_their_truth() {
     for (v, (name, t)) in theta.iter().zip(truth) {
         assert!((v / t - 1.0).abs() < 0.01, "dyno {name}: {theta:?}");
     }
+    // The multisine bag: its lines found from the force, the moving mass identified.
+    let theta = common::identified_values(
+        &bags_dir().join("shaker_multisine_30db"),
+        &["--model", "cubic"],
+    );
+    assert_eq!(theta.len(), 4, "{theta:?}");
+    for (v, t) in theta.iter().zip([2e4, 60.0, 5e7, 2.0]) {
+        assert!((v / t - 1.0).abs() < 0.01, "shaker multisine: {theta:?}");
+    }
 }
 
 #[test]
@@ -177,5 +187,75 @@ fn a_bag_without_the_samples_topic_or_with_another_type_is_refused_by_name() {
     assert!(
         e.contains("/rig/samples") && e.contains("std_msgs/msg/Float64") && e.contains("RigSample"),
         "{e}"
+    );
+}
+
+/// Issue 11's acceptance on the committed multisine bag: the model identified from its two
+/// multisine realisations (moving mass included), driven by the measured force of its third,
+/// band-random record, predicts the measured displacement within 1.5 times the noise floor's
+/// NMSE (the noise-free displacement of the same seeded run against the measured one). The
+/// record follows the second multisine without a pause, so the rig does not start it at rest
+/// as the prediction does: its first second (15 decay times of the 2 kg, 60 N s/m system) is
+/// left out of both.
+#[test]
+fn the_multisine_bag_predicts_its_random_record_within_the_noise_floor() {
+    use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
+    use forcemap_math::pipeline::nmse_percent;
+    use forcemap_math::record::Channel;
+    use forcemap_math::sim::excitation::{
+        CubicSpline, Piece, PiecewiseSignal, RecordPlan, SplineEnds,
+    };
+    use forcemap_math::sim::{ElementDrive, Program, RunSpec, SolverOptions, simulate_element};
+
+    let bag = bags_dir().join("shaker_multisine_30db");
+    let theta = common::identified_values(&bag, &["--model", "cubic"]);
+    let records = forcemap_io::rig_bag::read_rig_bag(&bag).unwrap().records;
+    assert_eq!(records.len(), 3);
+    let measured = &records[2];
+    let force = measured.channel(Channel::ForceN).unwrap();
+    let mut signal = PiecewiseSignal::new(force[0]);
+    signal.push(
+        0.0,
+        Piece::Spline(std::sync::Arc::new(CubicSpline::new(
+            force,
+            0.0,
+            measured.sample_rate_hz,
+            SplineEnds::NotAKnot,
+        ))),
+    );
+    let program = Program {
+        sample_rate_hz: measured.sample_rate_hz,
+        records: vec![RecordPlan {
+            samples: force.len(),
+            excitation: measured.excitation.clone(),
+        }],
+        signal,
+    };
+    let model = Model::by_name("cubic", &ModelOptions::default()).unwrap();
+    let predicted = simulate_element(
+        &IdentifiedModel::new(model, theta[..3].to_vec()),
+        theta[3],
+        ElementDrive::Force,
+        &program,
+        &SolverOptions::default(),
+    )
+    .unwrap();
+    let x_predicted = predicted.records[0]
+        .channel(Channel::RelativeDisplacementM)
+        .unwrap();
+    // bags/regenerate.sh: --snr-db 30 --seed 1; the same run without noise.
+    let clean = RunSpec::shaker_sdof_multisine(None, 1).simulate().unwrap();
+    let x_measured = measured.channel(Channel::RelativeDisplacementM).unwrap();
+    let x_clean = clean[2].channel(Channel::RelativeDisplacementM).unwrap();
+    let settled = measured.sample_rate_hz as usize;
+    let floor = nmse_percent(&x_measured[settled..], &x_clean[settled..]);
+    let nmse = nmse_percent(&x_measured[settled..], &x_predicted[settled..]);
+    println!(
+        "theta {theta:?}; validation NMSE {nmse:.4} % against the noise floor's {floor:.4} % (ratio {:.3})",
+        nmse / floor
+    );
+    assert!(
+        nmse < 1.5 * floor,
+        "NMSE {nmse} % against the floor {floor} %"
     );
 }

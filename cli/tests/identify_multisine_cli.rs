@@ -3,7 +3,9 @@
 //! of a force-driven single-DOF system with cubic stiffness at 30 dB, and `forcemap identify`
 //! gets every parameter, the moving mass among them, within 1 % of the simulator's truth; a
 //! record shorter than the periods it needs is refused naming its step; an excitation not
-//! simulated for a system is refused naming it.
+//! simulated for a system is refused naming it. The same run as a bag (`ExcitationState` of
+//! kind MULTISINE: base frequency, RMS and band, the lines found from the force) identifies to
+//! the same theta as its CSV.
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
@@ -11,7 +13,7 @@
 
 mod common;
 
-use common::forcemap;
+use common::{forcemap, identified_values};
 
 fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
@@ -81,4 +83,42 @@ fn an_excitation_not_simulated_yet_is_refused_by_name() {
         stderr(&o)
     );
     assert!(!csv.exists(), "nothing written");
+}
+
+/// The multisine run written as a CSV (lines in its `multisine_lines` column) and as a bag
+/// (lines not carried: found from the force's spectrum when each step is assembled) gives the
+/// same records, so the same theta; `bag info` names the kind.
+#[test]
+fn a_multisine_bag_identifies_as_its_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("ms.csv");
+    let bag = dir.path().join("ms_bag");
+    for (flag, out) in [("--csv", &csv), ("--bag", &bag)] {
+        let o = forcemap(&[
+            "simulate",
+            "--system",
+            "shaker-sdof",
+            "--excitation",
+            "multisine",
+            "--snr-db",
+            "30",
+            flag,
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let from_csv = identified_values(&csv, &["--model", "cubic"]);
+    let from_bag = identified_values(&bag, &["--model", "cubic"]);
+    assert_eq!(from_csv.len(), 4, "{from_csv:?}");
+    assert_eq!(from_csv, from_bag, "theta identical");
+    let info = forcemap(&["bag", "info", bag.to_str().unwrap(), "--json"]);
+    assert!(info.status.success(), "{}", stderr(&info));
+    let v: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    let kinds: Vec<&str> = v["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds, ["multisine", "multisine", "random"]);
 }

@@ -469,6 +469,7 @@ fn assemble(
                 StepPlan {
                     excitation,
                     sample_count: 0,
+                    driven: None,
                 },
             )
         });

@@ -17,7 +17,7 @@ pub enum ConversionError {
     )]
     UnknownChannel { message: &'static str, name: String },
     #[error(
-        "ExcitationState: kind {0} is not an excitation (expected SINE=0, RANDOM=1, SWEEP_LINEAR=3 or SWEEP_LOG=4; IDLE=2 means none)"
+        "ExcitationState: kind {0} is not an excitation (expected SINE=0, RANDOM=1, SWEEP_LINEAR=3, SWEEP_LOG=4 or MULTISINE=5; IDLE=2 means none)"
     )]
     UnknownKind(u8),
     #[error("{message}: {field} has {actual} entries, expected {expected}")]
@@ -84,8 +84,8 @@ impl ExcitationState {
             Excitation::Random { band_hz, rms } => {
                 (Self::RANDOM, 0.0, *rms, band_hz.unwrap_or([f64::NAN; 2]))
             }
-            // The message has no multisine kind yet: a periodic multisine travels as a
-            // random record over the band of its lines (kept for validation, no phasors).
+            // The line set is not carried (a random-odd design does not fit the number
+            // fields): a reader finds it from the driven channel (`io::steps`).
             Excitation::Multisine {
                 base_frequency_hz,
                 lines,
@@ -98,7 +98,7 @@ impl ExcitationState {
                     ],
                     _ => [f64::NAN; 2],
                 };
-                (Self::RANDOM, 0.0, *rms, band)
+                (Self::MULTISINE, *base_frequency_hz, *rms, band)
             }
             Excitation::Sweep { law } => (
                 match law.kind {
@@ -144,7 +144,8 @@ impl ExcitationState {
         self.kind == Self::IDLE
     }
 
-    /// The excitation (a band with a NaN edge is taken as unknown).
+    /// The excitation (a band with a NaN edge is taken as unknown; a multisine's lines empty,
+    /// for the reader of its samples to find).
     pub fn excitation(&self) -> Result<Excitation, ConversionError> {
         match self.kind {
             Self::SINE => Ok(Excitation::Sine {
@@ -170,6 +171,12 @@ impl ExcitationState {
                     // step's assembler sets it from the samples (`io::steps`).
                     duration_s: f64::NAN,
                 },
+            }),
+            // The lines are found from the samples when the step is complete (`io::steps`).
+            Self::MULTISINE => Ok(Excitation::Multisine {
+                base_frequency_hz: self.frequency_hz,
+                lines: Vec::new(),
+                rms: self.amplitude,
             }),
             k => Err(ConversionError::UnknownKind(k)),
         }

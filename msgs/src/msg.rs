@@ -193,6 +193,7 @@ impl ExcitationState {
     pub const IDLE: u8 = 2;
     pub const SWEEP_LINEAR: u8 = 3;
     pub const SWEEP_LOG: u8 = 4;
+    pub const MULTISINE: u8 = 5;
 }
 
 /// `forcemap_msgs/msg/HarmonicPhasors`: phasors of one settled step. The arrays
@@ -226,6 +227,10 @@ ros_message!(
 );
 
 impl HarmonicPhasors {
+    /// `harmonic_cap` of a periodic multisine step's message: its entries are the bins of the
+    /// averaged period (harmonics of the base frequency `frequency_hz`), not a sine step's fit.
+    pub const MULTISINE_CAP: u32 = 0;
+
     /// Index of channel `c`, harmonic index `k` in the flattened arrays.
     pub fn index(&self, c: usize, k: usize) -> usize {
         c * self.harmonic_orders.len() + k

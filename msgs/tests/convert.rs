@@ -346,10 +346,11 @@ fn identified_parameters_from_identification() {
     assert_eq!(with_header.header.frame_id, "rig");
 }
 
-/// The message has no multisine kind: a multisine travels as a random record over the band
-/// of its lines, with its RMS.
+/// A multisine travels with its own kind, its base frequency, its RMS and the band of its
+/// lines; the line set is not carried (the reader finds it from the samples), so it comes
+/// back empty.
 #[test]
-fn a_multisine_excitation_travels_as_random_over_its_lines() {
+fn a_multisine_excitation_travels_with_its_base_frequency_and_band() {
     let ms = Excitation::Multisine {
         base_frequency_hz: 0.5,
         lines: vec![9, 11, 49],
@@ -363,11 +364,14 @@ fn a_multisine_excitation_travels_as_random_over_its_lines() {
         Channel::ForceN,
         18_000,
     );
-    assert_eq!(m.kind, ExcitationState::RANDOM);
+    assert_eq!(m.kind, ExcitationState::MULTISINE);
+    assert_eq!((m.frequency_hz, m.amplitude), (0.5, 60.0));
+    assert_eq!((m.band_low_hz, m.band_high_hz), (4.5, 24.5));
     assert_eq!(
         m.excitation().unwrap(),
-        Excitation::Random {
-            band_hz: Some([4.5, 24.5]),
+        Excitation::Multisine {
+            base_frequency_hz: 0.5,
+            lines: Vec::new(),
             rms: 60.0,
         }
     );

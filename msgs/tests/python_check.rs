@@ -186,6 +186,7 @@ fn write_cases(dir: &Path) {
                 "IDLE": ExcitationState::IDLE,
                 "SWEEP_LINEAR": ExcitationState::SWEEP_LINEAR,
                 "SWEEP_LOG": ExcitationState::SWEEP_LOG,
+                "MULTISINE": ExcitationState::MULTISINE,
             },
             "diagnostic_msgs/msg/DiagnosticStatus": {
                 "OK": DiagnosticStatus::OK,

@@ -131,3 +131,41 @@ fn a_rate_that_is_not_whole_falls_back_to_the_batch_analysis() {
     assert_eq!(got, want);
     assert!((got.channels[0].phasors[1].norm() - 1.0).abs() < 1e-6);
 }
+
+/// A periodic multisine bag (`ExcitationState` MULTISINE, lines not carried): the node analyses
+/// each multisine step whole at its end, the lines it found are the simulator's design, and
+/// its phasors are the averaged period of the record `forcemap identify` reads, bit for bit;
+/// the band-random record gives none.
+#[test]
+fn multisine_steps_give_the_bins_of_their_averaged_period() {
+    use forcemap_math::phasor::{MultisineOptions, analyse_multisine};
+    use forcemap_math::sim::RunSpec;
+
+    let bag = Path::new(env!("CARGO_MANIFEST_DIR")).join("../bags/shaker_multisine_30db");
+    let records = read_rig_bag(&bag).unwrap().records;
+    // bags/regenerate.sh: the same run, its lines as designed.
+    let designed = RunSpec::shaker_sdof_multisine(Some(30.0), 1)
+        .simulate()
+        .unwrap();
+    let options = PhasorOptions::for_identification();
+    let node = node_analyses(&bag, &options);
+    assert_eq!(
+        node.len(),
+        2,
+        "two multisine steps, the random record skipped"
+    );
+    for ((streamed, n), (r, d)) in node.iter().zip(records.iter().zip(&designed)) {
+        assert!(!streamed);
+        let (Excitation::Multisine { lines, rms, .. }, Excitation::Multisine { lines: want, .. }) =
+            (&r.excitation, &d.excitation)
+        else {
+            panic!("step {}: not a multisine", r.step);
+        };
+        assert_eq!(lines, want, "step {}: lines found from the force", r.step);
+        let batch = analyse_multisine(r, &MultisineOptions::default())
+            .unwrap()
+            .as_harmonic_analysis(*rms);
+        assert_eq!(n, &batch, "step {}", r.step);
+        assert_eq!((n.frequency_hz, n.harmonics), (0.5, 2000));
+    }
+}

@@ -307,3 +307,22 @@ fn a_forgetting_factor_outside_zero_to_one_is_refused() {
     let e = RecipeParameters::from_params(&p).unwrap_err().to_string();
     assert!(e.contains("forgetting_per_step = 1.5"), "{e}");
 }
+
+/// A multisine step's phasors (`harmonic_cap` MULTISINE_CAP: the bins of its averaged period)
+/// are skipped with a log line saying so, never taken as a sine step's harmonics.
+#[test]
+fn multisine_phasors_are_skipped_not_taken_for_a_sine_step() {
+    let mut c = core(&params(&[
+        ("model", ParamValue::String("coulomb".into())),
+        ("mass_kg", ParamValue::Double(36.0)),
+    ]));
+    let mut ph = phasor_messages().remove(0);
+    ph.harmonic_cap = HarmonicPhasors::MULTISINE_CAP;
+    let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
+    assert!(thetas(&o).is_empty());
+    assert!(
+        o.iter().any(|o| matches!(o, Output::Log(l) if l.contains("multisine phasors are not identified live"))),
+        "{o:?}"
+    );
+    assert!(c.state().is_none(), "no equations added");
+}

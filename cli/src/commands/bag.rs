@@ -26,6 +26,7 @@ fn kind_name(kind: u8) -> &'static str {
         ExcitationState::SINE => "sine",
         ExcitationState::SWEEP_LINEAR => "sweep_linear",
         ExcitationState::SWEEP_LOG => "sweep_log",
+        ExcitationState::MULTISINE => "multisine",
         _ => "random",
     }
 }
@@ -43,6 +44,10 @@ fn describe_step(s: &ExcitationState) -> String {
             s.band_high_hz,
             s.amplitude,
             s.driven_channel
+        ),
+        ExcitationState::MULTISINE => format!(
+            "multisine, lines of {:.4} Hz over {:.3}-{:.3} Hz, RMS {:.4e} ({})",
+            s.frequency_hz, s.band_low_hz, s.band_high_hz, s.amplitude, s.driven_channel
         ),
         _ if s.band_low_hz.is_nan() => {
             format!("random, RMS {:.4e} ({})", s.amplitude, s.driven_channel)

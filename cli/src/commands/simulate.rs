@@ -233,8 +233,7 @@ fn planted_rig_effects(e: &EffectArgs) -> anyhow::Result<RigEffects> {
     Ok(fx)
 }
 
-/// The excitations `forcemap simulate` knows for `system`, refused by name otherwise (and a
-/// bag refused for the multisine, which the ExcitationState message cannot carry yet).
+/// The excitations `forcemap simulate` knows for `system`, refused by name otherwise.
 fn check_excitation(args: &SimulateArgs) -> anyhow::Result<()> {
     let name = match args.excitation {
         ExcitationArg::Stepped => return Ok(()),
@@ -255,12 +254,6 @@ fn check_excitation(args: &SimulateArgs) -> anyhow::Result<()> {
     );
     if !known {
         bail!("--excitation {name} is simulated for {systems} only");
-    }
-    if args.bag.is_some() && args.excitation == ExcitationArg::Multisine {
-        bail!(
-            "--excitation {name} cannot be written to a bag yet: the ExcitationState message \
-             has no {name} kind (it would read back as a random record); write --csv instead"
-        );
     }
     Ok(())
 }

@@ -362,6 +362,7 @@ impl StepRows {
             plan: StepPlan {
                 excitation,
                 sample_count: 0,
+                driven: None,
             },
         }
     }

@@ -10,6 +10,7 @@
 
 pub mod unlabelled;
 
+use forcemap_math::phasor::{MultisineOptions, find_multisine_lines};
 use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
@@ -126,6 +127,9 @@ pub enum StepFault {
     },
     #[error("{why} after {samples} samples")]
     Abandoned { why: String, samples: usize },
+    /// The multisine's excited lines could not be found on its driven channel.
+    #[error("{0}")]
+    MultisineLines(String),
 }
 
 /// Why a step's samples do not make a record.
@@ -158,6 +162,9 @@ pub struct StepPlan {
     pub excitation: Excitation,
     /// Samples the step lasts; 0 when not known (the step ends when the next one starts).
     pub sample_count: usize,
+    /// The driven channel, where the source names it: a multisine's lines are found on it
+    /// when the plan does not give them (an `ExcitationState`).
+    pub driven: Option<Channel>,
 }
 
 impl StepPlan {
@@ -169,9 +176,16 @@ impl StepPlan {
         let excitation = state
             .excitation()
             .map_err(|e| StepError::new(state.step as usize, StepFault::BadPlan(e.to_string())))?;
+        let driven = match &excitation {
+            Excitation::Multisine { .. } => Some(state.driven().map_err(|e| {
+                StepError::new(state.step as usize, StepFault::BadPlan(e.to_string()))
+            })?),
+            _ => state.driven().ok(),
+        };
         Ok(Some(StepPlan {
             excitation,
             sample_count: state.sample_count as usize,
+            driven,
         }))
     }
 }
@@ -228,6 +242,7 @@ struct Building {
     /// The finest rounding of the times.
     resolution: f64,
     expected: usize,
+    driven: Option<Channel>,
     /// The first problem met; the step is dropped when it completes.
     problem: Option<StepFault>,
 }
@@ -358,6 +373,7 @@ impl StepAssembler {
                 stamps: Vec::new(),
                 resolution: f64::INFINITY,
                 expected: plan.map_or(0, |p| p.sample_count),
+                driven: plan.and_then(|p| p.driven),
                 problem,
             });
         }
@@ -425,6 +441,7 @@ fn complete(b: Building, interval: IntervalRule) -> Result<AssembledStep, StepEr
         stamps,
         resolution,
         expected,
+        driven,
         problem,
     } = b;
     let err = |fault: StepFault| StepError::new(record.step, fault);
@@ -467,7 +484,47 @@ fn complete(b: Building, interval: IntervalRule) -> Result<AssembledStep, StepEr
     if let Excitation::Sweep { law } = &mut record.excitation {
         law.duration_s = duration_s;
     }
+    let step = record.step;
+    fill_multisine_lines(&mut record, driven).map_err(|f| StepError::new(step, f))?;
     Ok(AssembledStep { record, timing })
+}
+
+/// A multisine planned without its lines (an `ExcitationState` does not carry them) gets the
+/// lines that stand out of its driven channel's spectrum over whole periods after the
+/// transient ([`find_multisine_lines`]).
+fn fill_multisine_lines(record: &mut Record, driven: Option<Channel>) -> Result<(), StepFault> {
+    let Excitation::Multisine {
+        base_frequency_hz,
+        lines,
+        ..
+    } = &record.excitation
+    else {
+        return Ok(());
+    };
+    if !lines.is_empty() {
+        return Ok(());
+    }
+    let Some(driven) = driven else {
+        return Err(StepFault::MultisineLines(
+            "a multisine without its lines and without a driven channel to find them on".into(),
+        ));
+    };
+    let found = find_multisine_lines(
+        record,
+        driven,
+        *base_frequency_hz,
+        &MultisineOptions::default(),
+    )
+    .map_err(|e| {
+        // The step's own error names the step already.
+        let text = e.to_string();
+        let prefix = format!("step {}: ", record.step);
+        StepFault::MultisineLines(text.strip_prefix(&prefix).unwrap_or(&text).to_string())
+    })?;
+    if let Excitation::Multisine { lines, .. } = &mut record.excitation {
+        *lines = found;
+    }
+    Ok(())
 }
 
 /// The first interval of a step (at least 2 samples) that breaks `rule`.

@@ -17,6 +17,7 @@ fn plan(n: usize) -> StepPlan {
             amplitude: 1e-3,
         },
         sample_count: n,
+        driven: None,
     }
 }
 

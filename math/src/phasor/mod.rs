@@ -70,6 +70,7 @@
 
 mod fit;
 pub mod multisine;
+pub mod multisine_lines;
 mod periods;
 pub mod provisional;
 mod stream;
@@ -77,6 +78,7 @@ pub mod sweep;
 mod types;
 
 pub use multisine::{MultisineAnalysis, MultisineError, MultisineOptions, analyse_multisine};
+pub use multisine_lines::{excited_lines, find_multisine_lines};
 pub use provisional::{ProvisionalUpdates, provisional_analyses, provisional_analysis};
 pub use stream::PhasorStream;
 pub use sweep::{SweepKind, SweepLaw, SweepOptions, analyse_sweep};

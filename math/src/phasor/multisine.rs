@@ -95,6 +95,40 @@ impl MultisineAnalysis {
     pub fn channel(&self, c: Channel) -> Option<&LineSpectrum> {
         self.channels.iter().find(|s| s.channel == c)
     }
+
+    /// The averaged period as harmonics `n = 0..=N/2` of the base frequency (what a phasor
+    /// message carries): the bins are exactly the harmonics of `f0` over a period, referenced
+    /// to `t_ref_s`. Not a fit: `residual_rms` is 0, the step settled by construction (the
+    /// transient periods left out) and `harmonic_cap` the last bin. `amplitude` is the
+    /// excitation's (its RMS).
+    pub fn as_harmonic_analysis(&self, amplitude: f64) -> super::HarmonicAnalysis {
+        let bins = self.channels.first().map_or(1, |c| c.phasors.len());
+        super::HarmonicAnalysis {
+            step: self.step,
+            frequency_hz: self.base_frequency_hz,
+            amplitude,
+            t_ref_s: self.t_ref_s,
+            periods_used: self.periods_used,
+            periods_available: self.periods_available,
+            first_settled_sample: self.first_used_sample,
+            samples_used: self.periods_used * self.samples_per_period,
+            settled: true,
+            harmonics: bins - 1,
+            harmonic_cap: bins - 1,
+            channels: self
+                .channels
+                .iter()
+                .map(|c| super::ChannelPhasors {
+                    channel: c.channel,
+                    phasors: c.phasors.clone(),
+                    noise_std: c.noise_std.clone(),
+                    residual_rms: 0.0,
+                    rate_per_s: Vec::new(),
+                })
+                .collect(),
+            frequency_rate_hz_per_s: 0.0,
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -123,6 +157,30 @@ pub enum MultisineError {
         line: usize,
         frequency_hz: f64,
         nyquist_hz: f64,
+    },
+    #[error("step {step}: the driven channel {} is not in the record", channel.name())]
+    DrivenMissing { step: usize, channel: Channel },
+    #[error(
+        "step {step}: no excited line of a multisine of {base_frequency_hz} Hz stands out of the {} spectrum (the widest drop between its bins is {margin_db:.1} dB, {} dB needed): not a periodic multisine of this base frequency",
+        channel.name(),
+        super::multisine_lines::MIN_LINE_MARGIN_DB
+    )]
+    NoLineStandsOut {
+        step: usize,
+        channel: Channel,
+        base_frequency_hz: f64,
+        margin_db: f64,
+    },
+    #[error(
+        "step {step}: the {lines} strongest bins of the {} spectrum do not repeat period after period (median {level_db:.1} dB over their scatter between periods, {} dB needed): not a periodic multisine",
+        channel.name(),
+        super::multisine_lines::MIN_LINE_PERIODICITY_DB
+    )]
+    LinesNotPeriodic {
+        step: usize,
+        channel: Channel,
+        lines: usize,
+        level_db: f64,
     },
     #[error(
         "step {step}: the multisine record is too short: {samples} samples hold {periods:.2} periods of {base_frequency_hz} Hz; it needs {needed} whole periods ({needed_samples} samples): {transient} transient and {min} for the noise estimate"
@@ -160,18 +218,8 @@ pub fn analyse_multisine(
     if lines.is_empty() {
         return Err(MultisineError::NoLines { step });
     }
-    let spp = fs / f0;
-    let n = spp.round();
-    if !(spp.is_finite() && n >= 2.0 && (spp - n).abs() <= 1e-9 * n) {
-        return Err(MultisineError::NotWholeSamples {
-            step,
-            base_frequency_hz: f0,
-            sample_rate_hz: fs,
-            samples_per_period: spp,
-        });
-    }
-    let n = n as usize;
-    let half = n / 2;
+    let grid = PeriodGrid::of(record, f0, options)?;
+    let (n, skip, available) = (grid.samples_per_period, grid.skip, grid.available);
     if let Some(&line) = lines.iter().find(|&&k| 2 * k >= n) {
         return Err(MultisineError::LineAboveNyquist {
             step,
@@ -180,61 +228,13 @@ pub fn analyse_multisine(
             nyquist_hz: fs / 2.0,
         });
     }
-    let len = super::checked_length(record)?;
-    let available = len / n;
-    let skip = options.transient_periods;
-    if available < skip + MIN_MULTISINE_PERIODS {
-        let needed = skip + MIN_MULTISINE_PERIODS;
-        return Err(MultisineError::TooShort {
-            step,
-            samples: len,
-            periods: len as f64 / spp,
-            base_frequency_hz: f0,
-            transient: skip,
-            min: MIN_MULTISINE_PERIODS,
-            needed,
-            needed_samples: needed * n,
-        });
-    }
     let used = available - skip;
-    let fft = rustfft::FftPlanner::new().plan_fft_forward(n);
-    let mut buf = vec![Complex64::new(0.0, 0.0); n];
-    let mut scratch = vec![Complex64::new(0.0, 0.0); fft.get_inplace_scratch_len()];
-    let scale = |k: usize| {
-        if k == 0 || 2 * k == n {
-            1.0 / n as f64
-        } else {
-            2.0 / n as f64
-        }
-    };
-    let mut channels = Vec::with_capacity(record.channels.len());
-    for (c, data) in &record.channels {
-        let mut sum = vec![Complex64::new(0.0, 0.0); half + 1];
-        let mut sumsq = vec![0.0; half + 1];
-        for p in skip..available {
-            for (b, x) in buf.iter_mut().zip(&data[p * n..(p + 1) * n]) {
-                *b = Complex64::new(*x, 0.0);
-            }
-            fft.process_with_scratch(&mut buf, &mut scratch);
-            for k in 0..=half {
-                let ck = buf[k] * scale(k);
-                sum[k] += ck;
-                sumsq[k] += ck.norm_sqr();
-            }
-        }
-        let pf = used as f64;
-        let phasors: Vec<Complex64> = sum.iter().map(|s| s / pf).collect();
-        let noise_std = phasors
-            .iter()
-            .zip(&sumsq)
-            .map(|(m, s)| ((s - pf * m.norm_sqr()).max(0.0) / (pf * (pf - 1.0))).sqrt())
-            .collect();
-        channels.push(LineSpectrum {
-            channel: *c,
-            phasors,
-            noise_std,
-        });
-    }
+    let mut averager = PeriodAverager::new(n);
+    let channels = record
+        .channels
+        .iter()
+        .map(|(c, data)| averager.average(*c, grid.used(data)))
+        .collect::<Vec<_>>();
     let distortion = channels
         .iter()
         .map(|s| distortion_level(s, &lines, f0))
@@ -252,6 +252,128 @@ pub fn analyse_multisine(
         channels,
         distortion,
     })
+}
+
+/// The whole periods of a multisine record of base frequency `f0`: `N` samples each, the
+/// first `skip` left out as the transient, `available` in all (checked: `N` a whole number,
+/// at least [`MIN_MULTISINE_PERIODS`] after the transient).
+pub(crate) struct PeriodGrid {
+    pub samples_per_period: usize,
+    pub skip: usize,
+    pub available: usize,
+}
+
+impl PeriodGrid {
+    pub(crate) fn of(
+        record: &Record,
+        f0: f64,
+        options: &MultisineOptions,
+    ) -> Result<PeriodGrid, MultisineError> {
+        let (step, fs) = (record.step, record.sample_rate_hz);
+        let spp = fs / f0;
+        let n = spp.round();
+        if !(spp.is_finite() && n >= 2.0 && (spp - n).abs() <= 1e-9 * n) {
+            return Err(MultisineError::NotWholeSamples {
+                step,
+                base_frequency_hz: f0,
+                sample_rate_hz: fs,
+                samples_per_period: spp,
+            });
+        }
+        let n = n as usize;
+        let len = super::checked_length(record)?;
+        let available = len / n;
+        let skip = options.transient_periods;
+        if available < skip + MIN_MULTISINE_PERIODS {
+            let needed = skip + MIN_MULTISINE_PERIODS;
+            return Err(MultisineError::TooShort {
+                step,
+                samples: len,
+                periods: len as f64 / spp,
+                base_frequency_hz: f0,
+                transient: skip,
+                min: MIN_MULTISINE_PERIODS,
+                needed,
+                needed_samples: needed * n,
+            });
+        }
+        Ok(PeriodGrid {
+            samples_per_period: n,
+            skip,
+            available,
+        })
+    }
+
+    /// The used samples of `data` (whole periods after the transient).
+    pub(crate) fn used<'a>(&self, data: &'a [f64]) -> &'a [f64] {
+        let n = self.samples_per_period;
+        &data[self.skip * n..self.available * n]
+    }
+}
+
+/// The averaged period of a channel: the one-sided DFT of each period of `N` samples, their
+/// mean and its standard error from the scatter between periods (steps 1-3 of the module
+/// docs). One FFT plan for every channel of a record.
+pub(crate) struct PeriodAverager {
+    n: usize,
+    fft: std::sync::Arc<dyn rustfft::Fft<f64>>,
+    buf: Vec<Complex64>,
+    scratch: Vec<Complex64>,
+}
+
+impl PeriodAverager {
+    pub(crate) fn new(samples_per_period: usize) -> PeriodAverager {
+        let n = samples_per_period;
+        let fft = rustfft::FftPlanner::new().plan_fft_forward(n);
+        let scratch = vec![Complex64::new(0.0, 0.0); fft.get_inplace_scratch_len()];
+        PeriodAverager {
+            n,
+            fft,
+            buf: vec![Complex64::new(0.0, 0.0); n],
+            scratch,
+        }
+    }
+
+    /// The averaged period of `data`, whole periods of `N` samples (at least 2; a fraction at
+    /// the end is left out).
+    pub(crate) fn average(&mut self, channel: Channel, data: &[f64]) -> LineSpectrum {
+        let n = self.n;
+        let half = n / 2;
+        let scale = |k: usize| {
+            if k == 0 || 2 * k == n {
+                1.0 / n as f64
+            } else {
+                2.0 / n as f64
+            }
+        };
+        let mut sum = vec![Complex64::new(0.0, 0.0); half + 1];
+        let mut sumsq = vec![0.0; half + 1];
+        let periods = data.len() / n;
+        for period in data.chunks_exact(n) {
+            for (b, x) in self.buf.iter_mut().zip(period) {
+                *b = Complex64::new(*x, 0.0);
+            }
+            self.fft
+                .process_with_scratch(&mut self.buf, &mut self.scratch);
+            for k in 0..=half {
+                let ck = self.buf[k] * scale(k);
+                sum[k] += ck;
+                sumsq[k] += ck.norm_sqr();
+            }
+        }
+        let pf = periods as f64;
+        let phasors: Vec<Complex64> = sum.iter().map(|s| s / pf).collect();
+        let noise_std = phasors
+            .iter()
+            .zip(&sumsq)
+            .map(|(m, s)| ((s - pf * m.norm_sqr()).max(0.0) / (pf * (pf - 1.0))).sqrt())
+            .collect();
+        LineSpectrum {
+            channel,
+            phasors,
+            noise_std,
+        }
+    }
 }
 
 /// Mean of `f(k)` over `bins`, None when there are none.

@@ -242,9 +242,18 @@ impl RunSpec {
         }
     }
 
-    /// The channel whose amplitude the excitation gives (the setup kind's driven channel).
+    /// The channel whose amplitude the excitation gives: the force of a force-driven element
+    /// test, the setup kind's driven channel otherwise.
     pub fn driven_channel(&self) -> Channel {
-        self.setup_kind().driven_channel()
+        match self.system {
+            // The program is the force on the moving mass (the element profile's driven channel
+            // is the displacement of a dyno).
+            RunSystem::Element {
+                drive: ElementDrive::Force,
+                ..
+            } => Channel::ForceN,
+            _ => self.setup_kind().driven_channel(),
+        }
     }
 
     /// The mass the analysis knows [kg]: the rig's, an element test's moving mass (None

@@ -4,7 +4,11 @@
 //! [`StepAssembler`] that reads bags, so a replayed step is the record `forcemap identify`
 //! reads), finds its settled part and publishes the phasors of every harmonic once the step is
 //! complete. Steps with gaps, lost samples or non-finite values are dropped and reported on
-//! /diagnostics, never used. Random (validation) records give no phasors.
+//! /diagnostics, never used. Random (validation) records and sweeps give no phasors. A periodic
+//! multisine step (`ExcitationState` MULTISINE, its lines found from the driven channel when
+//! the step is assembled) is analysed whole at its end (`analyse_multisine`) and published as
+//! the bins of its averaged period, harmonics of the base frequency, with `harmonic_cap`
+//! [`HarmonicPhasors::MULTISINE_CAP`] (the identifier does not take them yet).
 //!
 //! The phasors are accumulated as the samples arrive ([`PhasorStream`](forcemap_math::phasor::PhasorStream)), so that when a step's
 //! last sample comes only the settling walk and the joint fit remain (independent of the step's
@@ -269,6 +273,11 @@ impl HarmonicState {
     }
 
     fn outcome(&self, r: Result<Record, StepError>, stream: Option<StepStream>) -> Outcome {
+        let origin = match &self.finder {
+            Some(f) => f.origin(),
+            None => self.assembler.origin(),
+        }
+        .unwrap_or(Time::ZERO);
         match r {
             Ok(rec) => match rec.excitation {
                 Excitation::Sine { .. } => {
@@ -276,15 +285,10 @@ impl HarmonicState {
                         Some(s) => Analysis::Streamed(Box::new(s)),
                         None => Analysis::Batch(rec),
                     };
-                    let origin = match &self.finder {
-                        Some(f) => f.origin(),
-                        None => self.assembler.origin(),
-                    };
-                    Outcome::Analyse(analysis, origin.unwrap_or(Time::ZERO))
+                    Outcome::Analyse(analysis, origin)
                 }
-                Excitation::Random { .. }
-                | Excitation::Multisine { .. }
-                | Excitation::Sweep { .. } => Outcome::Skipped(
+                Excitation::Multisine { .. } => Outcome::Analyse(Analysis::Multisine(rec), origin),
+                Excitation::Random { .. } | Excitation::Sweep { .. } => Outcome::Skipped(
                     rec.step,
                     format!(
                         "random record of {} samples: kept for validation, no phasors",
@@ -372,8 +376,11 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                 Outcome::Skipped(..) | Outcome::Dropped(_) => continue,
             };
             let step = analysis.step();
+            let multisine = analysis.is_multisine();
             let how = if analysis.is_streamed() {
                 ""
+            } else if multisine {
+                " (multisine: its averaged period's bins)"
             } else {
                 " (batch: the record's sample rate was not the stream's)"
             };
@@ -389,11 +396,14 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                         if an.settled { "" } else { " (NOT settled)" },
                         an.harmonics
                     );
-                    let msg = HarmonicPhasors::from_analysis(
+                    let mut msg = HarmonicPhasors::from_analysis(
                         &an,
                         origin,
                         Header::new(now_time(), &frame_w),
                     );
+                    if multisine {
+                        msg.harmonic_cap = HarmonicPhasors::MULTISINE_CAP;
+                    }
                     if let Err(e) = phasors_pub.async_publish(msg).await {
                         log_line!("error: publishing the phasors of step {step}: {e:?}");
                     }

@@ -106,6 +106,7 @@ impl StepFinder {
                 rms: f64::NAN,
             },
             sample_count: 0,
+            driven: None,
         };
         let mut assembler = StepAssembler::new();
         for s in &self.buffer {

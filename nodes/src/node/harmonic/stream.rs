@@ -3,23 +3,27 @@
 
 use forcemap_io::steps::{StepPlan, StepSample};
 use forcemap_math::phasor::{
-    HarmonicAnalysis, PhasorError, PhasorOptions, PhasorStream, ProvisionalUpdates, analyse_record,
+    HarmonicAnalysis, MultisineOptions, PhasorOptions, PhasorStream, ProvisionalUpdates,
+    analyse_multisine, analyse_record,
 };
 use forcemap_math::record::{Excitation, Record};
 
-/// A complete sine step, ready for its analysis.
+/// A complete sine or multisine step, ready for its analysis.
 pub enum Analysis {
     /// Accumulated as the samples arrived: only the settling and the joint fit remain.
     Streamed(Box<PhasorStream>),
     /// The record, to be analysed whole (the stream did not match it; see the module docs).
     Batch(Record),
+    /// A periodic multisine record (its lines found when it was assembled), analysed whole at
+    /// its end ([`analyse_multisine`]): its averaged period as harmonics of the base frequency.
+    Multisine(Record),
 }
 
 impl Analysis {
     pub fn step(&self) -> usize {
         match self {
             Analysis::Streamed(s) => s.step(),
-            Analysis::Batch(r) => r.step,
+            Analysis::Batch(r) | Analysis::Multisine(r) => r.step,
         }
     }
 
@@ -27,11 +31,26 @@ impl Analysis {
         matches!(self, Analysis::Streamed(_))
     }
 
-    /// The phasors of the step (the same either way for the same record).
-    pub fn run(self, options: &PhasorOptions) -> Result<HarmonicAnalysis, PhasorError> {
+    pub fn is_multisine(&self) -> bool {
+        matches!(self, Analysis::Multisine(_))
+    }
+
+    /// The phasors of the step (the same either way for the same record); a multisine's are
+    /// the bins of its averaged period ([`MultisineAnalysis::as_harmonic_analysis`]).
+    ///
+    /// [`MultisineAnalysis::as_harmonic_analysis`]: forcemap_math::phasor::MultisineAnalysis::as_harmonic_analysis
+    pub fn run(self, options: &PhasorOptions) -> Result<HarmonicAnalysis, String> {
         match self {
-            Analysis::Streamed(s) => s.finish(),
-            Analysis::Batch(r) => analyse_record(&r, options),
+            Analysis::Streamed(s) => s.finish().map_err(|e| e.to_string()),
+            Analysis::Batch(r) => analyse_record(&r, options).map_err(|e| e.to_string()),
+            Analysis::Multisine(r) => {
+                let Excitation::Multisine { rms, .. } = r.excitation else {
+                    return Err(format!("step {}: not a multisine record", r.step));
+                };
+                analyse_multisine(&r, &MultisineOptions::default())
+                    .map(|an| an.as_harmonic_analysis(rms))
+                    .map_err(|e| e.to_string())
+            }
         }
     }
 }
