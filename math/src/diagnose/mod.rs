@@ -482,10 +482,6 @@ pub fn diagnose(
         let i = order.remove(k);
         order.insert(0, i);
     }
-    let mut ranked: Vec<RankedEffect> = order.iter().map(|&i| ranked[i].clone()).collect();
-    let mut fits: Vec<Option<(Fitted, Vec<HeldOut>)>> = fits.into_iter().map(Some).collect();
-    let top_fit = order.first().and_then(|&i| fits[i].take());
-
     let best_pair = if options.pairs && ranked.len() >= 2 {
         let ctx = pairs::PairContext {
             setup,
@@ -506,16 +502,22 @@ pub fn diagnose(
     } else {
         None
     };
-    // The best addition to the top candidate ranks second, ahead of the alternatives to it,
-    // when the pair scores better than the top one alone.
-    if let (Some(p), Some(top)) = (&best_pair, ranked.first())
-        && p.score_percent < top.score_percent
-        && let Some(k) = ranked.iter().position(|r| r.effect == p.effects[1])
-        && k > 1
+    // When the pair scores better than the top candidate alone, its members rank first and
+    // second: the best addition to the top candidate ahead of the alternatives to it, and after
+    // an exchange ([`pairs::forward_pair`]) the pair's better-ranked member on top.
+    if let (Some(p), Some(&top)) = (&best_pair, order.first())
+        && p.score_percent < ranked[top].score_percent
     {
-        let r = ranked.remove(k);
-        ranked.insert(1, r);
+        for (slot, e) in p.effects.iter().enumerate() {
+            if let Some(k) = order.iter().position(|&i| ranked[i].effect == *e) {
+                let i = order.remove(k);
+                order.insert(slot, i);
+            }
+        }
     }
+    let ranked: Vec<RankedEffect> = order.iter().map(|&i| ranked[i].clone()).collect();
+    let mut fits: Vec<Option<(Fitted, Vec<HeldOut>)>> = fits.into_iter().map(Some).collect();
+    let top_fit = order.first().and_then(|&i| fits[i].take());
 
     let mut findings = Findings::decide(
         Evidence::HeldOutNmse,
