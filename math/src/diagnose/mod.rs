@@ -26,8 +26,9 @@
 //!    0.9 times the best's and it explains the gap by itself; a candidate whose error on the
 //!    steps is below half the best's goes first even without a tie ([`step_tie_break`]). The second
 //!    effect is then searched on what the top one leaves ([`pairs`]): every other candidate fitted
-//!    jointly with the top one and scored the same way; the best addition ranks second when the
-//!    pair scores better than the top candidate alone.
+//!    jointly with the top one and scored the same way, then the exchange step (the best
+//!    addition kept, the top one's best-ranked rivals tried in its place); when the best pair
+//!    scores better than the top candidate alone its members rank first and second.
 //! 4. **Verdict** ([`findings`], shared with the live and the axis diagnosis), with `floor` the noise floor estimated from the data:
 //!    - a candidate's shrink is *significant* when its score beats the baseline's and it
 //!      removes more than `max(floor, 10 % of the gap, 0.2 %-points)`;

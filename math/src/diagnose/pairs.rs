@@ -4,10 +4,12 @@
 //! quadratic stiffness, free play), not the second effect. Here every other candidate effect is
 //! fitted jointly with the top one, its searched parameter (free-play gap, Stribeck velocity,
 //! hysteresis yield) chosen again by cross-validation of the joint fit on the sine steps, and
-//! the joint model scored on the held-out records like a single candidate. The best pair by
-//! that score is the one the verdict weighs ([`super::findings::pair_explains`]) and whose
-//! second member is ranked second when the pair beats the top one alone clearly
-//! ([`second_stands_out`]).
+//! the joint model scored on the held-out records like a single candidate. When the top one is
+//! itself a neighbour of a planted effect, no pair with it holds both: the exchange step
+//! ([`exchange`]) keeps the best addition and tries the top one's best-ranked rivals in its
+//! place. The best pair by that score is the one the verdict weighs
+//! ([`super::findings::pair_explains`]); its members rank first and second when it scores
+//! better than the top one alone.
 
 use super::cycles::StepCycle;
 use super::effects::{Effect, Structure, Transform, structures};
