@@ -495,9 +495,9 @@ pub fn diagnose(
         };
         let structure = |i: usize| {
             let c = &search.candidates[cand_idx[i]];
-            (c.effect, &c.structure)
+            (c.effect, &c.structure, ranked[i].score_percent)
         };
-        let others: Vec<(Effect, &effects::Structure)> =
+        let others: Vec<(Effect, &effects::Structure, f64)> =
             order.iter().skip(1).map(|&i| structure(i)).collect();
         pairs::forward_pair(&ctx, structure(order[0]).1, &others)?
     } else {

@@ -127,16 +127,16 @@ fn scored(
 }
 
 /// The best pair with the top candidate: `top` (its structure) fitted jointly with each effect
-/// of `others` (each with its structure alone, in ranked order), best by penalised held-out
-/// score; then the exchange step ([`exchange`]).
+/// of `others` (each with its structure and penalised held-out score alone, in ranked order),
+/// best by penalised held-out score; then the exchange step ([`exchange`]).
 pub fn forward_pair(
     ctx: &PairContext,
     top: &Structure,
-    others: &[(Effect, &Structure)],
+    others: &[(Effect, &Structure, f64)],
 ) -> Result<Option<PairResult>, DiagnoseError> {
     let mut best: Option<(PairResult, usize, Structure)> = None;
     let mut cycles = Cycles { ctx, rebuilt: None };
-    for (k, (effect, alone)) in others.iter().enumerate() {
+    for (k, (effect, alone, _)) in others.iter().enumerate() {
         let Some((s, member)) = joint_structure(ctx, &mut cycles, top, *effect, alone)? else {
             continue;
         };
@@ -166,30 +166,32 @@ pub const EXCHANGE_RIVALS: usize = 4;
 /// candidates fitted jointly with it in place of the top one. When the top candidate is a
 /// neighbour of a planted effect that also mimics part of the second one, the pair that holds
 /// the planted effect itself scores better; the best pair by penalised held-out score is kept,
-/// its better-ranked member alone first. `pair` is returned when no exchange scores better.
+/// its better-ranked member alone first. An exchanged pair must also score better than the
+/// rival alone (else the rival alone does what the pair does, and the step tie-break that put
+/// the top one ahead of it stands). `pair` is returned when no exchange scores better.
 fn exchange(
     ctx: &PairContext,
     cycles: &mut Cycles,
     pair: PairResult,
     second: usize,
     member: &Structure,
-    others: &[(Effect, &Structure)],
+    others: &[(Effect, &Structure, f64)],
 ) -> Result<PairResult, DiagnoseError> {
     let mut best = pair;
     let kept = others[second].0;
     let rivals = others
         .iter()
         .enumerate()
-        .filter(|(k, (e, _))| *k != second && *e != kept)
+        .filter(|(k, (e, _, _))| *k != second && *e != kept)
         .take(EXCHANGE_RIVALS);
-    for (k, (effect, alone)) in rivals {
+    for (k, (effect, alone, alone_score)) in rivals {
         let Some((s, _)) = joint_structure(ctx, cycles, member, *effect, alone)? else {
             continue;
         };
         let Some((mut p, _)) = scored(ctx, cycles, &s)? else {
             continue;
         };
-        if p.score_percent < best.score_percent {
+        if p.score_percent < best.score_percent && p.score_percent < *alone_score {
             // The joint structure holds the kept member first; the better-ranked one leads.
             if k < second {
                 p.effects = [*effect, kept];
