@@ -1,6 +1,7 @@
 //! Two effects planted together in the wide forms' world: the second is searched on what the
 //! first leaves (fitted jointly with it), so both are the two best-ranked and the verdict names
-//! the pair; one effect alone is not reported as a pair.
+//! the pair; one effect alone is not reported as a pair. When the top candidate is a neighbour
+//! of a planted effect, the exchange step puts the planted effect in its place.
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how they report failure"
@@ -72,6 +73,44 @@ fn coulomb_friction_with_cubic_stiffness_is_named_as_the_pair() {
         h.starts_with("explained by coulomb_friction together with cubic_stiffness")
             || h.starts_with("explained by cubic_stiffness together with coulomb_friction"),
         "{h}"
+    );
+}
+
+/// `coef sgn(u) |u|^exponent` of the displacement or the velocity.
+fn power(name: &'static str, coef: f64, exponent: f64, on_velocity: bool) -> WorldEffect {
+    WorldEffect::of_terms(
+        name,
+        WorldKind::Library,
+        [
+            Some(Term::OddPower {
+                coef,
+                exponent,
+                on_velocity,
+            }),
+            None,
+        ],
+    )
+}
+
+/// `diagnose-eval --forms wide --seed 1` case 44: a spring of about 34 N at 6 mm growing as
+/// x^2.09 with a damper of about 20 N at 0.1 m/s growing as v^2.18. Free play alone fits the
+/// spring best (the gap it searches stands in for the exponent), so the pair search with free
+/// play on top found quadratic damping beside it but not quadratic stiffness; the exchange
+/// step tries the rivals of free play beside quadratic damping, and the planted pair wins.
+#[test]
+fn the_exchange_step_replaces_a_neighbour_on_top_by_the_planted_effect() {
+    let d = diagnosed(
+        &[
+            power("quadratic_stiffness", 1.450_188_578e6, 2.086_278_185, false),
+            power("quadratic_damping", 2_988.111_023, 2.180_387_963, true),
+        ],
+        30.0,
+        14_425_615_679_580_274_233,
+    );
+    assert_eq!(top_two(&d), ["quadratic_stiffness", "quadratic_damping"]);
+    assert_eq!(
+        d.findings.headline().split(':').next(),
+        Some("explained by quadratic_stiffness together with quadratic_damping")
     );
 }
 

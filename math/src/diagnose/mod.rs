@@ -26,8 +26,9 @@
 //!    0.9 times the best's and it explains the gap by itself; a candidate whose error on the
 //!    steps is below half the best's goes first even without a tie ([`step_tie_break`]). The second
 //!    effect is then searched on what the top one leaves ([`pairs`]): every other candidate fitted
-//!    jointly with the top one and scored the same way; the best addition ranks second when the
-//!    pair scores better than the top candidate alone.
+//!    jointly with the top one and scored the same way, then the exchange step (the best
+//!    addition kept, the top one's best-ranked rivals tried in its place); when the best pair
+//!    scores better than the top candidate alone its members rank first and second.
 //! 4. **Verdict** ([`findings`], shared with the live and the axis diagnosis), with `floor` the noise floor estimated from the data:
 //!    - a candidate's shrink is *significant* when its score beats the baseline's and it
 //!      removes more than `max(floor, 10 % of the gap, 0.2 %-points)`;
@@ -482,10 +483,6 @@ pub fn diagnose(
         let i = order.remove(k);
         order.insert(0, i);
     }
-    let mut ranked: Vec<RankedEffect> = order.iter().map(|&i| ranked[i].clone()).collect();
-    let mut fits: Vec<Option<(Fitted, Vec<HeldOut>)>> = fits.into_iter().map(Some).collect();
-    let top_fit = order.first().and_then(|&i| fits[i].take());
-
     let best_pair = if options.pairs && ranked.len() >= 2 {
         let ctx = pairs::PairContext {
             setup,
@@ -498,24 +495,30 @@ pub fn diagnose(
         };
         let structure = |i: usize| {
             let c = &search.candidates[cand_idx[i]];
-            (c.effect, &c.structure)
+            (c.effect, &c.structure, ranked[i].score_percent)
         };
-        let others: Vec<(Effect, &effects::Structure)> =
+        let others: Vec<(Effect, &effects::Structure, f64)> =
             order.iter().skip(1).map(|&i| structure(i)).collect();
         pairs::forward_pair(&ctx, structure(order[0]).1, &others)?
     } else {
         None
     };
-    // The best addition to the top candidate ranks second, ahead of the alternatives to it,
-    // when the pair scores better than the top one alone.
-    if let (Some(p), Some(top)) = (&best_pair, ranked.first())
-        && p.score_percent < top.score_percent
-        && let Some(k) = ranked.iter().position(|r| r.effect == p.effects[1])
-        && k > 1
+    // When the pair scores better than the top candidate alone, its members rank first and
+    // second: the best addition to the top candidate ahead of the alternatives to it, and after
+    // an exchange ([`pairs::forward_pair`]) the pair's better-ranked member on top.
+    if let (Some(p), Some(&top)) = (&best_pair, order.first())
+        && p.score_percent < ranked[top].score_percent
     {
-        let r = ranked.remove(k);
-        ranked.insert(1, r);
+        for (slot, e) in p.effects.iter().enumerate() {
+            if let Some(k) = order.iter().position(|&i| ranked[i].effect == *e) {
+                let i = order.remove(k);
+                order.insert(slot, i);
+            }
+        }
     }
+    let ranked: Vec<RankedEffect> = order.iter().map(|&i| ranked[i].clone()).collect();
+    let mut fits: Vec<Option<(Fitted, Vec<HeldOut>)>> = fits.into_iter().map(Some).collect();
+    let top_fit = order.first().and_then(|&i| fits[i].take());
 
     let mut findings = Findings::decide(
         Evidence::HeldOutNmse,
