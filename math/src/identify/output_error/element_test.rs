@@ -37,7 +37,7 @@ use crate::identify::{Identification, IdentifyError};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::record::{Channel, Record};
-use crate::sim::excitation::{Piece, PiecewiseSignal, Program, RecordPlan};
+use crate::sim::excitation::{PiecewiseSignal, Program, RecordPlan};
 use crate::sim::{ElementDrive, SimOutput, SolverOptions, simulate_element};
 
 /// The channels an element test is fitted on, in the order of each step's residual block (the
@@ -353,26 +353,7 @@ impl<'a> ElementOutputError<'a> {
     /// The drive without its offset: a sine per record (`nuisance`: amplitude and phase of
     /// each), at rest before the run at its starting value.
     fn drive_signal(&self, nuisance: &[f64]) -> PiecewiseSignal {
-        let fs = self.records[0].sample_rate_hz;
-        let mut signal = PiecewiseSignal::new(0.0);
-        let mut first = 0usize;
-        for (k, r) in self.records.iter().enumerate() {
-            let t0 = first as f64 / fs;
-            let omega = 2.0 * std::f64::consts::PI * r.excitation.frequency_hz().unwrap_or(0.0);
-            signal.push(
-                t0,
-                Piece::Sine {
-                    t0,
-                    amplitude: nuisance[2 * k],
-                    omega,
-                    phase: nuisance[2 * k + 1],
-                },
-            );
-            first += r.len();
-        }
-        let v0 = signal.pieces[1].eval(0.0, 0.0).value;
-        signal.pieces[0] = Piece::Const(v0);
-        signal
+        super::sine_per_record_signal(&self.records, nuisance)
     }
 }
 

@@ -27,6 +27,7 @@ use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
 use crate::record::{Channel, Record};
+use crate::sim::excitation::{Piece, PiecewiseSignal};
 
 pub use element_test::{ElementOutputError, element_drive_of};
 pub use rig::{RigDrive, RigMisfit, RigOutputError};
@@ -97,6 +98,33 @@ fn sine_records<'a>(
 /// the simulation's stick/slip events (a rig's or a force-driven mass's acceleration, a
 /// displacement-driven element's force): a sample within a sample interval of an event changes
 /// by a jump when the event crosses it, so the misfit would have cliffs that stall the fit.
+/// The drive of a sine-step run as the output-error fits model it: one sine per record
+/// (`nuisance`: the amplitude and phase of each, in record order) at the record's frequency,
+/// starting where the record starts, and at rest before the run at the first sine's starting
+/// value (as `Program::from_steps`). The rig's base and the element test's drive.
+fn sine_per_record_signal(records: &[&Record], nuisance: &[f64]) -> PiecewiseSignal {
+    let fs = records[0].sample_rate_hz;
+    let mut signal = PiecewiseSignal::new(0.0);
+    let mut first = 0usize;
+    for (k, r) in records.iter().enumerate() {
+        let t0 = first as f64 / fs;
+        let omega = 2.0 * std::f64::consts::PI * r.excitation.frequency_hz().unwrap_or(0.0);
+        signal.push(
+            t0,
+            Piece::Sine {
+                t0,
+                amplitude: nuisance[2 * k],
+                omega,
+                phase: nuisance[2 * k + 1],
+            },
+        );
+        first += r.len();
+    }
+    let v0 = signal.pieces[1].eval(0.0, 0.0).value;
+    signal.pieces[0] = Piece::Const(v0);
+    signal
+}
+
 /// The two samples around each sample interval with an event and one more on each side are
 /// dropped (an event may move by a sample interval during a pass without reaching a kept
 /// sample).

@@ -377,28 +377,7 @@ impl<'a> RigOutputError<'a> {
         if let Some(s) = &self.spline_base {
             return s.clone();
         }
-        let fs = self.records[0].sample_rate_hz;
-        let nuisance = &p[self.model.terms.len()..];
-        let mut signal = PiecewiseSignal::new(0.0);
-        let mut first = 0usize;
-        for (k, r) in self.records.iter().enumerate() {
-            let t0 = first as f64 / fs;
-            let omega = 2.0 * std::f64::consts::PI * r.excitation.frequency_hz().unwrap_or(0.0);
-            signal.push(
-                t0,
-                Piece::Sine {
-                    t0,
-                    amplitude: nuisance[2 * k],
-                    omega,
-                    phase: nuisance[2 * k + 1],
-                },
-            );
-            first += r.len();
-        }
-        // At rest before the run at the base's starting value (as `Program::from_steps`).
-        let v0 = signal.pieces[1].eval(0.0, 0.0).value;
-        signal.pieces[0] = Piece::Const(v0);
-        signal
+        super::sine_per_record_signal(&self.records, &p[self.model.terms.len()..])
     }
 }
 
