@@ -223,17 +223,7 @@ impl<'a> ElementOutputError<'a> {
     /// is the truth and the noise the true one): the element's parameters, each step's drive
     /// amplitude and phase, the drive's offset.
     pub fn covariance_at(&self, p: &[f64]) -> Result<DMatrix<f64>, IdentifyError> {
-        let scale = self.scale(p);
-        let masked = self.masked_at(p)?;
-        let r = masked.residual(p)?;
-        let jac = jacobian(&masked, p, &r, &scale)?;
-        let np = p.len();
-        let inv = (jac.transpose() * &jac)
-            .try_inverse()
-            .unwrap_or_else(|| DMatrix::from_element(np, np, f64::NAN));
-        Ok(DMatrix::from_fn(np, np, |i, j| {
-            inv[(i, j)] * scale[i] * scale[j]
-        }))
+        super::lm::covariance_at(&self.masked_at(p)?, p)
     }
 
     /// The Gauss-Newton step from `p` in every parameter: when `p` is the truth and the noise

@@ -53,13 +53,7 @@ impl Fit {
     /// Covariance of the parameters (inverse Gauss-Newton information, unscaled); NaN when
     /// the information is singular.
     pub fn covariance(&self) -> DMatrix<f64> {
-        let np = self.p.len();
-        let inv = self
-            .information
-            .clone()
-            .try_inverse()
-            .unwrap_or_else(|| DMatrix::from_element(np, np, f64::NAN));
-        DMatrix::from_fn(np, np, |i, j| inv[(i, j)] * self.scale[i] * self.scale[j])
+        unscaled_inverse(self.information.clone(), &self.scale)
     }
 
     /// RMS of the weighted residuals (1 when the model misses the samples by the noise alone).
@@ -72,6 +66,28 @@ impl Fit {
         let sv = self.information.singular_values();
         (sv.max() / sv.min()).sqrt()
     }
+}
+
+/// The inverse of `information` (in scaled parameters) in the parameters' own units; NaN when
+/// it is singular.
+fn unscaled_inverse(information: DMatrix<f64>, scale: &[f64]) -> DMatrix<f64> {
+    let np = scale.len();
+    let inv = information
+        .try_inverse()
+        .unwrap_or_else(|| DMatrix::from_element(np, np, f64::NAN));
+    DMatrix::from_fn(np, np, |i, j| inv[(i, j)] * scale[i] * scale[j])
+}
+
+/// The covariance `(J^T W J)^-1` of every parameter of `problem` at `p`: the Cramer-Rao bound
+/// when `p` is the truth and the residual is weighted by the true noise.
+pub(crate) fn covariance_at(
+    problem: &impl Problem,
+    p: &[f64],
+) -> Result<DMatrix<f64>, IdentifyError> {
+    let scale = problem.scale(p);
+    let r = problem.residual(p)?;
+    let jac = jacobian(problem, p, &r, &scale)?;
+    Ok(unscaled_inverse(jac.transpose() * &jac, &scale))
 }
 
 /// Jacobian of the model's output (`-d residual`) in scaled parameters, by forward differences.

@@ -24,9 +24,7 @@ use nalgebra::DMatrix;
 use num_complex::Complex64;
 
 use super::element::{ModelElement, check_model};
-use super::lm::{
-    Limits, Partial, Problem, jacobian, levenberg_marquardt, levenberg_marquardt_within,
-};
+use super::lm::{Limits, Partial, Problem, levenberg_marquardt, levenberg_marquardt_within};
 use super::{channel_noise, event_mask, identification, sine_records, unsupported};
 use crate::identify::{Identification, IdentifyError};
 use crate::model::Model;
@@ -233,17 +231,7 @@ impl<'a> RigOutputError<'a> {
     /// The covariance `(J^T W J)^-1` of every parameter at `p` (the Cramer-Rao bound when
     /// `p` is the truth and the noise the true one).
     pub fn covariance_at(&self, p: &[f64]) -> Result<DMatrix<f64>, IdentifyError> {
-        let scale = self.scale(p);
-        let masked = self.masked_at(p)?;
-        let r = masked.residual(p)?;
-        let jac = jacobian(&masked, p, &r, &scale)?;
-        let np = p.len();
-        let inv = (jac.transpose() * &jac)
-            .try_inverse()
-            .unwrap_or_else(|| DMatrix::from_element(np, np, f64::NAN));
-        Ok(DMatrix::from_fn(np, np, |i, j| {
-            inv[(i, j)] * scale[i] * scale[j]
-        }))
+        super::lm::covariance_at(&self.masked_at(p)?, p)
     }
 
     /// Refines `first` (fd-multi on the same data). Two passes: the first weights each channel
