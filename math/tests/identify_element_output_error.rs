@@ -245,10 +245,14 @@ fn true_parameters(spec: &RunSpec, truth: &[f64]) -> Vec<f64> {
     p
 }
 
-/// Cramer-Rao bound of the bench's parameters on the settled samples the fit of `noisy` used:
-/// the output-error Jacobian at the truth, the true noise std of each channel (as
-/// `noise::add_noise` draws it).
-fn crb(b: &Bench, noisy: &[Record], snr_db: f64) -> Vec<f64> {
+/// Runs `f` on the output-error problem of `noisy` weighted by the true noise std of each
+/// channel (as `noise::add_noise` draws it), with the true parameters.
+fn at_truth_with_true_noise<T>(
+    b: &Bench,
+    noisy: &[Record],
+    snr_db: f64,
+    f: impl FnOnce(&ElementOutputError, &[f64]) -> T,
+) -> T {
     let spec = (b.run)(None, 0);
     let clean = spec.simulate().unwrap();
     let (analyses, _) = analyse_sine_steps(noisy, &PhasorOptions::for_identification()).unwrap();
@@ -270,39 +274,24 @@ fn crb(b: &Bench, noisy: &[Record], snr_db: f64) -> Vec<f64> {
     )
     .unwrap()
     .with_noise(&sigma);
-    let cov = problem
-        .covariance_at(&true_parameters(&spec, &b.truth))
-        .unwrap();
+    f(&problem, &true_parameters(&spec, &b.truth))
+}
+
+/// Cramer-Rao bound of the bench's parameters on the settled samples the fit of `noisy` used:
+/// the output-error Jacobian at the truth, the true noise std of each channel.
+fn crb(b: &Bench, noisy: &[Record], snr_db: f64) -> Vec<f64> {
+    let cov = at_truth_with_true_noise(b, noisy, snr_db, |problem, truth| {
+        problem.covariance_at(truth).unwrap()
+    });
     (0..b.truth.len()).map(|i| cov[(i, i)].sqrt()).collect()
 }
 
 /// The error of the linearised estimate for the noise draw of `noisy`: the Gauss-Newton step
 /// from the truth with the true noise std (see [`crb`]).
 fn linearised_error(b: &Bench, noisy: &[Record], snr_db: f64) -> Vec<f64> {
-    let spec = (b.run)(None, 0);
-    let clean = spec.simulate().unwrap();
-    let (analyses, _) = analyse_sine_steps(noisy, &PhasorOptions::for_identification()).unwrap();
-    let sigma = [
-        Channel::RelativeDisplacementM,
-        Channel::ForceN,
-        Channel::MassAccelerationMps2,
-    ]
-    .map(|c| run_rms(&clean, c).unwrap() / 10f64.powf(snr_db / 20.0));
-    let Setup::Element { moving_mass_kg } = (b.setup)() else {
-        panic!("element setup")
-    };
-    let problem = ElementOutputError::new(
-        &model(b.model),
-        moving_mass_kg,
-        noisy,
-        &analyses,
-        element_drive_of(&analyses),
-    )
-    .unwrap()
-    .with_noise(&sigma);
-    let mut d = problem
-        .gauss_newton_step_at(&true_parameters(&spec, &b.truth))
-        .unwrap();
+    let mut d = at_truth_with_true_noise(b, noisy, snr_db, |problem, truth| {
+        problem.gauss_newton_step_at(truth).unwrap()
+    });
     d.truncate(b.truth.len());
     d
 }
