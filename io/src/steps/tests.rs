@@ -18,6 +18,7 @@ fn plan(n: usize) -> StepPlan {
         },
         sample_count: n,
         driven: None,
+        multisine_band_hz: None,
     }
 }
 
