@@ -151,7 +151,13 @@ fn a_mixed_run_live_gives_the_offline_theta_and_std() {
     // The multisines' equations come after the sine steps', live as offline.
     let used: Vec<usize> = (0..6).chain(7..13).chain([6, 13]).collect();
     assert_eq!(want.steps_used, used);
-    let live_used: Vec<usize> = live.last().unwrap().steps_used.iter().map(|s| *s as usize).collect();
+    let live_used: Vec<usize> = live
+        .last()
+        .unwrap()
+        .steps_used
+        .iter()
+        .map(|s| *s as usize)
+        .collect();
     assert_eq!(live_used, used);
     // After the first multisine (step 6) too: the same solve on the records so far.
     assert_same(live[6], &offline(&records[..7], Method::FdMulti));
@@ -170,17 +176,17 @@ fn a_mixed_run_live_gives_the_offline_theta_and_std() {
     let path = dir.path().join("state.json");
     st.save(&path).unwrap();
     let resumed = IdentifierState::load(&path).unwrap().unwrap();
-    let rp = RecipeParameters::from_params(&params(&[(
-        "model",
-        ParamValue::String("cubic".into()),
-    )]))
-    .unwrap();
-    let (_, said) = IdentifierCore::new(rp, "id", Some((resumed, "the file".into())), RUN_START)
-        .unwrap();
+    let rp =
+        RecipeParameters::from_params(&params(&[("model", ParamValue::String("cubic".into()))]))
+            .unwrap();
+    let (_, said) =
+        IdentifierCore::new(rp, "id", Some((resumed, "the file".into())), RUN_START).unwrap();
     assert_same(thetas(&said)[0], &want);
 
     // A live change of method re-solves the kept phasors, multisines included.
-    let out = c.reconfigure(&[setting("method", "fd")], RUN_START).unwrap();
+    let out = c
+        .reconfigure(&[setting("method", "fd")], RUN_START)
+        .unwrap();
     assert_same(thetas(&out)[0], &offline(&records, Method::Fd));
 }
 
@@ -194,7 +200,9 @@ fn a_multisine_waits_for_its_state_and_is_refused_without_it() {
     let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
     assert!(thetas(&o).is_empty());
     assert!(
-        logs(&o).iter().any(|l| l.contains("step 6: multisine phasors waiting for the ExcitationState")),
+        logs(&o)
+            .iter()
+            .any(|l| l.contains("step 6: multisine phasors waiting for the ExcitationState")),
         "{o:?}"
     );
     let o = c
@@ -230,7 +238,9 @@ fn tracking_refuses_multisine_steps_as_offline_tracking_does() {
     ]));
     let out = feed(&mut c, &records[..7]);
     assert!(
-        logs(&out).iter().any(|l| l.starts_with("step 6: no equations: tracking forgets per sine step")),
+        logs(&out)
+            .iter()
+            .any(|l| l.starts_with("step 6: no equations: tracking forgets per sine step")),
         "{:?}",
         logs(&out)
     );

@@ -153,7 +153,10 @@ impl MultisineAnalysis {
         if let Some(&line) = lines.iter().find(|&&k| 2 * k >= n || k == 0) {
             return Err(MultisineError::NotAveragedPeriod {
                 step,
-                problem: format!("excited line {line} is not a bin between 0 and N/2 = {}", n / 2),
+                problem: format!(
+                    "excited line {line} is not a bin between 0 and N/2 = {}",
+                    n / 2
+                ),
             });
         }
         let f0 = an.frequency_hz;
@@ -187,7 +190,9 @@ impl MultisineAnalysis {
 
 /// The samples `N` of a period of which `an` is the averaged period (see
 /// [`MultisineAnalysis::from_harmonic_analysis`]).
-pub(crate) fn averaged_period_samples(an: &super::HarmonicAnalysis) -> Result<usize, MultisineError> {
+pub(crate) fn averaged_period_samples(
+    an: &super::HarmonicAnalysis,
+) -> Result<usize, MultisineError> {
     let step = an.step;
     let refuse = |problem: String| MultisineError::NotAveragedPeriod { step, problem };
     let (used, samples) = (an.periods_used, an.samples_used);
@@ -198,7 +203,11 @@ pub(crate) fn averaged_period_samples(an: &super::HarmonicAnalysis) -> Result<us
     }
     let n = samples / used;
     let bins = n / 2 + 1;
-    if let Some(c) = an.channels.iter().find(|c| c.phasors.len() != bins || c.noise_std.len() != bins) {
+    if let Some(c) = an
+        .channels
+        .iter()
+        .find(|c| c.phasors.len() != bins || c.noise_std.len() != bins)
+    {
         return Err(refuse(format!(
             "channel {} has {} bins where a period of {n} samples has {bins}",
             c.channel.name(),

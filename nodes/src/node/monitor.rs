@@ -116,9 +116,10 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         return Ok(());
     };
     log_line!("");
-    let planned = match multisine_steps {
-        0 => format!("{sine_steps} sine steps"),
-        m => format!("{sine_steps} sine and {m} multisine steps"),
+    let planned = match (sine_steps, multisine_steps) {
+        (s, 0) => format!("{s} sine steps"),
+        (0, m) => format!("{m} multisine steps"),
+        (s, m) => format!("{s} sine and {m} multisine steps"),
     };
     log_line!(
         "summary: model '{}' by {}, {} of {planned} used, {} equations, condition number {:.2e}, {} live updates",

@@ -86,11 +86,12 @@ impl IdentifierState {
             .map(|ph| {
                 let step = ph.step as usize;
                 let fail = |problem: String| IdentifyError::Step { step, problem };
-                let lines = self
-                    .multisine_lines
-                    .get(&ph.step)
-                    .ok_or_else(|| fail("the state keeps no excited lines of this multisine".into()))?;
-                let an = ph.to_analysis(Time::ZERO).map_err(|e| fail(e.to_string()))?;
+                let lines = self.multisine_lines.get(&ph.step).ok_or_else(|| {
+                    fail("the state keeps no excited lines of this multisine".into())
+                })?;
+                let an = ph
+                    .to_analysis(Time::ZERO)
+                    .map_err(|e| fail(e.to_string()))?;
                 MultisineAnalysis::from_harmonic_analysis(&an, lines.clone())
                     .map_err(|e| fail(e.to_string()))
             })
