@@ -140,15 +140,12 @@ impl SetupGate {
                     continue;
                 }
             };
-            let setup = match setup_of(kind, &constants)? {
-                Some(setup) => setup,
-                None => {
-                    log.push(format!(
-                        "step {step}: waiting for the rig's mass (parameter mass_kg or the rig's parameters topic)"
-                    ));
-                    self.waiting.push(ph);
-                    continue;
-                }
+            let Some(setup) = setup_of(kind, &constants)? else {
+                log.push(format!(
+                    "step {step}: waiting for the rig's mass (parameter mass_kg or the rig's parameters topic)"
+                ));
+                self.waiting.push(ph);
+                continue;
             };
             let multisine = if multisine {
                 let Some(driven) = self.driven_of(&ph) else {
