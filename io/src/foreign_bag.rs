@@ -470,6 +470,7 @@ fn assemble(
                     excitation,
                     sample_count: 0,
                     driven: None,
+                    multisine_band_hz: None,
                 },
             )
         });
@@ -532,6 +533,7 @@ fn assemble(
         parameters: BTreeMap::new(),
         left_out: (left_before > 0)
             .then(|| format!("{left_before} samples before the first step label left out")),
+        warnings: Vec::new(),
     })
 }
 

@@ -155,6 +155,9 @@ fn of_bag_of_kind(path: &Path, bag: RigBag, kind: SetupKind) -> anyhow::Result<L
     if let Some(why) = &bag.left_out {
         eprintln!("notice: {}: {why}", path.display());
     }
+    for w in &bag.warnings {
+        eprintln!("warning: {}: {w}", path.display());
+    }
     Ok(Loaded {
         records: bag.records,
         kind,

@@ -47,6 +47,7 @@ fn analyses(out: Vec<Outcome>, options: &PhasorOptions) -> (Vec<HarmonicAnalysis
             Outcome::Analyse(a, _) => done.push(a.run(options).unwrap()),
             Outcome::Skipped(step, why) => skipped.push(format!("{step}: {why}")),
             Outcome::Dropped(e) => panic!("step dropped: {e}"),
+            Outcome::Warning(w) => panic!("{w}"),
             Outcome::Provisional(..) => panic!("no provisional phasors were asked for"),
         }
     }

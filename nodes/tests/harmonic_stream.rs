@@ -45,6 +45,7 @@ fn node_analyses(bag: &Path, options: &PhasorOptions) -> Vec<(bool, HarmonicAnal
             }
             Outcome::Skipped(..) | Outcome::Provisional(..) => None,
             Outcome::Dropped(e) => panic!("{}: step dropped: {e}", bag.display()),
+            Outcome::Warning(w) => panic!("{}: {w}", bag.display()),
         })
         .collect()
 }

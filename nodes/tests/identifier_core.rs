@@ -309,19 +309,41 @@ fn a_forgetting_factor_outside_zero_to_one_is_refused() {
 }
 
 /// A multisine step's phasors (`harmonic_cap` MULTISINE_CAP: the bins of its averaged period)
-/// are skipped with a log line saying so, never taken as a sine step's harmonics.
+/// are never taken as a sine step's harmonics: they wait for their step's ExcitationState, and
+/// phasors that cannot be an averaged period (here a sine step's, marked) are refused then.
 #[test]
-fn multisine_phasors_are_skipped_not_taken_for_a_sine_step() {
+fn multisine_phasors_are_not_taken_for_a_sine_step() {
     let mut c = core(&params(&[
         ("model", ParamValue::String("coulomb".into())),
         ("mass_kg", ParamValue::Double(36.0)),
     ]));
     let mut ph = phasor_messages().remove(0);
     ph.harmonic_cap = HarmonicPhasors::MULTISINE_CAP;
+    let state = forcemap_msgs::msg::ExcitationState {
+        kind: forcemap_msgs::msg::ExcitationState::MULTISINE,
+        step: ph.step,
+        start_time: RUN_START,
+        frequency_hz: ph.frequency_hz,
+        driven_channel: "base_displacement_m".into(),
+        ..forcemap_msgs::msg::ExcitationState::idle(
+            Header::new(RUN_START, "rig"),
+            0,
+            RUN_START,
+            forcemap_math::record::Channel::BaseDisplacementM,
+        )
+    };
     let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
     assert!(thetas(&o).is_empty());
     assert!(
-        o.iter().any(|o| matches!(o, Output::Log(l) if l.contains("multisine phasors are not identified live"))),
+        o.iter().any(|o| matches!(o, Output::Log(l) if l.contains("multisine phasors waiting for the ExcitationState"))),
+        "{o:?}"
+    );
+    let o = c
+        .handle(Input::Excitation(Box::new(state)), RUN_START)
+        .unwrap();
+    assert!(thetas(&o).is_empty());
+    assert!(
+        o.iter().any(|o| matches!(o, Output::Log(l) if l.contains("phasors refused: step 0: not the averaged period of a multisine"))),
         "{o:?}"
     );
     assert!(c.state().is_none(), "no equations added");

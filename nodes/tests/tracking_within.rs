@@ -138,7 +138,9 @@ fn live_track(
                     let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
                     out.extend(thetas(&o).into_iter().map(|t| (false, t.clone())));
                 }
-                Outcome::Skipped(..) | Outcome::Dropped(_) => panic!("every step is a sine step"),
+                Outcome::Skipped(..) | Outcome::Dropped(_) | Outcome::Warning(_) => {
+                    panic!("every step is a sine step, analysed without a warning")
+                }
             }
         }
     }

@@ -171,6 +171,11 @@ pub type Theta = Vec<(String, f64)>;
 
 /// Theta of `forcemap identify BAG --json` as (name, value).
 pub fn offline_theta(bag: &Path, extra: &[&str]) -> Theta {
+    theta_of_json(&offline_json(bag, extra))
+}
+
+/// What `forcemap identify BAG --json` prints.
+pub fn offline_json(bag: &Path, extra: &[&str]) -> serde_json::Value {
     let out = Command::new(forcemap())
         .arg("identify")
         .arg(bag)
@@ -183,13 +188,12 @@ pub fn offline_theta(bag: &Path, extra: &[&str]) -> Theta {
         "identify failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    theta_of_json(&v)
+    serde_json::from_slice(&out.stdout).unwrap()
 }
 
 /// `parameters: [{name, value}, ...]`, as `forcemap identify --json` and the monitor's summary
 /// both write it.
-fn theta_of_json(v: &serde_json::Value) -> Theta {
+pub fn theta_of_json(v: &serde_json::Value) -> Theta {
     v["parameters"]
         .as_array()
         .unwrap()
@@ -203,12 +207,32 @@ fn theta_of_json(v: &serde_json::Value) -> Theta {
         .collect()
 }
 
+/// Each parameter's standard deviation, `parameters: [{name, std}, ...]`, as `forcemap identify
+/// --json` and the monitor's summary both write it.
+pub fn stds_of_json(v: &serde_json::Value) -> Theta {
+    v["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            (
+                p["name"].as_str().unwrap().to_string(),
+                p["std"].as_f64().unwrap(),
+            )
+        })
+        .collect()
+}
+
 /// Theta from a monitor's summary JSON.
 pub fn summary_theta(path: &Path) -> Theta {
+    theta_of_json(&summary_json(path))
+}
+
+/// A monitor's summary JSON.
+pub fn summary_json(path: &Path) -> serde_json::Value {
     let text =
         std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
-    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
-    theta_of_json(&v)
+    serde_json::from_str(&text).unwrap()
 }
 
 /// Asserts that two thetas name the same parameters and agree to `rel` relative difference.

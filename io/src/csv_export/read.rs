@@ -363,6 +363,7 @@ impl StepRows {
                 excitation,
                 sample_count: 0,
                 driven: None,
+                multisine_band_hz: None,
             },
         }
     }

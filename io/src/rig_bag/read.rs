@@ -20,7 +20,7 @@ use forcemap_msgs::std_msgs::Header;
 use super::{RigBagError, check_topic};
 use crate::bag::BagReader;
 use crate::rig_messages::RigMessage;
-use crate::steps::{StepAssembler, StepError, StepPlan};
+use crate::steps::{AssembledStep, StepAssembler, StepError, StepPlan};
 use crate::topics;
 
 /// The kinds of rig topic.
@@ -210,6 +210,9 @@ pub struct RigBag {
     pub parameters: BTreeMap<String, f64>,
     /// Why a last, unfinished step was left out (a recording stopped in the middle of it).
     pub left_out: Option<String>,
+    /// What the steps' data say against their labels, each naming its step
+    /// ([`crate::steps::AssembledStep::warnings`]).
+    pub warnings: Vec<String>,
 }
 
 /// Reads the records of a rig run from a bag directory or a bare .mcap.
@@ -272,10 +275,12 @@ impl RigBagReader {
             assembler.set_origin(t);
         }
         let mut records: Vec<Record> = Vec::new();
+        let mut warnings = Vec::new();
         let mut complete = 0usize;
-        let mut take = |r: Record| {
+        let mut take = |a: AssembledStep| {
             complete += 1;
-            records.extend(keep(r));
+            warnings.extend(a.warnings);
+            records.extend(keep(a.record));
         };
         let step_err = |e: StepError| RigBagError::Step {
             path: p.clone(),
@@ -286,12 +291,12 @@ impl RigBagReader {
             let RigMessage::Sample(s) = m? else {
                 continue;
             };
-            for done in assembler.push(&s, plans.get(&s.step)) {
+            for done in assembler.push_rig(&s, plans.get(&s.step)) {
                 take(done.map_err(step_err)?);
             }
         }
         let mut left_out = None;
-        match assembler.finish() {
+        match assembler.finish_step() {
             Some(Ok(r)) => take(r),
             // The recording stopped in the middle of the last step: keep the complete ones.
             Some(Err(e)) if e.truncated && complete > 0 => {
@@ -310,6 +315,7 @@ impl RigBagReader {
             records,
             parameters,
             left_out,
+            warnings,
         })
     }
 

@@ -10,7 +10,7 @@
 
 pub mod unlabelled;
 
-use forcemap_math::phasor::{MultisineOptions, find_multisine_lines};
+use forcemap_math::phasor::{MultisineOptions, band_disagreement, find_multisine_lines};
 use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
@@ -165,6 +165,10 @@ pub struct StepPlan {
     /// The driven channel, where the source names it: a multisine's lines are found on it
     /// when the plan does not give them (an `ExcitationState`).
     pub driven: Option<Channel>,
+    /// A multisine's band as its `ExcitationState` labels it (lowest and highest excited
+    /// line, Hz), checked against the lines found ([`band_disagreement`]); `None` where the
+    /// source labels no band.
+    pub multisine_band_hz: Option<[f64; 2]>,
 }
 
 impl StepPlan {
@@ -182,10 +186,14 @@ impl StepPlan {
             })?),
             _ => state.driven().ok(),
         };
+        let multisine_band_hz = matches!(excitation, Excitation::Multisine { .. })
+            .then_some([state.band_low_hz, state.band_high_hz])
+            .filter(|b| b.iter().all(|f| f.is_finite()));
         Ok(Some(StepPlan {
             excitation,
             sample_count: state.sample_count as usize,
             driven,
+            multisine_band_hz,
         }))
     }
 }
@@ -233,6 +241,9 @@ impl StepTiming {
 pub struct AssembledStep {
     pub record: Record,
     pub timing: StepTiming,
+    /// What a user should know about the step, each naming it (a multisine's labelled band
+    /// that disagrees with the lines found in its data).
+    pub warnings: Vec<String>,
 }
 
 struct Building {
@@ -243,6 +254,7 @@ struct Building {
     resolution: f64,
     expected: usize,
     driven: Option<Channel>,
+    multisine_band_hz: Option<[f64; 2]>,
     /// The first problem met; the step is dropped when it completes.
     problem: Option<StepFault>,
 }
@@ -325,12 +337,21 @@ impl StepAssembler {
         sample: &RigSample,
         plan: Option<&StepPlan>,
     ) -> Vec<Result<Record, StepError>> {
-        let origin = *self.origin.get_or_insert(sample.header.stamp);
-        let t = sample.header.stamp.secs_since(origin);
-        self.push_sample(&StepSample::of_rig(sample, t), plan)
+        self.push_rig(sample, plan)
             .into_iter()
             .map(|r| r.map(|a| a.record))
             .collect()
+    }
+
+    /// [`StepAssembler::push`] with the timing and warnings of each completed step.
+    pub fn push_rig(
+        &mut self,
+        sample: &RigSample,
+        plan: Option<&StepPlan>,
+    ) -> Vec<Result<AssembledStep, StepError>> {
+        let origin = *self.origin.get_or_insert(sample.header.stamp);
+        let t = sample.header.stamp.secs_since(origin);
+        self.push_sample(&StepSample::of_rig(sample, t), plan)
     }
 
     /// Adds one sample of any source; as [`StepAssembler::push`], with the timing of each
@@ -374,6 +395,7 @@ impl StepAssembler {
                 resolution: f64::INFINITY,
                 expected: plan.map_or(0, |p| p.sample_count),
                 driven: plan.and_then(|p| p.driven),
+                multisine_band_hz: plan.and_then(|p| p.multisine_band_hz),
                 problem,
             });
         }
@@ -442,6 +464,7 @@ fn complete(b: Building, interval: IntervalRule) -> Result<AssembledStep, StepEr
         resolution,
         expected,
         driven,
+        multisine_band_hz,
         problem,
     } = b;
     let err = |fault: StepFault| StepError::new(record.step, fault);
@@ -485,24 +508,44 @@ fn complete(b: Building, interval: IntervalRule) -> Result<AssembledStep, StepEr
         law.duration_s = duration_s;
     }
     let step = record.step;
-    fill_multisine_lines(&mut record, driven).map_err(|f| StepError::new(step, f))?;
-    Ok(AssembledStep { record, timing })
+    let found = fill_multisine_lines(&mut record, driven).map_err(|f| StepError::new(step, f))?;
+    // Lines found in the data are checked against the band the step is labelled with.
+    let warnings = match (&record.excitation, multisine_band_hz, driven) {
+        (
+            Excitation::Multisine {
+                base_frequency_hz,
+                lines,
+                ..
+            },
+            Some(band),
+            Some(driven),
+        ) if found => band_disagreement(lines, *base_frequency_hz, band)
+            .map(|why| format!("step {step}: multisine lines on {}: {why}", driven.name()))
+            .into_iter()
+            .collect(),
+        _ => Vec::new(),
+    };
+    Ok(AssembledStep {
+        record,
+        timing,
+        warnings,
+    })
 }
 
 /// A multisine planned without its lines (an `ExcitationState` does not carry them) gets the
 /// lines that stand out of its driven channel's spectrum over whole periods after the
-/// transient ([`find_multisine_lines`]).
-fn fill_multisine_lines(record: &mut Record, driven: Option<Channel>) -> Result<(), StepFault> {
+/// transient ([`find_multisine_lines`]); true when it did.
+fn fill_multisine_lines(record: &mut Record, driven: Option<Channel>) -> Result<bool, StepFault> {
     let Excitation::Multisine {
         base_frequency_hz,
         lines,
         ..
     } = &record.excitation
     else {
-        return Ok(());
+        return Ok(false);
     };
     if !lines.is_empty() {
-        return Ok(());
+        return Ok(false);
     }
     let Some(driven) = driven else {
         return Err(StepFault::MultisineLines(
@@ -524,7 +567,7 @@ fn fill_multisine_lines(record: &mut Record, driven: Option<Channel>) -> Result<
     if let Excitation::Multisine { lines, .. } = &mut record.excitation {
         *lines = found;
     }
-    Ok(())
+    Ok(true)
 }
 
 /// The first interval of a step (at least 2 samples) that breaks `rule`.

@@ -18,6 +18,7 @@ fn plan(n: usize) -> StepPlan {
         },
         sample_count: n,
         driven: None,
+        multisine_band_hz: None,
     }
 }
 
@@ -171,4 +172,71 @@ fn written_times_are_checked_against_the_median_interval_within_their_rounding()
         f => panic!("{f:?}"),
     }
     assert!(e.problem.contains("median interval"), "{e}");
+}
+
+/// A multisine's lines found on its driven channel are checked against the band its state
+/// labels it with: a right label says nothing, a wrong one gives a warning naming the step.
+#[test]
+fn a_mislabelled_multisine_band_gives_a_warning_naming_the_step() {
+    let records = forcemap_math::sim::RunSpec::shaker_sdof_multisine(Some(30.0), 1)
+        .simulate()
+        .unwrap();
+    let r = &records[0];
+    let Excitation::Multisine {
+        base_frequency_hz: f0,
+        lines,
+        rms,
+    } = r.excitation.clone()
+    else {
+        panic!("step 0 is a multisine")
+    };
+    let designed = [lines[0] as f64 * f0, lines[lines.len() - 1] as f64 * f0];
+    let assemble = |band: [f64; 2]| {
+        let plan = StepPlan {
+            excitation: Excitation::Multisine {
+                base_frequency_hz: f0,
+                lines: Vec::new(),
+                rms,
+            },
+            sample_count: r.len(),
+            driven: Some(Channel::ForceN),
+            multisine_band_hz: Some(band),
+        };
+        let mut a = StepAssembler::new();
+        let mut done = Vec::new();
+        for i in 0..r.len() {
+            let s = StepSample {
+                t_s: r.time_s(i),
+                t_resolution_s: 0.0,
+                step: 3,
+                values: r.channels.iter().map(|(c, x)| (*c, x[i])).collect(),
+            };
+            done.extend(a.push_sample(&s, Some(&plan)));
+        }
+        assert_eq!(done.len(), 1);
+        done.pop().unwrap().unwrap()
+    };
+    let right = assemble(designed);
+    assert!(right.warnings.is_empty(), "{:?}", right.warnings);
+    let Excitation::Multisine { lines: found, .. } = &right.record.excitation else {
+        panic!("still a multisine")
+    };
+    assert_eq!(found, &lines);
+    // Labelled up to 40 Hz where the lines end at the designed edge.
+    let wrong = assemble([designed[0], 40.0]);
+    assert_eq!(
+        wrong.record, right.record,
+        "the label does not change the record"
+    );
+    assert_eq!(wrong.warnings.len(), 1);
+    let w = &wrong.warnings[0];
+    assert!(
+        w.starts_with("step 3: multisine lines on force_n: ")
+            && w.contains(&format!("span {} to {} Hz", designed[0], designed[1]))
+            && w.contains(&format!(
+                "labelled with lines from {} to 40 Hz",
+                designed[0]
+            )),
+        "{w}"
+    );
 }

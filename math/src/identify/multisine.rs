@@ -16,8 +16,8 @@ use num_complex::Complex64;
 
 use super::fd::{grid_harmonics, harmonic_rms, rms, synthesize_grid};
 use super::{
-    FdMultiOptions, HarmonicAnalysis, Identification, IdentifyError, Method, StepEquations,
-    Weighting, solve_blocks, step_equations,
+    EquationAccumulator, FdMultiOptions, HarmonicAnalysis, Identification, IdentifyError, Method,
+    StepEquations, Weighting, step_equations,
 };
 use crate::model::Model;
 use crate::phasor::MultisineAnalysis;
@@ -217,7 +217,8 @@ fn linearisation(model: &Model, theta: &[f64], xs: &[f64], vs: &[f64]) -> (f64, 
 }
 
 /// Identifies `model` from stepped-sine analyses and multisine analyses together: every sine
-/// step's block (`Fd` or `FdMulti`) and every multisine record's per-line block, solved as one.
+/// step's block (`Fd` or `FdMulti`) and every multisine record's per-line block, solved as one
+/// ([`accumulate_multisines`] on the sine steps' accumulated equations).
 pub fn identify_with_multisines(
     model: &Model,
     setup: &Setup,
@@ -235,23 +236,38 @@ pub fn identify_with_multisines(
             ),
         });
     }
-    let mut blocks = Vec::with_capacity(analyses.len() + multisines.len());
+    let mut sines = EquationAccumulator::new(model, setup, method);
     for an in analyses {
-        blocks.push(step_equations(model, setup, method, an, options)?);
+        sines.add(&step_equations(model, setup, method, an, options)?)?;
     }
-    let sines = blocks.len();
-    for ms in multisines {
-        blocks.push(multisine_block(model, setup, ms, options, None)?);
-    }
-    let first = solve_blocks(model, setup, method, &blocks)?;
-    if options.weighting == Weighting::Uniform {
+    accumulate_multisines(&sines, model, setup, multisines, options)?.solve()
+}
+
+/// The equations of `sines` (the sine steps' blocks, accumulated) with every multisine
+/// record's per-line block added after them, in two passes: first weighted by the force noise,
+/// then, unless the weighting is uniform, each multisine equation weighted by its whole noise
+/// about the first pass's estimate. `sines` is left as it is. What `forcemap identify` and the
+/// live identifier (which keeps its sine steps accumulated and the multisine records' phasors)
+/// both solve, so that their theta agree exactly.
+pub fn accumulate_multisines(
+    sines: &EquationAccumulator,
+    model: &Model,
+    setup: &Setup,
+    multisines: &[MultisineAnalysis],
+    options: &FdMultiOptions,
+) -> Result<EquationAccumulator, IdentifyError> {
+    let pass = |prior: Option<&[f64]>| -> Result<EquationAccumulator, IdentifyError> {
+        let mut acc = sines.clone();
+        for ms in multisines {
+            acc.add(&multisine_block(model, setup, ms, options, prior)?)?;
+        }
+        Ok(acc)
+    };
+    let first = pass(None)?;
+    if options.weighting == Weighting::Uniform || multisines.is_empty() {
         return Ok(first);
     }
     // Again, each multisine equation weighted by its whole noise about the first estimate.
-    let theta = first.theta();
-    blocks.truncate(sines);
-    for ms in multisines {
-        blocks.push(multisine_block(model, setup, ms, options, Some(&theta))?);
-    }
-    solve_blocks(model, setup, method, &blocks)
+    let theta = first.solve()?.theta();
+    pass(Some(&theta))
 }

@@ -78,7 +78,9 @@ pub mod sweep;
 mod types;
 
 pub use multisine::{MultisineAnalysis, MultisineError, MultisineOptions, analyse_multisine};
-pub use multisine_lines::{excited_lines, find_multisine_lines};
+pub use multisine_lines::{
+    band_disagreement, excited_lines, excited_lines_of, find_multisine_lines,
+};
 pub use provisional::{ProvisionalUpdates, provisional_analyses, provisional_analysis};
 pub use stream::PhasorStream;
 pub use sweep::{SweepKind, SweepLaw, SweepOptions, analyse_sweep};

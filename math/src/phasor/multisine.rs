@@ -131,12 +131,101 @@ impl MultisineAnalysis {
     }
 }
 
+impl MultisineAnalysis {
+    /// The analysis back from its averaged period as harmonics of the base frequency
+    /// ([`MultisineAnalysis::as_harmonic_analysis`], what a phasor message carries) and its
+    /// excited `lines` (ascending; the message does not carry them: [`excited_lines_of`] finds
+    /// them): every field the equations use is as it was, the distortion recomputed from them.
+    /// Refused when `an` cannot be an averaged period (`N = samples_used / periods_used`
+    /// samples a period, bins `0..=N/2`, at least [`MIN_MULTISINE_PERIODS`] periods) or a line
+    /// is not one of its bins below the Nyquist frequency.
+    ///
+    /// [`excited_lines_of`]: super::multisine_lines::excited_lines_of
+    pub fn from_harmonic_analysis(
+        an: &super::HarmonicAnalysis,
+        lines: Vec<usize>,
+    ) -> Result<MultisineAnalysis, MultisineError> {
+        let step = an.step;
+        let n = averaged_period_samples(an)?;
+        if lines.is_empty() {
+            return Err(MultisineError::NoLines { step });
+        }
+        if let Some(&line) = lines.iter().find(|&&k| 2 * k >= n || k == 0) {
+            return Err(MultisineError::NotAveragedPeriod {
+                step,
+                problem: format!(
+                    "excited line {line} is not a bin between 0 and N/2 = {}",
+                    n / 2
+                ),
+            });
+        }
+        let f0 = an.frequency_hz;
+        let channels: Vec<LineSpectrum> = an
+            .channels
+            .iter()
+            .map(|c| LineSpectrum {
+                channel: c.channel,
+                phasors: c.phasors.clone(),
+                noise_std: c.noise_std.clone(),
+            })
+            .collect();
+        let distortion = channels
+            .iter()
+            .map(|s| distortion_level(s, &lines, f0))
+            .collect();
+        Ok(MultisineAnalysis {
+            step,
+            base_frequency_hz: f0,
+            lines,
+            samples_per_period: n,
+            periods_used: an.periods_used,
+            periods_available: an.periods_available,
+            first_used_sample: an.first_settled_sample,
+            t_ref_s: an.t_ref_s,
+            channels,
+            distortion,
+        })
+    }
+}
+
+/// The samples `N` of a period of which `an` is the averaged period (see
+/// [`MultisineAnalysis::from_harmonic_analysis`]).
+pub(crate) fn averaged_period_samples(
+    an: &super::HarmonicAnalysis,
+) -> Result<usize, MultisineError> {
+    let step = an.step;
+    let refuse = |problem: String| MultisineError::NotAveragedPeriod { step, problem };
+    let (used, samples) = (an.periods_used, an.samples_used);
+    if used < MIN_MULTISINE_PERIODS || samples % used != 0 {
+        return Err(refuse(format!(
+            "{samples} samples in {used} periods (at least {MIN_MULTISINE_PERIODS} whole periods of a whole number of samples)"
+        )));
+    }
+    let n = samples / used;
+    let bins = n / 2 + 1;
+    if let Some(c) = an
+        .channels
+        .iter()
+        .find(|c| c.phasors.len() != bins || c.noise_std.len() != bins)
+    {
+        return Err(refuse(format!(
+            "channel {} has {} bins where a period of {n} samples has {bins}",
+            c.channel.name(),
+            c.phasors.len()
+        )));
+    }
+    Ok(n)
+}
+
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum MultisineError {
     #[error("step {step}: not a periodic multisine record")]
     NotMultisine { step: usize },
     #[error("step {step}: the multisine excites no line")]
     NoLines { step: usize },
+    /// Phasors taken for a multisine's averaged period that cannot be one.
+    #[error("step {step}: not the averaged period of a multisine: {problem}")]
+    NotAveragedPeriod { step: usize, problem: String },
     /// The record's channels themselves (none, unequal lengths, a non-finite sample).
     #[error(transparent)]
     Channels(#[from] super::PhasorError),

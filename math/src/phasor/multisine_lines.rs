@@ -14,8 +14,10 @@
 //! least [`MIN_LINE_PERIODICITY_DB`], which a band-random record (power in the band, but not
 //! periodic) fails. Refused with the margin found otherwise.
 
+use super::HarmonicAnalysis;
 use super::multisine::{
     LineSpectrum, MultisineError, MultisineOptions, PeriodAverager, PeriodGrid,
+    averaged_period_samples,
 };
 use crate::record::{Channel, Record};
 
@@ -45,6 +47,30 @@ pub fn find_multisine_lines(
         })?;
     let spectrum = PeriodAverager::new(grid.samples_per_period).average(driven, grid.used(data));
     excited_lines(&spectrum, grid.samples_per_period, step, base_frequency_hz)
+}
+
+/// The excited lines (ascending) of the multisine whose averaged period `an` holds (its bins as
+/// harmonics of the base frequency, [`MultisineAnalysis::as_harmonic_analysis`]: what a phasor
+/// message carries), found on channel `driven` exactly as [`find_multisine_lines`] finds them
+/// on the record (the same spectrum, the same rule).
+///
+/// [`MultisineAnalysis::as_harmonic_analysis`]: super::MultisineAnalysis::as_harmonic_analysis
+pub fn excited_lines_of(
+    an: &HarmonicAnalysis,
+    driven: Channel,
+) -> Result<Vec<usize>, MultisineError> {
+    let step = an.step;
+    let n = averaged_period_samples(an)?;
+    let c = an.channel(driven).ok_or(MultisineError::DrivenMissing {
+        step,
+        channel: driven,
+    })?;
+    let spectrum = LineSpectrum {
+        channel: driven,
+        phasors: c.phasors.clone(),
+        noise_std: c.noise_std.clone(),
+    };
+    excited_lines(&spectrum, n, step, an.frequency_hz)
 }
 
 /// The excited lines (ascending) of an averaged period of `samples_per_period` samples of the
@@ -101,4 +127,36 @@ pub fn excited_lines(
         });
     }
     Ok(lines)
+}
+
+/// Where the excited `lines` (ascending) of a multisine of base frequency `base_frequency_hz`
+/// disagree with a band it is labelled with (`band_hz`: its lowest and highest excited line,
+/// as an `ExcitationState` gives them): `None` when both edges agree to within half a line
+/// spacing (or when the band is not known), otherwise what disagrees (a label is checked
+/// against what the data show).
+pub fn band_disagreement(
+    lines: &[usize],
+    base_frequency_hz: f64,
+    band_hz: [f64; 2],
+) -> Option<String> {
+    let (&lo, &hi) = (lines.first()?, lines.last()?);
+    if !band_hz.iter().all(|b| b.is_finite()) {
+        return None;
+    }
+    let found = [lo as f64 * base_frequency_hz, hi as f64 * base_frequency_hz];
+    let tolerance = 0.5 * base_frequency_hz;
+    let agree = found
+        .iter()
+        .zip(&band_hz)
+        .all(|(f, b)| (f - b).abs() <= tolerance);
+    (!agree).then(|| {
+        format!(
+            "the {} lines found span {} to {} Hz, but its excitation is labelled with lines from {} to {} Hz (the label or the data are wrong)",
+            lines.len(),
+            found[0],
+            found[1],
+            band_hz[0],
+            band_hz[1]
+        )
+    })
 }

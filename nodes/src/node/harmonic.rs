@@ -80,6 +80,8 @@ pub enum Outcome {
     /// A complete random record: kept for validation, no phasors.
     Skipped(usize, String),
     Dropped(StepError),
+    /// What a complete step's data say against its label, naming the step (it is analysed).
+    Warning(String),
 }
 
 /// The node's logic without the middleware, so that it can be tested alone.
@@ -221,9 +223,12 @@ impl HarmonicState {
                 {
                     self.idle_since = None;
                     self.flush_pending(&mut done, true);
-                    if let Some(r) = self.assembler.finish() {
+                    if let Some(r) = self.assembler.finish_step() {
+                        if let Ok(a) = &r {
+                            done.extend(a.warnings.iter().cloned().map(Outcome::Warning));
+                        }
                         let stream = self.stream.take();
-                        done.push(self.outcome(r, stream));
+                        done.push(self.outcome(r.map(|a| a.record), stream));
                     }
                 }
             }
@@ -261,6 +266,9 @@ impl HarmonicState {
         }
         let mut previous = previous;
         for r in self.assembler.push_sample(&sample, plan.as_ref()) {
+            if let Ok(a) = &r {
+                done.extend(a.warnings.iter().cloned().map(Outcome::Warning));
+            }
             let r = r.map(|a| a.record);
             let step_of = r.as_ref().map_or_else(|e| e.step, |rec| rec.step);
             let st = if previous.as_ref().is_some_and(|p| p.step == step_of) {
@@ -373,7 +381,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                     }
                     continue;
                 }
-                Outcome::Skipped(..) | Outcome::Dropped(_) => continue,
+                Outcome::Skipped(..) | Outcome::Dropped(_) | Outcome::Warning(_) => continue,
             };
             let step = analysis.step();
             let multisine = analysis.is_multisine();
@@ -458,6 +466,17 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                     let _ = atx.send(job);
                 }
                 Outcome::Skipped(step, why) => log_line!("step {step}: {why}"),
+                Outcome::Warning(w) => {
+                    log_line!("warning: {w}");
+                    let status =
+                        DiagnosticStatus::new(DiagnosticStatus::WARN, &status_name, w, "harmonic");
+                    let _ = diag_pub
+                        .async_publish(DiagnosticArray {
+                            header: Header::new(now_time(), ""),
+                            status: vec![status],
+                        })
+                        .await;
+                }
                 Outcome::Dropped(e) => {
                     dropped += 1;
                     log_line!("step {}: DROPPED: {}", e.step, e.problem);

@@ -54,6 +54,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let mut last_change = Instant::now();
     let mut idle_since: Option<Instant> = None;
     let mut sine_steps = 0usize;
+    let mut multisine_steps = 0usize;
     let mut updates = 0usize;
     log_line!("watching {}", setup.absolute_topic(topics::THETA));
     loop {
@@ -86,6 +87,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                     idle_since.get_or_insert_with(Instant::now);
                 } else if e.kind == ExcitationState::SINE {
                     sine_steps += 1;
+                } else if e.kind == ExcitationState::MULTISINE {
+                    multisine_steps += 1;
                 }
             }
             Some(Input::Rig(s)) => {
@@ -113,12 +116,16 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         return Ok(());
     };
     log_line!("");
+    let planned = match (sine_steps, multisine_steps) {
+        (s, 0) => format!("{s} sine steps"),
+        (0, m) => format!("{m} multisine steps"),
+        (s, m) => format!("{s} sine and {m} multisine steps"),
+    };
     log_line!(
-        "summary: model '{}' by {}, {} of {} sine steps used, {} equations, condition number {:.2e}, {} live updates",
+        "summary: model '{}' by {}, {} of {planned} used, {} equations, condition number {:.2e}, {} live updates",
         t.model,
         t.method,
         t.steps_used.len(),
-        sine_steps,
         t.equations,
         t.condition_number,
         updates
@@ -150,6 +157,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             "method": t.method,
             "steps_used": t.steps_used,
             "sine_steps": sine_steps,
+            "multisine_steps": multisine_steps,
             "equations": t.equations,
             "condition_number": t.condition_number,
             "live_updates": updates,

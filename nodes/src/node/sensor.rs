@@ -405,15 +405,14 @@ fn describe(e: &ExcitationState) -> String {
             e.driven_channel,
             e.sample_count
         ),
+        // The state carries the band, not the lines (its subscribers find them in the data).
         Ok(Excitation::Multisine {
             base_frequency_hz,
-            lines,
             rms,
+            ..
         }) => format!(
-            "periodic multisine, {} lines of {base_frequency_hz} Hz, RMS {rms:.4} ({}), {} samples",
-            lines.len(),
-            e.driven_channel,
-            e.sample_count
+            "periodic multisine, lines of {base_frequency_hz} Hz over {}-{} Hz, RMS {rms:.4} ({}), {} samples",
+            e.band_low_hz, e.band_high_hz, e.driven_channel, e.sample_count
         ),
         Ok(Excitation::Sweep { law }) => format!(
             "{:?} sweep {}-{} Hz, amplitude {:.4} ({}), {} samples",

@@ -107,6 +107,7 @@ impl StepFinder {
             },
             sample_count: 0,
             driven: None,
+            multisine_band_hz: None,
         };
         let mut assembler = StepAssembler::new();
         for s in &self.buffer {

@@ -3,7 +3,10 @@
 //! `forcemap identify` without DDS).
 
 use anyhow::bail;
-use forcemap_math::identify::{Identification, IdentifyError, Method, Weighting, step_equations};
+use forcemap_math::identify::{
+    EquationAccumulator, Identification, IdentifyError, IdentifyWarning, Method, Weighting,
+    multisine_equations, step_equations,
+};
 use forcemap_math::lstsq::LstsqError;
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
@@ -132,12 +135,12 @@ impl IdentifierCore {
             {
                 out.push(Output::Log(format!(
                     "resuming from {source}: {} steps, {} equations, last step {:?}",
-                    s.accumulator.steps_added(),
+                    s.steps_added(),
                     s.accumulator.equations(),
                     s.last_step
                 )));
-                if s.accumulator.steps_added() > 0
-                    && let Ok(id) = s.accumulator.solve()
+                if s.steps_added() > 0
+                    && let Ok((id, _)) = solve_state(&s, &s.accumulator, &model, &parameters)
                 {
                     out.push(Output::Log(format!("resumed theta: {}", theta_line(&id))));
                     let stamp = s.phasors.last().map_or(now, data_end_time);
@@ -158,7 +161,7 @@ impl IdentifierCore {
                 if s.keeps_all_phasors() && !s.phasors.is_empty() {
                     let steps = s.phasors.len();
                     let old = IdentifierCore {
-                        gate: SetupGate::new(parameters.constants.clone()),
+                        gate: SetupGate::with_multisines(parameters.constants.clone()),
                         parameters: parameters.clone(),
                         model: model.clone(),
                         state: Some(s),
@@ -186,7 +189,7 @@ impl IdentifierCore {
         }
         Ok((
             IdentifierCore {
-                gate: SetupGate::new(parameters.constants.clone()),
+                gate: SetupGate::with_multisines(parameters.constants.clone()),
                 parameters,
                 model,
                 state,
@@ -250,6 +253,7 @@ impl IdentifierCore {
             phasors: ph,
             analysis,
             setup,
+            multisine,
         } = ready;
         let step = ph.step;
         let recipe = self.parameters.recipe(setup);
@@ -297,15 +301,34 @@ impl IdentifierCore {
             Admit::Add => {}
         }
         let forgetting = self.parameters.tracking.factor_per_step();
-        st.phasors.push(ph.clone());
-        prune_forgotten(&mut st.phasors, forgetting);
-        let added = step_equations(model, &step_setup, method, &analysis, &options)
-            .map_err(|e| e.to_string())
-            .and_then(|blk| {
-                // The steps so far weigh less only once the new one has equations.
-                st.accumulator.forget(forgetting);
-                st.accumulator.add(&blk).map_err(|e| e.to_string())
-            });
+        let added = match multisine {
+            // Not accumulated: solved with the accumulated equations whenever theta is, in two
+            // passes (IdentifierState::solve_with_flags); its equations are written here only
+            // to refuse a step that gives none.
+            Some(ms) => {
+                if forgetting < 1.0 {
+                    Err(MULTISINE_NOT_TRACKED.to_string())
+                } else {
+                    multisine_equations(model, &step_setup, &ms, &options)
+                        .map(|_| {
+                            st.phasors.push(ph.clone());
+                            st.multisine_lines.insert(step, ms.lines);
+                        })
+                        .map_err(|e| e.to_string())
+                }
+            }
+            None => {
+                st.phasors.push(ph.clone());
+                prune_forgotten(&mut st.phasors, forgetting);
+                step_equations(model, &step_setup, method, &analysis, &options)
+                    .map_err(|e| e.to_string())
+                    .and_then(|blk| {
+                        // The steps so far weigh less only once the new one has equations.
+                        st.accumulator.forget(forgetting);
+                        st.accumulator.add(&blk).map_err(|e| e.to_string())
+                    })
+            }
+        };
         if let Err(e) = added {
             out.push(Output::Log(format!("step {step}: no equations: {e}")));
             out.push(self.status(
@@ -334,7 +357,7 @@ impl IdentifierCore {
         let Some(st) = &self.state else {
             return Ok(());
         };
-        match st.accumulator.solve_with_flags() {
+        match solve_state(st, &st.accumulator, &self.model, &self.parameters) {
             Ok((id, flags)) => {
                 out.push(Output::Log(format!(
                     "{what}: {} ({} equations, cond {:.2e})",
@@ -377,11 +400,29 @@ impl IdentifierCore {
             status = status
                 .with_value("model", &st.accumulator.model)
                 .with_value("method", &st.accumulator.method)
-                .with_value("steps_added", st.accumulator.steps_added())
+                .with_value("steps_added", st.steps_added())
                 .with_value("equations", st.accumulator.equations());
         }
         Ok(Output::Status(status))
     }
+}
+
+/// Why a multisine step is refused while tracking (as `forcemap identify` refuses it).
+const MULTISINE_NOT_TRACKED: &str = "tracking forgets per sine step; a periodic multisine record cannot be tracked (forgetting_per_step 1 identifies it)";
+
+/// Theta of `sines` (the state's accumulated equations, or them with a provisional step) and
+/// the state's multisine steps, with the options of `parameters`' recipe.
+pub(super) fn solve_state(
+    st: &IdentifierState,
+    sines: &EquationAccumulator,
+    model: &Model,
+    parameters: &RecipeParameters,
+) -> Result<(Identification, Vec<IdentifyWarning>), IdentifyError> {
+    let options = match &st.setup_spec {
+        Some(spec) => parameters.recipe(spec.clone()).fd_options(),
+        None => return sines.solve_with_flags(),
+    };
+    st.solve_with_flags(sines, model, &options)
 }
 
 /// Below this weight a step no longer changes theta in double precision: with forgetting, the

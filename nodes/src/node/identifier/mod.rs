@@ -17,6 +17,14 @@
 //!   every step (empty: not persisted). A restarted identifier resumes from it and skips the
 //!   steps it already has.
 //!
+//! A periodic multisine step's phasors (its averaged period's bins) are identified too: their
+//! excited lines are found on the driven channel its `ExcitationState` names (the identifier
+//! subscribes to the excitation topic for that), and their per-line equations are solved with
+//! the accumulated sine steps' in the two passes of `forcemap identify`
+//! (`identify::accumulate_multisines`) whenever theta is, so the live theta equals the offline
+//! one for multisine and mixed runs alike. Tracking (`forgetting_per_step` below 1) refuses
+//! them, as offline tracking does.
+//!
 //! Provisional phasors of a step in progress (`phasors/provisional`, the harmonic node's
 //! `update_period_s`) give a theta with that step in place, never added to the equations
 //! ([`IdentifierCore::handle_provisional`]). Every theta's header stamp is the time it
@@ -42,7 +50,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
-use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
+use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, IdentifiedParameters};
 use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
@@ -76,6 +84,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let provisional =
         ros.subscription::<HarmonicPhasors>(topics::PROVISIONAL_PHASORS, qos::phasors())?;
     let rig = ros.subscription::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
+    // A multisine step's state names the driven channel its lines are found on.
+    let excitation = ros.subscription::<ExcitationState>(topics::EXCITATION, qos::excitation())?;
     let theta_pub = ros.publisher::<IdentifiedParameters>(topics::THETA, qos::theta())?;
     let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;
 
@@ -89,6 +99,12 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         ptx,
         OnTakeError::Warn("provisional phasors"),
         |m, _| Some(m),
+    );
+    forward(
+        excitation,
+        tx.clone(),
+        OnTakeError::Warn("an excitation state"),
+        |m, _| Some(Input::Excitation(Box::new(m))),
     );
     forward(rig, tx, OnTakeError::Warn("the rig constants"), |m, _| {
         rig_mass_kg(&m).map(Input::RigMass)

@@ -8,7 +8,7 @@ use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
 use forcemap_msgs::std_msgs::Header;
 
-use super::core::{IdentifierCore, Output, theta_line};
+use super::core::{IdentifierCore, Output, solve_state, theta_line};
 use super::state::{Admit, IdentifierState, admit};
 
 /// The time a theta describes: the end of the data of the newest step in it, the end of that
@@ -60,9 +60,9 @@ impl IdentifierCore {
                 st.accumulator
                     .with_provisional(self.parameters.tracking.factor_per_step(), &blk)
             })
-            .and_then(|acc| acc.solve());
+            .and_then(|acc| solve_state(st, &acc, model, &self.parameters));
         match solved {
-            Ok(id) => {
+            Ok((id, _)) => {
                 out.push(Output::Log(format!(
                     "step {step} (provisional, {} periods): {}",
                     ph.periods_used,

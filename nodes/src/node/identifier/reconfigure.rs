@@ -6,6 +6,7 @@ use forcemap_io::params::ParamValue;
 use forcemap_math::identify::{Method, Weighting};
 use forcemap_math::recipe::{ModelSpec, Tracking, live_refusal};
 use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::msg::HarmonicPhasors;
 
 use super::core::{IdentifierCore, Output, RecipeParameters};
 use crate::node::setup_gate::Ready;
@@ -170,10 +171,19 @@ impl IdentifierCore {
             .ok_or_else(|| refuse("the state keeps no setup".into()))?;
         let mut frame = String::from("rig");
         let mut replay_log = Vec::new();
+        let mut multisines = st
+            .multisine_analyses()
+            .map_err(|e| refuse(format!("re-solving: {e}")))?
+            .into_iter();
         for ph in &st.phasors {
             let analysis = ph
                 .to_analysis(Time::ZERO)
                 .map_err(|e| refuse(format!("re-solving: step {}: {e}", ph.step)))?;
+            let multisine = if ph.harmonic_cap == HarmonicPhasors::MULTISINE_CAP {
+                multisines.next()
+            } else {
+                None
+            };
             frame.clone_from(&ph.header.frame_id);
             fresh
                 .add_step(
@@ -181,6 +191,7 @@ impl IdentifierCore {
                         phasors: ph.clone(),
                         analysis,
                         setup: setup.clone(),
+                        multisine,
                     },
                     &mut replay_log,
                 )

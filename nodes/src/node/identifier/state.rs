@@ -2,9 +2,15 @@
 
 use std::path::Path;
 
+use std::collections::BTreeMap;
+
 use anyhow::{Context as _, bail};
-use forcemap_math::identify::{EquationAccumulator, Method, Weighting};
+use forcemap_math::identify::{
+    EquationAccumulator, FdMultiOptions, Identification, IdentifyError, IdentifyWarning, Method,
+    Weighting, accumulate_multisines,
+};
 use forcemap_math::model::Model;
+use forcemap_math::phasor::MultisineAnalysis;
 use forcemap_math::recipe::{Setup, SetupSpec};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::HarmonicPhasors;
@@ -31,12 +37,18 @@ pub struct IdentifierState {
     /// solved from the same steps without the samples.
     #[serde(default)]
     pub phasors: Vec<HarmonicPhasors>,
+    /// The excited lines of each periodic multisine step among `phasors`, by step (absent
+    /// before version 3): their equations are not accumulated but solved with the accumulated
+    /// ones, in two passes, whenever theta is ([`IdentifierState::solve_with_flags`]).
+    #[serde(default)]
+    pub multisine_lines: BTreeMap<u32, Vec<usize>>,
 }
 
 /// Version 2 added `setup_spec` and `phasors`. A version-1 file still resumes (its equations
 /// are whole) but keeps the version, which says its phasors are incomplete: such a state
-/// cannot be re-solved for another model.
-const STATE_VERSION: u32 = 2;
+/// cannot be re-solved for another model. Version 3 added `multisine_lines` (an older
+/// identifier would take a multisine step's kept phasors for a sine step's).
+const STATE_VERSION: u32 = 3;
 const OLDEST_READABLE_VERSION: u32 = 1;
 
 impl IdentifierState {
@@ -57,7 +69,62 @@ impl IdentifierState {
             last_t_ref: None,
             setup_spec: Some(spec.clone()),
             phasors: Vec::new(),
+            multisine_lines: BTreeMap::new(),
         }
+    }
+
+    /// Steps added so far: the accumulated ones and the multisine steps.
+    pub fn steps_added(&self) -> usize {
+        self.accumulator.steps_added() + self.multisine_lines.len()
+    }
+
+    /// The kept multisine steps' analyses, in the order they were added.
+    pub fn multisine_analyses(&self) -> Result<Vec<MultisineAnalysis>, IdentifyError> {
+        self.phasors
+            .iter()
+            .filter(|ph| ph.harmonic_cap == HarmonicPhasors::MULTISINE_CAP)
+            .map(|ph| {
+                let step = ph.step as usize;
+                let fail = |problem: String| IdentifyError::Step { step, problem };
+                let lines = self.multisine_lines.get(&ph.step).ok_or_else(|| {
+                    fail("the state keeps no excited lines of this multisine".into())
+                })?;
+                let an = ph
+                    .to_analysis(Time::ZERO)
+                    .map_err(|e| fail(e.to_string()))?;
+                MultisineAnalysis::from_harmonic_analysis(&an, lines.clone())
+                    .map_err(|e| fail(e.to_string()))
+            })
+            .collect()
+    }
+
+    /// Theta of `sines` (this state's accumulated equations, or them with a provisional step)
+    /// and this state's multisine steps, whose equations are added in two passes as `forcemap
+    /// identify` adds them ([`accumulate_multisines`]), with the flags of
+    /// [`EquationAccumulator::solve_with_flags`].
+    pub fn solve_with_flags(
+        &self,
+        sines: &EquationAccumulator,
+        model: &Model,
+        options: &FdMultiOptions,
+    ) -> Result<(Identification, Vec<IdentifyWarning>), IdentifyError> {
+        if self.multisine_lines.is_empty() {
+            return sines.solve_with_flags();
+        }
+        let setup = self
+            .setup_spec
+            .as_ref()
+            .ok_or_else(|| IdentifyError::Step {
+                step: self.last_step.unwrap_or(0) as usize,
+                problem: "the state keeps no setup to write the multisine equations with".into(),
+            })?
+            .setup()
+            .map_err(|e| IdentifyError::Step {
+                step: self.last_step.unwrap_or(0) as usize,
+                problem: e.to_string(),
+            })?;
+        let multisines = self.multisine_analyses()?;
+        accumulate_multisines(sines, model, &setup, &multisines, options)?.solve_with_flags()
     }
 
     /// Whether the state holds the phasors of every step in its equations (not so for a state
@@ -198,9 +265,9 @@ mod tests {
         assert!(old.phasors.is_empty());
         assert!(!old.keeps_all_phasors());
         assert_eq!(old.accumulator, s.accumulator);
-        v["version"] = 3.into();
+        v["version"] = 4.into();
         std::fs::write(&path, v.to_string()).unwrap();
         let e = IdentifierState::load(&path).unwrap_err();
-        assert!(format!("{e:#}").contains("state version 3"), "{e:#}");
+        assert!(format!("{e:#}").contains("state version 4"), "{e:#}");
     }
 }
