@@ -43,7 +43,7 @@ fn node_analyses(bag: &Path, options: &PhasorOptions) -> Vec<(bool, HarmonicAnal
                 let streamed = a.is_streamed();
                 Some((streamed, a.run(options).unwrap()))
             }
-            Outcome::Skipped(..) | Outcome::Provisional(..) => None,
+            Outcome::Skipped(..) | Outcome::Provisional(..) | Outcome::Warning(..) => None,
             Outcome::Dropped(e) => panic!("{}: step dropped: {e}", bag.display()),
         })
         .collect()
