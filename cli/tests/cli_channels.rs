@@ -93,7 +93,7 @@ fn bad_maps_name_topic_and_field_and_fail() {
         ),
         (
             MAP.replace("  step: {topic: /rig/samples, field: step}\n", ""),
-            "unlabelled steps: the channel map gives no step",
+            "the channel map gives no step (map both step and frequency_hz",
         ),
     ] {
         let map = write_map(dir.path(), &text);

@@ -11,7 +11,10 @@
 //! resampling: a lost message, a clock offset or a different rate is an error that says
 //! which). The rule is [`crate::stamp_align`]'s, which the live `foreign` node applies too. The labels (`step`, `frequency_hz`) hold from their message's stamp (less
 //! the tolerance) until the next one, so a state topic published once per step works as well as
-//! one published with every sample; samples before the first label are left out.
+//! one published with every sample; samples before the first label are left out. A map with
+//! neither label gives the run as one record cut where its driven channel changes
+//! ([`split_run`], as an unlabelled CSV export is cut, and as the harmonic node's `find_steps`
+//! cuts the same samples live).
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -27,9 +30,11 @@ use crate::ros_msg::{Registry, builtin_registry, decode, has_header, header_stam
 use crate::stamp_align::{
     Aligned as AlignedMessage, StampAligner, median_interval_ns, tolerance_ns,
 };
+use crate::steps::unlabelled::split_run;
 use crate::steps::{
     StepAssembler, StepError, StepPlan, StepRules, StepSample, estimated_excitation, rms_about_mean,
 };
+use forcemap_math::segment::SegmentOptions;
 
 pub use crate::stamp_align::{ALIGN_TOLERANCE, RATE_TOLERANCE};
 
@@ -77,9 +82,11 @@ pub enum ForeignBagError {
     #[error("{path}: cannot align the channels: {problem}")]
     Align { path: String, problem: String },
     #[error(
-        "{path}: unlabelled steps: the channel map gives no {missing} (map them to the topic and field that carry the excitation step and frequency; detecting steps from the data is not available yet)"
+        "{path}: the channel map gives no {missing} (map both step and frequency_hz to the topic and field that carry them, or neither, to find the steps in the driven channel)"
     )]
     Unlabelled { path: String, missing: String },
+    #[error("{path}: finding the steps in the driven channel: {problem}")]
+    Segment { path: String, problem: String },
     #[error("{path}: step {step}: {problem}")]
     Step {
         path: String,
@@ -213,7 +220,8 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
                 problem: e.to_string(),
             })?;
     }
-    let (Some(step_src), Some(freq_src)) = (&map.step, &map.frequency_hz) else {
+    let labelled = map.step.is_some() || map.frequency_hz.is_some();
+    if labelled && (map.step.is_none() || map.frequency_hz.is_none()) {
         let missing: Vec<&str> = [
             (map.step.is_none(), STEP_LABEL),
             (map.frequency_hz.is_none(), FREQUENCY_LABEL),
@@ -225,7 +233,7 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
             path: p,
             missing: missing.join(" and "),
         });
-    };
+    }
 
     // Every mapped topic's messages: time and values.
     for (name, topic) in &mut topics {
@@ -267,9 +275,45 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
     }
 
     let samples = align(&p, map, &topics)?;
+    let (Some(step_src), Some(freq_src)) = (&map.step, &map.frequency_hz) else {
+        // No labels: the run as one random step, then cut where the drive changes.
+        let one = vec![Some(0.0); samples.times.len()];
+        let mut bag = assemble(&p, map, &samples, &one, &one)?;
+        let run = bag.records.remove(0);
+        let t0 = samples.times.first().copied().unwrap_or(0);
+        let times_s: Vec<f64> = samples
+            .times
+            .iter()
+            .map(|&t| Time::from_nanos(t).secs_since(Time::from_nanos(t0)))
+            .collect();
+        let driven = setup_kind(&p, map)?.driven_channel();
+        bag.records = split_run(&run, driven, &times_s, &SegmentOptions::default())
+            .map_err(|e| ForeignBagError::Segment {
+                path: p.clone(),
+                problem: e.to_string(),
+            })?
+            .into_iter()
+            .map(|(mut r, frequency)| {
+                let level = r.channel(driven).map_or(f64::NAN, rms_about_mean);
+                r.excitation = estimated_excitation(frequency, level);
+                r
+            })
+            .collect();
+        return Ok(bag);
+    };
     let steps = label(&topics, STEP_LABEL, step_src, &samples);
     let freqs = label(&topics, FREQUENCY_LABEL, freq_src, &samples);
     assemble(&p, map, &samples, &steps, &freqs)
+}
+
+/// The setup the map's channels make.
+fn setup_kind(p: &str, map: &ChannelMap) -> Result<SetupKind, ForeignBagError> {
+    SetupKind::of_channels(|c| map.channels.iter().any(|(m, _)| *m == c)).map_err(|e| {
+        ForeignBagError::Align {
+            path: p.to_string(),
+            problem: e.to_string(),
+        }
+    })
 }
 
 /// The aligned data: one time per sample (the reference topic's) and the channel values.
@@ -512,14 +556,7 @@ fn assemble(
             topics: topics.join(", "),
         });
     }
-    let kind =
-        SetupKind::of_channels(|c| map.channels.iter().any(|(m, _)| *m == c)).map_err(|e| {
-            ForeignBagError::Align {
-                path: p.to_string(),
-                problem: e.to_string(),
-            }
-        })?;
-    let driven = kind.driven_channel();
+    let driven = setup_kind(p, map)?.driven_channel();
     let records = assembled
         .into_iter()
         .map(|(frequency, mut r)| {

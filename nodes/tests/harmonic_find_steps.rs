@@ -11,16 +11,21 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use forcemap_io::bag::BagReader;
+use forcemap_io::rig_messages::{RigMessage, rig_messages};
 use forcemap_io::topics::{RIG_EXCITATION, RIG_SAMPLES};
-use forcemap_math::phasor::{HarmonicAnalysis, PhasorOptions};
-use forcemap_math::record::Channel;
+use forcemap_math::phasor::{
+    HarmonicAnalysis, PhasorOptions, PhasorStream, ProvisionalUpdates, provisional_analyses,
+    provisional_analysis,
+};
+use forcemap_math::record::{Channel, Record};
 use forcemap_math::segment::SegmentOptions;
+use forcemap_math::sim::{ElementDrive, RunSpec, StepSpec};
 use forcemap_msgs::RosMessage;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
 use forcemap_msgs::std_msgs::Header;
 use forcemap_nodes::node::harmonic::find_steps::StepFinder;
-use forcemap_nodes::node::harmonic::{HarmonicState, Input, Outcome};
+use forcemap_nodes::node::harmonic::{Analysis, HarmonicState, Input, Outcome};
 
 fn bag(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -82,7 +87,9 @@ fn with_and_without_states(name: &str, options: &PhasorOptions) -> Compared {
     }
     let (want, want_skipped) = analyses(out, options);
 
-    let mut found = HarmonicState::with_options(options.clone()).finding_steps();
+    let mut found = HarmonicState::with_options(options.clone())
+        .finding_steps()
+        .unwrap();
     let mut out = Vec::new();
     let mut most_held = 0;
     for s in &samples {
@@ -196,7 +203,7 @@ fn a_buffer_without_a_boundary_is_dropped_at_its_limit() {
             .with(Channel::RelativeDisplacementM, 0.1 * (k as f64 * 0.2).cos())
             .with(Channel::MassAccelerationMps2, (k as f64 * 0.2).sin());
         for r in f.push(&s) {
-            errors.push(r.unwrap_err());
+            errors.push(r.into_step().unwrap().unwrap_err());
         }
         assert!(f.buffered() < 1000);
     }
@@ -209,7 +216,145 @@ fn a_buffer_without_a_boundary_is_dropped_at_its_limit() {
         errors[0].problem
     );
     // What is left is one sine step.
-    let rest = f.finish();
+    let rest: Vec<_> = f
+        .finish()
+        .into_iter()
+        .map(|r| r.into_step().unwrap())
+        .collect();
     assert_eq!(rest.len(), 1);
     assert_eq!(rest[0].as_ref().unwrap().len(), 500);
+}
+
+/// Provisional phasors while the steps are found (`find_steps` with `update_period_s`): a dyno
+/// run whose drive changes a little (amplitude 3 %, frequency 1 %) or a lot, at sample counts
+/// that are not multiples of the update period, 30 dB. No provisional phasors hold a sample
+/// of another step (each holds fewer samples than its step turns out to have), some come
+/// before their step ends, and they are those the offline path gives on each found step's
+/// record ([`provisional_analyses`], what `forcemap identify --update-period-s` runs).
+#[test]
+fn provisional_phasors_hold_only_samples_of_their_step() {
+    let sine = |frequency_hz: f64, amplitude: f64| StepSpec::Sine {
+        frequency_hz,
+        amplitude,
+    };
+    let steps = vec![
+        sine(2.0, 0.010),
+        sine(2.0, 0.0103),
+        sine(2.02, 0.0103),
+        sine(5.0, 0.004),
+        sine(1.3, 0.010),
+        sine(1.3, 0.0097),
+        sine(8.0, 0.002),
+    ];
+    let spec = RunSpec {
+        snr_db: Some(30.0),
+        seed: 12,
+        ..RunSpec::element_test(
+            ElementDrive::Displacement,
+            0.8,
+            RunSpec::damper_dyno(None, 0).element,
+            steps.clone(),
+            1000.0,
+            9_137,
+        )
+    };
+    let records = spec.simulate().unwrap();
+    let options = PhasorOptions::for_identification();
+    let update_period_s = 0.7;
+    let mut state = HarmonicState::with_options(options.clone())
+        .with_updates(update_period_s)
+        .unwrap()
+        .finding_steps()
+        .unwrap();
+    let t = Instant::now();
+    let mut inputs: Vec<(Input, Instant)> = Vec::new();
+    for m in rig_messages(&records, spec.driven_channel(), None, Time::ZERO, "rig") {
+        if let RigMessage::Sample(s) = m {
+            inputs.push((Input::Sample(RigSample { step: 0, ..s }), t));
+        }
+    }
+    inputs.push((Input::Tick, t + Duration::from_secs(10)));
+    // Per step: the provisional streams (and whether they came before the step closed), then
+    // its record.
+    let mut provisional: Vec<(PhasorStream, bool)> = Vec::new();
+    let mut found: Vec<(Record, Vec<(PhasorStream, bool)>)> = Vec::new();
+    for (input, at) in inputs {
+        let out = state.handle(input, at);
+        let closes = out.iter().any(|o| matches!(o, Outcome::Analyse(..)));
+        for o in out {
+            match o {
+                Outcome::Provisional(s, _) => provisional.push((*s, !closes)),
+                Outcome::Analyse(Analysis::Batch(r), _) => {
+                    found.push((r, std::mem::take(&mut provisional)));
+                }
+                Outcome::Analyse(..) => panic!("found steps are analysed in batch"),
+                Outcome::Warning(w) => panic!("{w}"),
+                Outcome::Skipped(..) | Outcome::Dropped(_) => panic!("every step is a sine step"),
+            }
+        }
+    }
+    assert!(provisional.is_empty(), "provisional phasors of no step");
+    assert_eq!(found.len(), steps.len(), "every change found");
+    let mut early = 0;
+    let mut closest = usize::MAX;
+    // Where each found step starts in the run, and where the true steps end.
+    let mut start = 0;
+    let true_ends: Vec<usize> = (1..=steps.len())
+        .map(|k| k * spec.samples_per_record)
+        .collect();
+    for (record, streams) in &found {
+        // A copy given before its step closed holds no sample of the next true step (every
+        // change is found: found step k is true step k, its ends within a few samples).
+        let true_end = true_ends[record.step];
+        for (s, before) in streams {
+            assert!(
+                !before || start + s.samples() <= true_end,
+                "step {}: provisional phasors up to sample {} of the run, the true step ends at {true_end}",
+                record.step,
+                start + s.samples()
+            );
+            if *before {
+                closest = closest.min(true_end - (start + s.samples()));
+            }
+        }
+        start += record.len();
+        let updates = ProvisionalUpdates::new(update_period_s, record.sample_rate_hz).unwrap();
+        let offline = provisional_analyses(record, &options, updates).unwrap();
+        let live: Vec<HarmonicAnalysis> = streams
+            .iter()
+            .filter_map(|(s, _)| provisional_analysis(s))
+            .collect();
+        for (s, before) in streams {
+            assert_eq!(s.step(), record.step);
+            assert!(
+                s.samples() < record.len(),
+                "step {}: provisional phasors of {} samples, the step has {}",
+                record.step,
+                s.samples(),
+                record.len()
+            );
+            early += usize::from(*before);
+        }
+        assert_eq!(live.len(), offline.len(), "step {}", record.step);
+        for (l, o) in live.iter().zip(&offline) {
+            let l = HarmonicAnalysis {
+                amplitude: o.amplitude,
+                ..l.clone()
+            };
+            let d = o.relative_difference(&l);
+            assert!(d.is_some_and(|d| d < 1e-12), "step {}: {d:?}", record.step);
+        }
+        println!(
+            "step {}: {} samples, {:?} Hz; provisional at {:?} samples ({} before the step closed)",
+            record.step,
+            record.len(),
+            record.excitation.frequency_hz(),
+            streams.iter().map(|(s, _)| s.samples()).collect::<Vec<_>>(),
+            streams.iter().filter(|(_, b)| *b).count()
+        );
+    }
+    assert!(early > 0);
+    println!(
+        "{early} provisional updates before their step closed, the closest {closest} samples before the true step's end"
+    );
 }

@@ -12,20 +12,22 @@
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
 )]
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
+use forcemap_io::csv_export::{read_csv, write_csv};
 use forcemap_io::params::ParamValue;
+use forcemap_io::rig_bag::read_rig_bag;
 use forcemap_io::rig_messages::{RigMessage, rig_messages};
-use forcemap_math::identify::{FdMultiOptions, Method};
+use forcemap_math::identify::{FdMultiOptions, Method, TrackPoint};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::{PhasorOptions, provisional_analysis};
 use forcemap_math::pipeline::track_records_with_analyses;
-use forcemap_math::recipe::{Setup, SetupSpec};
-use forcemap_math::record::Record;
+use forcemap_math::recipe::{Setup, SetupKind, SetupSpec};
+use forcemap_math::record::{Channel, Record};
 use forcemap_math::sim::{AsymmetricDamping, ElementDrive, RunSpec, StepSpec};
-use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
+use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters, RigSample};
 use forcemap_msgs::std_msgs::Header;
-use forcemap_nodes::node::harmonic::{HarmonicState, Input as HarmonicInput, Outcome};
+use forcemap_nodes::node::harmonic::{Analysis, HarmonicState, Input as HarmonicInput, Outcome};
 use forcemap_nodes::node::identifier::{IdentifierCore, Input};
 
 mod common;
@@ -107,50 +109,134 @@ fn live_track(
     factor: f64,
     update_period_s: Option<f64>,
 ) -> Vec<(bool, IdentifiedParameters)> {
-    let options = PhasorOptions::for_identification();
-    let mut h = HarmonicState::with_options(options.clone());
-    if let Some(t) = update_period_s {
-        h = h.with_updates(t).unwrap();
-    }
     let mut c = identifier(factor);
-    let t = Instant::now();
-    let mut out = Vec::new();
     let driven = RunSpec::damper_dyno(None, 0).driven_channel();
-    for m in rig_messages(records, driven, None, RUN_START, "rig") {
-        let input = match m {
-            RigMessage::Sample(s) => HarmonicInput::Sample(s),
-            RigMessage::Excitation(e) => HarmonicInput::Excitation(e),
-            RigMessage::Parameters(_) => continue,
-        };
-        for o in h.handle(input, t) {
-            let header = Header::new(RUN_START, "rig");
-            match o {
-                Outcome::Provisional(stream, origin) => {
-                    if let Some(an) = provisional_analysis(&stream) {
-                        let ph = HarmonicPhasors::from_analysis(&an, origin, header);
-                        let o = c.handle_provisional(&ph);
-                        out.extend(thetas(&o).into_iter().map(|t| (true, t.clone())));
-                    }
-                }
-                Outcome::Analyse(a, origin) => {
-                    let an = a.run(&options).unwrap();
-                    let ph = HarmonicPhasors::from_analysis(&an, origin, header);
-                    let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
-                    out.extend(thetas(&o).into_iter().map(|t| (false, t.clone())));
-                }
-                Outcome::Skipped(..) | Outcome::Dropped(_) | Outcome::Warning(_) => {
-                    panic!("every step is a sine step, analysed without a warning")
-                }
-            }
-        }
-    }
+    let fed = fed_track(records, &mut c, driven, update_period_s, false);
     assert_eq!(
         c.recipe().unwrap().setup,
         SetupSpec::Element {
             moving_mass_kg: Some(MOVING_MASS_KG)
         }
     );
-    out
+    fed.thetas
+}
+
+/// What [`fed_track`] saw.
+struct Fed {
+    /// The thetas in order, with whether each came from provisional phasors.
+    thetas: Vec<(bool, IdentifiedParameters)>,
+    /// Each provisional stream handed out: (step, samples it held, whether its step's final
+    /// phasors came out in the same call, i.e. when the step closed).
+    provisional: Vec<(usize, usize, bool)>,
+    /// Each step's samples (its record's or stream's length).
+    step_samples: Vec<(usize, usize)>,
+}
+
+/// [`live_track`]; with `find_steps`, the node is fed the samples only, without step numbers
+/// (a bench that publishes no excitation state), and finds the steps itself.
+fn fed_track(
+    records: &[Record],
+    c: &mut IdentifierCore,
+    driven: Channel,
+    update_period_s: Option<f64>,
+    find_steps: bool,
+) -> Fed {
+    let options = PhasorOptions::for_identification();
+    let mut h = HarmonicState::with_options(options.clone());
+    if let Some(t) = update_period_s {
+        h = h.with_updates(t).unwrap();
+    }
+    if find_steps {
+        h = h.finding_steps().unwrap();
+    }
+    let t = Instant::now();
+    let mut fed = Fed {
+        thetas: Vec::new(),
+        provisional: Vec::new(),
+        step_samples: Vec::new(),
+    };
+    let mut inputs: Vec<(HarmonicInput, Instant)> = Vec::new();
+    for m in rig_messages(records, driven, None, RUN_START, "rig") {
+        inputs.push(match m {
+            RigMessage::Sample(s) if find_steps => {
+                (HarmonicInput::Sample(RigSample { step: 0, ..s }), t)
+            }
+            RigMessage::Sample(s) => (HarmonicInput::Sample(s), t),
+            RigMessage::Excitation(_) if find_steps => continue,
+            RigMessage::Excitation(e) => (HarmonicInput::Excitation(e), t),
+            RigMessage::Parameters(_) => continue,
+        });
+    }
+    if find_steps {
+        // The run ends: no sample for a while, and the last step completes.
+        inputs.push((HarmonicInput::Tick, t + Duration::from_secs(10)));
+    }
+    for (input, at) in inputs {
+        let outcomes = h.handle(input, at);
+        let finals: Vec<usize> = outcomes
+            .iter()
+            .filter_map(|o| match o {
+                Outcome::Analyse(a, _) => Some(a.step()),
+                _ => None,
+            })
+            .collect();
+        for o in outcomes {
+            let header = Header::new(RUN_START, "rig");
+            match o {
+                Outcome::Provisional(stream, origin) => {
+                    let (step, n) = (stream.step(), stream.samples());
+                    fed.provisional.push((step, n, finals.contains(&step)));
+                    if let Some(an) = provisional_analysis(&stream) {
+                        let ph = HarmonicPhasors::from_analysis(&an, origin, header);
+                        let o = c.handle_provisional(&ph);
+                        fed.thetas
+                            .extend(thetas(&o).into_iter().map(|t| (true, t.clone())));
+                    }
+                }
+                Outcome::Analyse(a, origin) => {
+                    let samples = match &a {
+                        Analysis::Streamed(s) => s.samples(),
+                        Analysis::Batch(r) | Analysis::Multisine(r) => r.len(),
+                    };
+                    fed.step_samples.push((a.step(), samples));
+                    let an = a.run(&options).unwrap();
+                    let ph = HarmonicPhasors::from_analysis(&an, origin, header);
+                    let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
+                    fed.thetas
+                        .extend(thetas(&o).into_iter().map(|t| (false, t.clone())));
+                }
+                // Random records give no phasors.
+                Outcome::Skipped(..) => {}
+                Outcome::Dropped(e) => panic!("step dropped: {e}"),
+                Outcome::Warning(w) => panic!("{w}"),
+            }
+        }
+    }
+    fed
+}
+
+/// The same thetas, in the same order, for the same data (values within 1e-9 relative, stamps
+/// the end of the same data).
+fn assert_same_track(live: &[(bool, IdentifiedParameters)], offline: &[TrackPoint], what: &str) {
+    assert_eq!(live.len(), offline.len(), "{what}");
+    for ((provisional, l), o) in live.iter().zip(offline) {
+        assert_eq!(*provisional, o.provisional, "{what}");
+        assert_eq!(*l.steps_used.last().unwrap() as usize, o.step, "{what}");
+        for (a, p) in l.values.iter().zip(&o.identification.parameters) {
+            assert!(
+                (a - p.value).abs() <= 1e-9 * p.value.abs(),
+                "{what}: {}: live {a} offline {}",
+                p.name,
+                p.value
+            );
+        }
+        let stamp = l.header.stamp.secs_since(RUN_START);
+        assert!(
+            (stamp - o.data_end_s).abs() < 1e-6,
+            "{what}: stamp {stamp} s, data end {} s",
+            o.data_end_s
+        );
+    }
 }
 
 fn c_of(t: &IdentifiedParameters) -> f64 {
@@ -213,26 +299,7 @@ fn the_live_track_within_steps_is_the_offline_track_and_follows_a_fading_damper(
             update_period_s,
         )
         .unwrap();
-        // The same thetas, in the same order, for the same data.
-        assert_eq!(live.len(), offline.len(), "{update_period_s:?} {factor}");
-        for ((provisional, l), o) in live.iter().zip(&offline) {
-            assert_eq!(*provisional, o.provisional);
-            assert_eq!(*l.steps_used.last().unwrap() as usize, o.step);
-            for (a, p) in l.values.iter().zip(&o.identification.parameters) {
-                assert!(
-                    (a - p.value).abs() <= 1e-9 * p.value.abs(),
-                    "{}: live {a} offline {}",
-                    p.name,
-                    p.value
-                );
-            }
-            let stamp = l.header.stamp.secs_since(RUN_START);
-            assert!(
-                (stamp - o.data_end_s).abs() < 1e-6,
-                "stamp {stamp} s, data end {} s",
-                o.data_end_s
-            );
-        }
+        assert_same_track(&live, &offline, &format!("{update_period_s:?} {factor}"));
         let track: Vec<(f64, f64)> = offline
             .iter()
             .map(|o| {
@@ -277,6 +344,128 @@ fn the_live_track_within_steps_is_the_offline_track_and_follows_a_fading_damper(
     }
 }
 
+/// `records` written as a test bench's CSV export without its `step` and `frequency_hz`
+/// columns, read back: the records an unlabelled export gives (steps found in the drive).
+fn unlabelled_export(records: &[Record], kind: SetupKind) -> Vec<Record> {
+    let dir = tempfile::tempdir().unwrap();
+    let labelled = dir.path().join("run.csv");
+    write_csv(&labelled, records, kind).unwrap();
+    let text = std::fs::read_to_string(&labelled).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let keep: Vec<usize> = (0..header.len())
+        .filter(|&i| header[i] != "step" && header[i] != "frequency_hz")
+        .collect();
+    let pick = |l: &str| {
+        let cells: Vec<&str> = l.split(',').collect();
+        keep.iter().map(|&i| cells[i]).collect::<Vec<_>>().join(",") + "\n"
+    };
+    let out: String = std::iter::once(pick(&header.join(",")))
+        .chain(lines.map(pick))
+        .collect();
+    let unlabelled = dir.path().join("run_unlabelled.csv");
+    std::fs::write(&unlabelled, out).unwrap();
+    read_csv(&unlabelled).unwrap().records
+}
+
+/// A bench that publishes no excitation state: the harmonic node finds the steps itself
+/// (`find_steps`) and, with `update_period_s`, gives provisional phasors of the step in
+/// progress from the samples known to be its own. On the committed rig bag (whose steps the
+/// finder cuts where the states do), its track is the labelled graph's, and that of `forcemap
+/// identify --forgetting-per-step F --update-period-s T` on the run exported without labels;
+/// no provisional phasors hold more samples than their step has, and some come before their
+/// step ends.
+#[test]
+fn without_excitation_states_the_track_is_the_labelled_track() {
+    let records = read_rig_bag(&rig_bag()).unwrap().records;
+    let model = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
+    let setup = Setup::BaseExcited { mass_kg: 36.0 };
+    let driven = SetupKind::BaseExcited.driven_channel();
+    let (factor, update_period_s) = (0.7, 2.0);
+    let labelled = fed_track(
+        &records,
+        &mut rig_core(factor),
+        driven,
+        Some(update_period_s),
+        false,
+    );
+    let found = fed_track(
+        &records,
+        &mut rig_core(factor),
+        driven,
+        Some(update_period_s),
+        true,
+    );
+    // The same steps, cut at the same samples.
+    assert_eq!(found.step_samples, labelled.step_samples);
+    let len = |step: usize| {
+        found
+            .step_samples
+            .iter()
+            .find(|(s, _)| *s == step)
+            .unwrap()
+            .1
+    };
+    for &(step, samples, _) in &found.provisional {
+        assert!(
+            samples < len(step),
+            "step {step}: {samples} of {}",
+            len(step)
+        );
+    }
+    let before_end = found.provisional.iter().filter(|p| !p.2).count();
+    assert!(before_end > 0, "{:?}", found.provisional);
+    // The same provisional updates (every one labelled is given), hence the same thetas.
+    let counts = |f: &Fed| f.provisional.iter().map(|p| (p.0, p.1)).collect::<Vec<_>>();
+    assert_eq!(counts(&found), counts(&labelled));
+    let track = |records: &[Record]| {
+        track_records_with_analyses(
+            &model,
+            &setup,
+            Method::FdMulti,
+            records,
+            &PhasorOptions::for_identification(),
+            &FdMultiOptions::default(),
+            factor,
+            Some(update_period_s),
+        )
+        .unwrap()
+        .0
+    };
+    let offline_labelled = track(&records);
+    assert_same_track(&labelled.thetas, &offline_labelled, "labelled");
+    assert_same_track(&found.thetas, &offline_labelled, "found");
+    // The final thetas are those of the node finding the steps without updates, bit for bit.
+    let plain = fed_track(&records, &mut rig_core(factor), driven, None, true);
+    let finals = |f: &Fed| {
+        f.thetas
+            .iter()
+            .filter(|(p, _)| !p)
+            .map(|(_, t)| t.clone())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(finals(&found), finals(&plain));
+    // Offline on the unlabelled export: the same track.
+    let exported = unlabelled_export(&records, SetupKind::BaseExcited);
+    assert_same_track(&found.thetas, &track(&exported), "unlabelled export");
+    let worst = found
+        .thetas
+        .iter()
+        .zip(&labelled.thetas)
+        .flat_map(|((_, a), (_, b))| {
+            a.values
+                .iter()
+                .zip(&b.values)
+                .map(|(x, y)| (x / y - 1.0).abs())
+        })
+        .fold(0.0, f64::max);
+    println!(
+        "{} thetas ({} provisional updates, {before_end} of them before their step ended); largest relative difference from the labelled track {worst:e}",
+        found.thetas.len(),
+        found.provisional.len(),
+    );
+}
+
 /// The committed rig bag's steps as final phasors, and a core that identifies them.
 fn rig_core(factor: f64) -> IdentifierCore {
     core(&rig_params(&[(
@@ -300,6 +489,31 @@ fn a_provisional_step_with_all_its_periods_in_gives_the_final_theta() {
             assert_eq!(p[0].values, f[0].values, "step {}", ph.step);
             assert_eq!(p[0].covariance, f[0].covariance);
             assert_eq!(p[0].header.stamp, f[0].header.stamp);
+            // Its /diagnostics status is the final one's, marked provisional.
+            let (ps, fs) = (statuses(&provisional), statuses(&final_));
+            assert_eq!((ps.len(), fs.len()), (1, 1), "step {}", ph.step);
+            assert_eq!(ps[0].level, fs[0].level, "{:?} {:?}", ps[0], fs[0]);
+            assert_eq!(ps[0].name, fs[0].name);
+            let value = |k: &str| {
+                ps[0]
+                    .values
+                    .iter()
+                    .find(|v| v.key == k)
+                    .map(|v| v.value.clone())
+            };
+            assert_eq!(value("provisional_step"), Some(ph.step.to_string()));
+            assert_eq!(
+                value("provisional_periods"),
+                Some(ph.periods_used.to_string())
+            );
+            assert_eq!(
+                value("recipe"),
+                fs[0]
+                    .values
+                    .iter()
+                    .find(|v| v.key == "recipe")
+                    .map(|v| v.value.clone())
+            );
             // ...and once the step is in, its phasors are never added again.
             assert!(c.handle_provisional(&ph).is_empty(), "step {}", ph.step);
         }

@@ -20,6 +20,8 @@
 //! Without `ExcitationState` (parameter `find_steps: true`), the steps are found in the driven
 //! channel of the buffered samples ([`find_steps`]: the segmentation of an unlabelled export),
 //! each analysed in batch once the next step has begun; excitation states are then ignored.
+//! With `update_period_s` too, the step in progress gives provisional phasors from the samples
+//! known to be its own ([`open_step`]), a few detection windows behind the newest.
 //!
 //! With `update_period_s: T` (default: off), a step in progress also gives provisional phasors
 //! every T seconds of its samples once they have settled periods (a copy of its stream,
@@ -44,10 +46,11 @@ use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
 pub mod find_steps;
+pub mod open_step;
 mod provisional;
 mod stream;
 
-use find_steps::StepFinder;
+use find_steps::{Found, StepFinder};
 use forcemap_math::segment::SegmentOptions;
 pub use stream::Analysis;
 use stream::StepStream;
@@ -80,7 +83,9 @@ pub enum Outcome {
     /// A complete random record: kept for validation, no phasors.
     Skipped(usize, String),
     Dropped(StepError),
-    /// What a complete step's data say against its label, naming the step (it is analysed).
+    /// Something about a step to report, naming the step: what a complete step's data say
+    /// against its label (it is analysed), or, finding the steps, provisional phasors given for
+    /// samples the step turned out not to have.
     Warning(String),
 }
 
@@ -133,19 +138,30 @@ impl HarmonicState {
     /// `update_period_s` of its samples (see the module docs); refused unless it is positive.
     pub fn with_updates(self, update_period_s: f64) -> anyhow::Result<HarmonicState> {
         ProvisionalUpdates::new(update_period_s, 1.0)?;
+        let finder = match self.finder {
+            Some(f) => Some(f.with_updates(update_period_s, self.options.clone())?),
+            None => None,
+        };
         Ok(HarmonicState {
             update_period_s: Some(update_period_s),
+            finder,
             ..self
         })
     }
 
     /// The same state finding the steps in the samples ([`find_steps`]); excitation states
-    /// are then ignored. At most `MAX_PENDING` samples are buffered.
-    pub fn finding_steps(self) -> HarmonicState {
-        HarmonicState {
-            finder: Some(StepFinder::new(SegmentOptions::default(), MAX_PENDING)),
-            ..self
+    /// are then ignored. At most `MAX_PENDING` samples are buffered. With updates, the step in
+    /// progress gives provisional phasors from the samples known to be its own
+    /// ([`open_step`]).
+    pub fn finding_steps(self) -> anyhow::Result<HarmonicState> {
+        let mut finder = StepFinder::new(SegmentOptions::default(), MAX_PENDING);
+        if let Some(t) = self.update_period_s {
+            finder = finder.with_updates(t, self.options.clone())?;
         }
+        Ok(HarmonicState {
+            finder: Some(finder),
+            ..self
+        })
     }
 
     /// Samples the step finder holds (`None` when not finding steps).
@@ -156,7 +172,7 @@ impl HarmonicState {
     /// Without excitation states: samples go to the finder, and the run ends (every step left
     /// is complete) when no sample has come for `PLAN_WAIT`.
     fn handle_found(&mut self, input: Input, now: Instant) -> Vec<Outcome> {
-        let results = match (&mut self.finder, input) {
+        let found = match (&mut self.finder, input) {
             (Some(f), Input::Sample(s)) => {
                 self.last_sample_at = Some(now);
                 f.push(&s)
@@ -171,7 +187,15 @@ impl HarmonicState {
             }
             _ => Vec::new(),
         };
-        results.into_iter().map(|r| self.outcome(r, None)).collect()
+        let origin = self.finder.as_ref().and_then(StepFinder::origin);
+        found
+            .into_iter()
+            .map(|f| match f {
+                Found::Step(r) => self.outcome(r, None),
+                Found::Provisional(s) => Outcome::Provisional(s, origin.unwrap_or(Time::ZERO)),
+                Found::Misattributed { message } => Outcome::Warning(message),
+            })
+            .collect()
     }
 
     pub fn handle(&mut self, input: Input, now: Instant) -> Vec<Outcome> {
@@ -446,7 +470,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         log_line!("provisional phasors of a step in progress every {t} s of its samples");
     }
     if find_steps {
-        state = state.finding_steps();
+        state = state.finding_steps()?;
         log_line!("finding the steps in the samples (find_steps): excitation states are ignored");
     }
     let mut dropped = 0usize;

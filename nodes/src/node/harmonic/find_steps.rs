@@ -8,21 +8,51 @@
 //! buffer is searched again when it has grown by a quarter (at least [`MIN_SEARCH_SAMPLES`]),
 //! so the work per sample stays bounded while a step is reported at most a quarter of the
 //! buffer late. At the end of a run (no sample for a while) every step left is complete.
+//!
+//! With updates ([`StepFinder::with_updates`]), the step in progress also gives provisional
+//! phasors every `update_period_s` of its samples, from the samples known to be its own
+//! ([`open_step`](super::open_step)); the rest of its due updates come when it closes, before
+//! its record.
 
 use forcemap_io::steps::unlabelled::{is_record, segment_run, step_record};
 use forcemap_io::steps::{
     StepAssembler, StepError, StepFault, StepPlan, StepSample, estimated_excitation, rms_about_mean,
 };
+use forcemap_math::phasor::{PhasorOptions, PhasorStream, ProvisionalUpdates};
 use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::{Excitation, Record};
-use forcemap_math::segment::{MIN_SERIES_SAMPLES, SegmentOptions};
+use forcemap_math::segment::{DetectedKind, DetectedStep, MIN_SERIES_SAMPLES, SegmentOptions};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::RigSample;
+
+use super::open_step::OpenStep;
 
 /// Fewest new samples between two searches of the buffer.
 pub const MIN_SEARCH_SAMPLES: usize = 256;
 /// The buffer is searched again once it has grown by this fraction since the last search.
 const SEARCH_GROWTH: f64 = 0.25;
+
+/// What the finder hands out, in order.
+pub enum Found {
+    /// A complete step's record, or why its samples were dropped.
+    Step(Result<Record, StepError>),
+    /// The stream of the step in progress (or of the step about to be handed out), due for
+    /// provisional phasors.
+    Provisional(Box<PhasorStream>),
+    /// Provisional phasors of `step` were given for more samples than the step turned out to
+    /// have (the margin of [`open_step`](super::open_step) was too small): a warning.
+    Misattributed { message: String },
+}
+
+impl Found {
+    /// The step's record or error (`None` for the other kinds).
+    pub fn into_step(self) -> Option<Result<Record, StepError>> {
+        match self {
+            Found::Step(r) => Some(r),
+            _ => None,
+        }
+    }
+}
 
 /// Buffers samples and hands out the records of the steps found in them.
 pub struct StepFinder {
@@ -32,6 +62,16 @@ pub struct StepFinder {
     buffer: Vec<StepSample>,
     searched_len: usize,
     next_step: usize,
+    /// Provisional updates: every this many seconds of a step's samples, analysed so.
+    updates: Option<(f64, PhasorOptions)>,
+    /// The step in progress and its frequency, as the last search found it.
+    candidate: Option<(usize, f64)>,
+    /// Its stream, once two searches agreed on its frequency.
+    open: Option<OpenStep>,
+    /// The run's sample rate and driven channel, as the last search found them.
+    rate_and_driven: Option<(f64, forcemap_math::record::Channel)>,
+    /// Buffer length at the last check of the open step's samples.
+    checked_len: usize,
 }
 
 impl StepFinder {
@@ -45,7 +85,27 @@ impl StepFinder {
             buffer: Vec::new(),
             searched_len: 0,
             next_step: 0,
+            updates: None,
+            candidate: None,
+            open: None,
+            rate_and_driven: None,
+            checked_len: 0,
         }
+    }
+
+    /// The same finder giving provisional phasors of the step in progress every
+    /// `update_period_s` of its samples, analysed with `options`; refused unless the period is
+    /// positive.
+    pub fn with_updates(
+        self,
+        update_period_s: f64,
+        options: PhasorOptions,
+    ) -> anyhow::Result<StepFinder> {
+        ProvisionalUpdates::new(update_period_s, 1.0)?;
+        Ok(StepFinder {
+            updates: Some((update_period_s, options)),
+            ..self
+        })
     }
 
     /// The time of t = 0 (the first sample's stamp).
@@ -59,29 +119,49 @@ impl StepFinder {
     }
 
     /// Adds a sample; returns the steps it completed (numbered from 0 in the order found; the
-    /// samples' own `step` field is not used).
-    pub fn push(&mut self, s: &RigSample) -> Vec<Result<Record, StepError>> {
+    /// samples' own `step` field is not used), each after the provisional phasors still due
+    /// for it, and those of the step in progress.
+    pub fn push(&mut self, s: &RigSample) -> Vec<Found> {
         let origin = *self.origin.get_or_insert(s.header.stamp);
         let mut sample = StepSample::of_rig(s, s.header.stamp.secs_since(origin));
         sample.step = 0;
         self.buffer.push(sample);
         let n = self.buffer.len();
         if n >= self.max_samples {
-            return vec![Err(self.drop_buffer(format!(
+            return vec![Found::Step(Err(self.drop_buffer(format!(
                 "no step boundary found in {n} samples (the buffer's limit)"
-            )))];
+            ))))];
         }
         let grown = n - self.searched_len;
         let due = (SEARCH_GROWTH * self.searched_len as f64).max(MIN_SEARCH_SAMPLES as f64);
         if n >= MIN_SERIES_SAMPLES && grown as f64 >= due {
             self.search(false)
         } else {
-            Vec::new()
+            self.check_open()
         }
     }
 
+    /// Between searches, every update period: feeds the open step the samples now known to be
+    /// its own.
+    fn check_open(&mut self) -> Vec<Found> {
+        let (Some(open), Some((rate_hz, _)), Some((period_s, _))) =
+            (&mut self.open, self.rate_and_driven, &self.updates)
+        else {
+            return Vec::new();
+        };
+        let n = self.buffer.len();
+        let every = ProvisionalUpdates::new(*period_s, rate_hz)
+            .map_or(usize::MAX, |u| u.samples_per_update());
+        if n < self.checked_len + every {
+            return Vec::new();
+        }
+        self.checked_len = n;
+        let upto = open.confirmed(&self.buffer, rate_hz, &self.options);
+        provisional(open.feed(&self.buffer, upto, 0))
+    }
+
     /// The end of the run: every step in the buffer is complete.
-    pub fn finish(&mut self) -> Vec<Result<Record, StepError>> {
+    pub fn finish(&mut self) -> Vec<Found> {
         if self.buffer.is_empty() {
             return Vec::new();
         }
@@ -92,6 +172,9 @@ impl StepFinder {
         let samples = self.buffer.len();
         self.buffer.clear();
         self.searched_len = 0;
+        self.checked_len = 0;
+        self.open = None;
+        self.candidate = None;
         let e = step_error(self.next_step, StepFault::Abandoned { why, samples });
         self.next_step += 1;
         e
@@ -124,48 +207,158 @@ impl StepFinder {
     }
 
     /// Segments the buffer and hands out its complete steps (all of them when `all`).
-    fn search(&mut self, all: bool) -> Vec<Result<Record, StepError>> {
+    fn search(&mut self, all: bool) -> Vec<Found> {
         self.searched_len = self.buffer.len();
         let run = match self.run_record() {
             Ok(run) => run,
             Err(e) => {
-                return vec![Err(self.drop_buffer(format!(
+                return vec![Found::Step(Err(self.drop_buffer(format!(
                     "the samples since the last step do not make a record ({})",
                     e.problem
-                )))];
+                ))))];
             }
         };
         let driven = match SetupKind::of_channels(|c| run.channel(c).is_some()) {
             Ok(kind) => kind.driven_channel(),
-            Err(e) => return vec![Err(self.drop_buffer(e.to_string()))],
+            Err(e) => return vec![Found::Step(Err(self.drop_buffer(e.to_string())))],
         };
         let seg = match segment_run(&run, driven, &self.options) {
             Ok(seg) => seg,
-            Err(e) if all => return vec![Err(self.drop_buffer(e.to_string()))],
+            Err(e) if all => return vec![Found::Step(Err(self.drop_buffer(e.to_string())))],
             // Too few samples yet: wait for more.
             Err(_) => return Vec::new(),
         };
+        self.rate_and_driven = Some((run.sample_rate_hz, driven));
         let times: Vec<f64> = self.buffer.iter().map(|s| s.t_s).collect();
         let n = run.len();
         let mut consumed = 0;
         let mut out = Vec::new();
-        for s in &seg.steps {
-            if !(all || (s.end < n && s.end + seg.window_samples <= n)) {
-                break;
-            }
+        let mut rest = seg.steps.iter().peekable();
+        while let Some(s) = rest.next_if(|s| all || (s.end < n && s.end + seg.window_samples <= n))
+        {
+            // The open step, if any, is the first to complete (it starts the buffer).
+            let open = self.open.take();
+            self.candidate = None;
             consumed = s.end;
             if is_record(s) {
                 let (mut record, frequency) = step_record(&run, s, &times, self.next_step);
                 self.next_step += 1;
                 let level = record.channel(driven).map_or(f64::NAN, rms_about_mean);
                 record.excitation = estimated_excitation(frequency, level);
-                out.push(Ok(record));
+                if let Some(open) = open {
+                    out.extend(close_open(open, &record, frequency, &self.buffer));
+                }
+                out.push(Found::Step(Ok(record)));
             }
         }
         self.buffer.drain(..consumed);
         self.searched_len = self.buffer.len();
+        if !all {
+            out.extend(self.follow_open(rest.next(), consumed, &run, seg.window_samples));
+        }
         out
     }
+
+    /// After a search: the step in progress (`open`, found at `start` of the buffer before the
+    /// complete steps were dropped) gets a stream once two searches agree on its frequency,
+    /// fed the samples known to be its own.
+    fn follow_open(
+        &mut self,
+        open: Option<&DetectedStep>,
+        start: usize,
+        run: &Record,
+        window_samples: usize,
+    ) -> Vec<Found> {
+        let Some((period_s, options)) = &self.updates else {
+            return Vec::new();
+        };
+        let (frequency, amplitude) = match open.map(|s| &s.kind) {
+            Some(DetectedKind::Sine {
+                frequency_hz,
+                amplitude,
+                ..
+            }) => (*frequency_hz, *amplitude),
+            _ => {
+                // Not a sine as the buffer stands: nothing is fed until it is one again.
+                self.candidate = None;
+                return Vec::new();
+            }
+        };
+        let Some(s) = open.filter(|s| s.start == start) else {
+            return Vec::new();
+        };
+        let step = self.next_step;
+        let agreed = self.candidate == Some((step, frequency));
+        self.candidate = Some((step, frequency));
+        self.open.take_if(|o| o.step != step);
+        if !agreed {
+            // Nothing is fed while the frequency is not settled.
+            return Vec::new();
+        }
+        // The estimate moved: copies given so far were of the earlier one; the stream starts
+        // again at the new one, giving only later updates.
+        let published = self
+            .open
+            .take_if(|o| o.frequency_hz != frequency)
+            .map_or(0, |o| o.published());
+        if self.open.is_none() {
+            let (_, driven) = self.rate_and_driven.expect("set by the search");
+            self.open = OpenStep::new(
+                step,
+                frequency,
+                amplitude,
+                &self.buffer,
+                run.sample_rate_hz,
+                window_samples,
+                driven,
+                &self.options,
+                options,
+                *period_s,
+                published,
+            );
+        }
+        let Some(open) = &mut self.open else {
+            return Vec::new();
+        };
+        // The search saw the step up to its end (or the newest sample): a margin before it.
+        let seen = s.end.min(run.len()) - start;
+        let upto = seen.saturating_sub(open.margin).max(open.fed());
+        self.checked_len = self.buffer.len();
+        provisional(open.feed(&self.buffer, upto, 0))
+    }
+}
+
+/// The open step closes as `record` (the samples from the buffer's start): its remaining due
+/// updates when its stream analyses that record, and a warning when copies held more samples
+/// than the record has.
+fn close_open(
+    mut open: OpenStep,
+    record: &Record,
+    frequency: Option<f64>,
+    buffer: &[StepSample],
+) -> Vec<Found> {
+    let len = record.len();
+    let mut out = Vec::new();
+    if open.published() > len {
+        out.push(Found::Misattributed {
+            message: format!(
+                "provisional phasors of step {} were given for {} samples, but the step has {len}",
+                record.step,
+                open.published()
+            ),
+        });
+    }
+    if open.matches(record, frequency) && open.fed() <= len {
+        out.extend(provisional(open.feed(buffer, len, len)));
+    }
+    out
+}
+
+fn provisional(streams: Vec<PhasorStream>) -> Vec<Found> {
+    streams
+        .into_iter()
+        .map(|s| Found::Provisional(Box::new(s)))
+        .collect()
 }
 
 fn step_error(step: usize, fault: StepFault) -> StepError {

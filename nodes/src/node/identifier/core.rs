@@ -394,8 +394,18 @@ impl IdentifierCore {
     /// The status for /diagnostics, with the recipe it runs (JSON, as `forcemap identify
     /// --json` prints it) so that a recorded bag keeps it.
     pub(super) fn status(&self, level: u8, message: &str) -> anyhow::Result<Output> {
+        self.status_of(level, message, self.recipe.as_ref())
+    }
+
+    /// [`IdentifierCore::status`] naming `recipe` (a provisional theta's, before any step is in).
+    pub(super) fn status_of(
+        &self,
+        level: u8,
+        message: &str,
+        recipe: Option<&Recipe>,
+    ) -> anyhow::Result<Output> {
         let mut status = DiagnosticStatus::new(level, &self.status_name, message, "identifier")
-            .with_value("recipe", serde_json::to_string(&self.recipe)?);
+            .with_value("recipe", serde_json::to_string(&recipe)?);
         if let Some(st) = &self.state {
             status = status
                 .with_value("model", &st.accumulator.model)

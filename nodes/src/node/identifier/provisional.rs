@@ -5,6 +5,7 @@
 
 use forcemap_math::identify::step_equations;
 use forcemap_msgs::builtin_interfaces::Time;
+use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
 use forcemap_msgs::std_msgs::Header;
 
@@ -21,7 +22,9 @@ pub fn data_end_time(ph: &HarmonicPhasors) -> Time {
 
 impl IdentifierCore {
     /// Provisional phasors of the step in progress: theta of the steps so far with them in
-    /// place of that step, stamped with the end of their data. Nothing when they are of a step
+    /// place of that step, stamped with the end of their data, and a status for /diagnostics
+    /// (that of a final theta, with `provisional_step` and `provisional_periods`: OK, or WARN
+    /// with the solve's first flag or why there is no theta). Nothing when they are of a step
     /// already added (its final phasors overtook them), of another setup than the equations',
     /// or when their setup is not known yet or the equations do not determine theta; the
     /// accumulated state is never changed.
@@ -61,21 +64,31 @@ impl IdentifierCore {
                     .with_provisional(self.parameters.tracking.factor_per_step(), &blk)
             })
             .and_then(|acc| solve_state(st, &acc, model, &self.parameters));
-        match solved {
-            Ok((id, _)) => {
-                out.push(Output::Log(format!(
-                    "step {step} (provisional, {} periods): {}",
-                    ph.periods_used,
-                    theta_line(&id)
-                )));
+        let what = format!("step {step} (provisional, {} periods)", ph.periods_used);
+        let (level, message) = match solved {
+            Ok((id, flags)) => {
+                out.push(Output::Log(format!("{what}: {}", theta_line(&id))));
                 out.push(Output::Theta(IdentifiedParameters::from_identification(
                     &id,
                     Header::new(data_end_time(ph), &ph.header.frame_id),
                 )));
+                // As for a final theta: each flag is a WARN, the first is the message.
+                match flags.first() {
+                    Some(w) => (DiagnosticStatus::WARN, format!("{what}: {w}")),
+                    None => (DiagnosticStatus::OK, format!("{what}: theta published")),
+                }
             }
-            Err(e) => out.push(Output::Log(format!(
-                "step {step} (provisional): no theta: {e}"
-            ))),
+            Err(e) => {
+                out.push(Output::Log(format!("{what}: no theta: {e}")));
+                (DiagnosticStatus::WARN, format!("{what}: no theta: {e}"))
+            }
+        };
+        // The status of a final theta, marked provisional, with the recipe it was solved by.
+        if let Ok(Output::Status(s)) = self.status_of(level, &message, Some(&recipe)) {
+            out.push(Output::Status(
+                s.with_value("provisional_step", step)
+                    .with_value("provisional_periods", ph.periods_used),
+            ));
         }
         out
     }
