@@ -196,18 +196,17 @@ struct Shell<'a> {
 }
 
 impl Shell<'_> {
-    /// Publishes theta first, then the status and the log lines, and persists the state last:
-    /// what a control node waits for is not delayed by the rest (a state file's write and
-    /// fsync took milliseconds).
+    /// Publishes theta first and persists the state next (its write and fsync took
+    /// milliseconds), then the status and log lines: what a control node waits for is not
+    /// delayed by the rest, and a log line still says its step is persisted.
     async fn apply(&self, core: &IdentifierCore, outputs: Vec<Output>) -> anyhow::Result<()> {
         let (mut first, rest): (Vec<Output>, Vec<Output>) = outputs
             .into_iter()
             .partition(|o| matches!(o, Output::Theta(_)));
-        let persist = rest.iter().any(|o| matches!(o, Output::Persist));
-        first.extend(rest.into_iter().filter(|o| !matches!(o, Output::Persist)));
-        if persist {
+        if rest.iter().any(|o| matches!(o, Output::Persist)) {
             first.push(Output::Persist);
         }
+        first.extend(rest.into_iter().filter(|o| !matches!(o, Output::Persist)));
         for o in first {
             match o {
                 Output::Log(line) => log_line!("{line}"),
