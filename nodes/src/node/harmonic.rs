@@ -476,7 +476,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                         .await;
                 }
                 Ok((Err(e), _)) => {
-                    log_line!("step {step}: dropped: phasor analysis failed: {e}")
+                    log_line!("step {step}: dropped: phasor analysis failed: {e}");
                 }
                 Err(e) => log_line!("step {step}: analysis task failed: {e}"),
             }
