@@ -94,6 +94,10 @@ pub struct BenchGraphArgs {
     /// own harmonic node and identifier, all fed the same run (a four-poster: 4).
     #[arg(long, default_value_t = 1)]
     pub rigs: usize,
+    /// Also break the latency down stage by stage (the nodes mark each stage of a step's path
+    /// to theta: DDS hops, assembly, analysis, solve, publishes).
+    #[arg(long)]
+    pub trace: bool,
     #[arg(long)]
     pub json: bool,
 }

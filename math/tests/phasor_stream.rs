@@ -57,7 +57,21 @@ fn stream_expecting(
         s.push(&values);
     }
     assert_eq!(s.samples(), record.len());
-    s.finish()
+    // `analyse` (the stream kept) is `finish`, bit for bit, however often it runs; a stream
+    // told the step's exact length has nothing left to do at its end.
+    let kept = s.analyse();
+    assert_eq!(s.analyse(), kept);
+    if kept.is_ok() {
+        if expected == Some(record.len()) {
+            assert!(s.analysed_ahead(), "told {expected:?}");
+        }
+        if expected.is_none() {
+            assert!(!s.analysed_ahead());
+        }
+    }
+    let finished = s.finish();
+    assert_eq!(finished, kept);
+    finished
 }
 
 fn stream(record: &Record, options: &PhasorOptions) -> Result<HarmonicAnalysis, PhasorError> {

@@ -10,7 +10,8 @@
 //! - latency from the last sample of a step (when its publish returned) to the theta that
 //!   includes that step (when it arrived here), p50 and p99 over the steps;
 //! - CPU (% of one core) and resident memory of each node, sampled from /proc during the run,
-//!   with RSS early and late in the run (memory must stay flat).
+//!   with RSS early and late in the run (memory must stay flat);
+//! - with `--trace`, that latency stage by stage ([`super::bench_trace`]).
 
 use std::collections::BTreeMap;
 use std::process::{Child, Command, Stdio};
@@ -28,12 +29,14 @@ use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
 use forcemap_msgs::msg::{ExcitationState, IdentifiedParameters, RigSample};
 use serde_json::json;
 
+use super::bench_trace;
 use crate::cli::BenchGraphArgs;
 use forcemap_io::params::Params;
 use forcemap_io::rig_messages::{
     RigMessage, SIMULATED_CONSTANTS_MESSAGE, constants_status, rig_messages,
 };
 use forcemap_io::topics;
+use forcemap_nodes::latency_trace::TraceMark;
 use forcemap_nodes::ros::{NodeSetup, RosNode, publish_blocking, qos};
 use ros2_client::Publisher;
 
@@ -60,7 +63,7 @@ fn proc_usage(pid: u32) -> Option<(f64, u64)> {
 /// (seconds since the start, node, CPU seconds, RSS bytes).
 type UsageSample = (f64, String, f64, u64);
 
-fn percentile(sorted: &[f64], p: f64) -> f64 {
+pub fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
     }
@@ -75,7 +78,13 @@ struct Spawned {
     lines: Arc<Mutex<Vec<String>>>,
 }
 
-fn spawn(kind: &str, namespace: &str, domain: u16, params: &[&str]) -> anyhow::Result<Spawned> {
+fn spawn(
+    kind: &str,
+    namespace: &str,
+    domain: u16,
+    params: &[&str],
+    trace: bool,
+) -> anyhow::Result<Spawned> {
     let exe = std::env::current_exe().context("finding the forcemap executable")?;
     let ns = format!("__ns:={namespace}");
     let mut args = vec!["node", kind, "--ros-args", "-r", &ns];
@@ -83,7 +92,11 @@ fn spawn(kind: &str, namespace: &str, domain: u16, params: &[&str]) -> anyhow::R
         args.push("-p");
         args.push(p);
     }
-    let mut child = Command::new(exe)
+    let mut command = Command::new(exe);
+    if trace {
+        command.env(forcemap_nodes::latency_trace::ENV, "1");
+    }
+    let mut child = command
         .args(&args)
         .env("ROS_DOMAIN_ID", domain.to_string())
         .stdout(Stdio::piped())
@@ -174,12 +187,13 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
 
     let mut children = Vec::new();
     for ns in &namespaces {
-        children.push(spawn("harmonic", ns, domain, &[])?);
+        children.push(spawn("harmonic", ns, domain, &[], args.trace)?);
         children.push(spawn(
             "identifier",
             ns,
             domain,
             &["model:=coulomb", "mass_kg:=36.0"],
+            args.trace,
         )?);
     }
 
@@ -391,6 +405,40 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
     latencies_ms.sort_by(f64::total_cmp);
     let lossless = dropped.is_empty() && received.len() == args.steps * args.rigs;
 
+    // The stages: the nodes' marks (two children per rig, in the rigs' order) and the bench's.
+    let stages = args.trace.then(|| {
+        let mut marks: Vec<(usize, TraceMark)> = children
+            .iter()
+            .enumerate()
+            .flat_map(|(i, c)| {
+                let lines = c.lines.lock().expect("lock").clone();
+                lines
+                    .iter()
+                    .filter_map(|l| TraceMark::parse(l))
+                    .map(|m| (i / 2, m))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        for (name, at) in [
+            (bench_trace::LAST_SAMPLE_PUBLISHED, &last_sample_at),
+            (bench_trace::THETA_IN, &received),
+        ] {
+            marks.extend(at.iter().map(|((rig, step), t)| {
+                (
+                    *rig,
+                    TraceMark {
+                        stage: name.to_string(),
+                        step: *step,
+                        wall_ns: *t,
+                        cpu_ns: None,
+                    },
+                )
+            }));
+        }
+        let steps = bench_trace::per_step(&marks);
+        (bench_trace::breakdown(&steps), steps)
+    });
+
     let mut per_node = Vec::new();
     for name in children.iter().map(|c| c.name.as_str()) {
         let s: Vec<&UsageSample> = usage.iter().filter(|u| u.1 == name).collect();
@@ -408,7 +456,7 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
             "rss_max_mib": max as f64 / 1048576.0,
         }));
     }
-    let report = json!({
+    let mut report = json!({
         "sample_rate_hz": args.sample_rate_hz,
         "steps": args.steps,
         "rigs": args.rigs,
@@ -425,6 +473,9 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
         "total_s": total_s,
         "nodes": per_node,
     });
+    if let Some((rows, steps)) = &stages {
+        report["trace"] = bench_trace::json(rows, steps);
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -462,6 +513,11 @@ pub fn run_graph(args: &BenchGraphArgs) -> anyhow::Result<()> {
                 n["rss_end_mib"].as_f64().unwrap_or(f64::NAN),
                 n["rss_max_mib"].as_f64().unwrap_or(f64::NAN),
             );
+        }
+        if let Some((rows, steps)) = &stages {
+            for l in bench_trace::lines(rows, steps.len()) {
+                println!("{l}");
+            }
         }
     }
     if !lossless {

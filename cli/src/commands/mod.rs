@@ -3,6 +3,7 @@
 pub mod bag;
 pub mod bench;
 pub mod bench_identify;
+pub mod bench_trace;
 pub mod diagnose;
 pub mod diagnose_eval;
 pub mod element_outputs;

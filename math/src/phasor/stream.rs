@@ -218,9 +218,26 @@ impl PhasorStream {
 
     /// The analysis of the step from the samples pushed: the settled part, the joint fit and
     /// the noise (the same as [`analyse_record`](super::analyse_record) of those samples).
-    pub fn finish(self) -> Result<HarmonicAnalysis, PhasorError> {
-        if let Some(e) = self.error {
-            return Err(e);
+    pub fn finish(mut self) -> Result<HarmonicAnalysis, PhasorError> {
+        self.analyse()
+    }
+
+    /// Whether [`PhasorStream::analyse`] only hands over the analysis computed when the step's
+    /// last whole period completed ([`PhasorStream::expect_samples`]), with no work left.
+    pub fn analysed_ahead(&self) -> bool {
+        self.error.is_none()
+            && self
+                .ready
+                .as_ref()
+                .is_some_and(|(n, _)| *n == whole_periods(self.samples, self.grid.nu))
+    }
+
+    /// [`PhasorStream::finish`] without giving the stream up, so that the caller frees its
+    /// memory (several megabytes of factors at N = 100, whose release took up to about 1 ms)
+    /// when it suits, e.g. after the phasors are published. Only caches of the stream change.
+    pub fn analyse(&mut self) -> Result<HarmonicAnalysis, PhasorError> {
+        if let Some(e) = &self.error {
+            return Err(e.clone());
         }
         let len = self.samples;
         let periods = whole_periods(len, self.grid.nu);
@@ -235,24 +252,27 @@ impl PhasorStream {
         }
         // The periods completed by the samples are the record's whole periods (the tolerance of
         // the count is below that of the boundaries); more cannot be used.
-        let mut work = self.periods;
-        if work.count() < periods {
+        if self.periods.count() < periods {
             return Err(PhasorError::InvalidFit {
                 reason: format!(
                     "step {}: {periods} whole periods in {len} samples but only {} completed",
                     self.step,
-                    work.count()
+                    self.periods.count()
                 ),
             });
         }
-        if let Some((n, analysis)) = self.ready
-            && n == periods
+        if let Some((n, analysis)) = &self.ready
+            && *n == periods
         {
-            return Ok(analysis);
+            return Ok(analysis.clone());
         }
-        work.truncate(periods);
         let info = step_info(self.step, &self.sine, self.start_time_s, &self.channels);
-        settle_and_fit(&mut work, &info, &self.options)
+        if self.periods.count() > periods {
+            let mut work = self.periods.clone();
+            work.truncate(periods);
+            return settle_and_fit(&mut work, &info, &self.options);
+        }
+        settle_and_fit(&mut self.periods, &info, &self.options)
     }
 }
 

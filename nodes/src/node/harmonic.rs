@@ -55,6 +55,7 @@ use forcemap_math::segment::SegmentOptions;
 pub use stream::Analysis;
 use stream::StepStream;
 
+use crate::latency_trace;
 use crate::log_line;
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos};
 use forcemap_io::steps::{StepAssembler, StepError, StepPlan, StepSample};
@@ -105,6 +106,8 @@ pub struct HarmonicState {
     last_sample_at: Option<Instant>,
     /// Provisional phasors every this many seconds of a step's samples (`None`: off).
     update_period_s: Option<f64>,
+    /// The record of the last step analysed from its stream ([`HarmonicState::take_spent`]).
+    spent: Option<Record>,
 }
 
 impl Default for HarmonicState {
@@ -131,6 +134,7 @@ impl HarmonicState {
             finder: None,
             last_sample_at: None,
             update_period_s: None,
+            spent: None,
         }
     }
 
@@ -304,7 +308,14 @@ impl HarmonicState {
         }
     }
 
-    fn outcome(&self, r: Result<Record, StepError>, stream: Option<StepStream>) -> Outcome {
+    /// The record of the last sine step whose phasors come from its stream, which needs it no
+    /// more: for the caller to free when it suits (the node: after the phasors are published,
+    /// as releasing a 10 kHz step's megabytes took up to ~1 ms). Replaced by the next one.
+    pub fn take_spent(&mut self) -> Option<Record> {
+        self.spent.take()
+    }
+
+    fn outcome(&mut self, r: Result<Record, StepError>, stream: Option<StepStream>) -> Outcome {
         let origin = match &self.finder {
             Some(f) => f.origin(),
             None => self.assembler.origin(),
@@ -314,7 +325,10 @@ impl HarmonicState {
             Ok(rec) => match rec.excitation {
                 Excitation::Sine { .. } => {
                     let analysis = match stream.and_then(|s| s.matching(&rec)) {
-                        Some(s) => Analysis::Streamed(Box::new(s)),
+                        Some(s) => {
+                            self.spent = Some(rec);
+                            Analysis::Streamed(Box::new(s))
+                        }
                         None => Analysis::Batch(rec),
                     };
                     Outcome::Analyse(analysis, origin)
@@ -331,6 +345,20 @@ impl HarmonicState {
             Err(e) => Outcome::Dropped(e),
         }
     }
+}
+
+/// How long after its phasors are published a step's stream and record are freed.
+const FREE_AFTER: Duration = Duration::from_millis(100);
+
+/// Frees `spent` [`FREE_AFTER`] from now, off the path from a step's last sample to theta:
+/// releasing a 10 kHz step's megabytes took up to ~1 ms of CPU and, freed at once after the
+/// publish, delayed the phasors' sending by about as much (`forcemap bench graph --trace`,
+/// docs/graph.md); theta follows its last sample by a few ms.
+fn free_later<T: Send + 'static>(spent: T) {
+    tokio::spawn(async move {
+        tokio::time::sleep(FREE_AFTER).await;
+        drop(spent);
+    });
 }
 
 pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
@@ -386,7 +414,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     });
 
     // Analysis runs on its own task, in step order, so sample intake never waits for it.
-    let (atx, mut arx) = mpsc::unbounded_channel::<Outcome>();
+    let (atx, mut arx) = mpsc::unbounded_channel::<(Outcome, Option<Record>)>();
     let status_name = format!("{fq}: harmonic analysis");
     let diag_pub = std::sync::Arc::new(diag_pub);
     let diag_for_worker = diag_pub.clone();
@@ -396,8 +424,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let worker = tokio::spawn(async move {
         let options = options_w;
         let mut analysed = 0usize;
-        while let Some(job) = arx.recv().await {
-            let (analysis, origin) = match job {
+        // `spent`: the step's record, freed with its analysis after the phasors are out.
+        while let Some((job, spent)) = arx.recv().await {
+            let (mut analysis, origin) = match job {
                 Outcome::Analyse(analysis, origin) => (analysis, origin),
                 Outcome::Provisional(stream, origin) => {
                     if let Some(p) = &provisional_pub {
@@ -416,11 +445,40 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             } else {
                 " (batch: the record's sample rate was not the stream's)"
             };
+            let trace_step = step as u32;
+            latency_trace::mark_now("harmonic.analysis_start", trace_step, None);
+            let analysis_ahead = analysis.analysed_ahead();
             let opts = options.clone();
-            let result = tokio::task::spawn_blocking(move || analysis.run(&opts)).await;
+            let run = move || {
+                let (an, cpu_ns) = latency_trace::cpu_of(|| analysis.analyse(&opts));
+                latency_trace::mark_now("harmonic.analysis_done", trace_step, cpu_ns);
+                (an, analysis)
+            };
+            // A stream analysed ahead only hands its analysis over: no thread hop for that.
+            let result = if analysis_ahead {
+                Ok(run())
+            } else {
+                tokio::task::spawn_blocking(run).await
+            };
             match result {
-                Ok(Ok(an)) => {
+                Ok((Ok(an), analysis)) => {
                     analysed += 1;
+                    let (mut msg, cpu_ns) = latency_trace::cpu_of(|| {
+                        HarmonicPhasors::from_analysis(
+                            &an,
+                            origin,
+                            Header::new(now_time(), &frame_w),
+                        )
+                    });
+                    latency_trace::mark_now("harmonic.message_built", trace_step, cpu_ns);
+                    if multisine {
+                        msg.harmonic_cap = HarmonicPhasors::MULTISINE_CAP;
+                    }
+                    if let Err(e) = phasors_pub.async_publish(msg).await {
+                        log_line!("error: publishing the phasors of step {step}: {e:?}");
+                    }
+                    latency_trace::mark_now("harmonic.phasors_published", trace_step, None);
+                    // Said once the phasors are out: the log's write is not on their path.
                     log_line!(
                         "step {step}: {:.3} Hz, {} settled periods{} -> phasors of {} harmonics{how}",
                         an.frequency_hz,
@@ -428,17 +486,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                         if an.settled { "" } else { " (NOT settled)" },
                         an.harmonics
                     );
-                    let mut msg = HarmonicPhasors::from_analysis(
-                        &an,
-                        origin,
-                        Header::new(now_time(), &frame_w),
-                    );
-                    if multisine {
-                        msg.harmonic_cap = HarmonicPhasors::MULTISINE_CAP;
-                    }
-                    if let Err(e) = phasors_pub.async_publish(msg).await {
-                        log_line!("error: publishing the phasors of step {step}: {e:?}");
-                    }
+                    latency_trace::flush();
+                    free_later((analysis, spent));
                     let status = DiagnosticStatus::new(
                         if an.settled {
                             DiagnosticStatus::OK
@@ -458,7 +507,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                         })
                         .await;
                 }
-                Ok(Err(e)) => log_line!("step {step}: dropped: phasor analysis failed: {e}"),
+                Ok((Err(e), _)) => {
+                    log_line!("step {step}: dropped: phasor analysis failed: {e}");
+                }
                 Err(e) => log_line!("step {step}: analysis task failed: {e}"),
             }
         }
@@ -484,10 +535,21 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             i = rx.recv() => match i { Some(i) => i, None => break },
             () = crate::ros::shutdown_signal() => break,
         };
+        // Traced: when the input arrived (for a step's last sample) and the CPU its handling took.
+        let traced = latency_trace::enabled()
+            .then(|| (latency_trace::wall_ns(), latency_trace::thread_cpu_ns()));
         for out in state.handle(input, Instant::now()) {
             match out {
                 job @ (Outcome::Analyse(..) | Outcome::Provisional(..)) => {
-                    let _ = atx.send(job);
+                    if let (Some((arrived_ns, cpu0)), Outcome::Analyse(analysis, _)) =
+                        (traced, &job)
+                    {
+                        let step = analysis.step() as u32;
+                        latency_trace::mark("harmonic.sample_in", step, arrived_ns, None);
+                        let cpu_ns = latency_trace::thread_cpu_ns() - cpu0;
+                        latency_trace::mark_now("harmonic.step_complete", step, Some(cpu_ns));
+                    }
+                    let _ = atx.send((job, state.take_spent()));
                 }
                 Outcome::Skipped(step, why) => log_line!("step {step}: {why}"),
                 Outcome::Warning(w) => {

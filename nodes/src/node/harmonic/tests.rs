@@ -57,6 +57,10 @@ fn steps_complete_in_order_whatever_the_topic_order() {
         (0, 5, 100.0)
     );
     assert_eq!(origin, Time::from_nanos(5_000_000_000));
+    // The step's record, which its stream made unnecessary, is the caller's to free.
+    let spent = h.take_spent().expect("the streamed step's record");
+    assert_eq!((spent.step, spent.len()), (0, 5));
+    assert!(h.take_spent().is_none());
 
     out.extend(h.handle(Input::Excitation(state(1, 4, false)), t));
     for k in 100..104 {

@@ -54,6 +54,7 @@ use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, IdentifiedParameters}
 use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
+use crate::latency_trace;
 use crate::log_line;
 use crate::parameter_services::{ParameterTable, SetRequest};
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos, rig_mass_kg};
@@ -131,8 +132,18 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             biased;
             i = rx.recv() => match i {
                 Some(input) => {
-                    let outputs = core.handle(input, now_time())?;
-                    shell.apply(&core, outputs).await?;
+                    let traced_step = match &input {
+                        Input::Phasors(ph) if latency_trace::enabled() => Some(ph.step),
+                        _ => None,
+                    };
+                    if let Some(step) = traced_step {
+                        latency_trace::mark_now("identifier.phasors_in", step, None);
+                    }
+                    let (outputs, cpu_ns) = latency_trace::cpu_of(|| core.handle(input, now_time()));
+                    if let Some(step) = traced_step {
+                        latency_trace::mark_now("identifier.solved", step, cpu_ns);
+                    }
+                    shell.apply(&core, outputs?).await?;
                 }
                 None => break,
             },
@@ -201,13 +212,27 @@ struct Shell<'a> {
 }
 
 impl Shell<'_> {
+    /// Publishes theta first and persists the state next (its write and fsync took
+    /// milliseconds), then the status and log lines: what a control node waits for is not
+    /// delayed by the rest, and a log line still says its step is persisted.
     async fn apply(&self, core: &IdentifierCore, outputs: Vec<Output>) -> anyhow::Result<()> {
-        for o in outputs {
+        let (mut first, rest): (Vec<Output>, Vec<Output>) = outputs
+            .into_iter()
+            .partition(|o| matches!(o, Output::Theta(_)));
+        if rest.iter().any(|o| matches!(o, Output::Persist)) {
+            first.push(Output::Persist);
+        }
+        first.extend(rest.into_iter().filter(|o| !matches!(o, Output::Persist)));
+        for o in first {
             match o {
                 Output::Log(line) => log_line!("{line}"),
                 Output::Theta(msg) => {
+                    let step = msg.steps_used.last().copied();
                     if let Err(e) = self.theta_pub.async_publish(msg).await {
                         log_line!("error: publishing theta: {e:?}");
+                    }
+                    if let Some(step) = step {
+                        latency_trace::mark_now("identifier.theta_published", step, None);
                     }
                 }
                 Output::Status(status) => {
@@ -221,11 +246,16 @@ impl Shell<'_> {
                 }
                 Output::Persist => {
                     if let (Some(path), Some(st)) = (self.state_file, core.state()) {
-                        st.save(path)?;
+                        let (saved, cpu_ns) = latency_trace::cpu_of(|| st.save(path));
+                        saved?;
+                        if let Some(step) = st.last_step {
+                            latency_trace::mark_now("identifier.state_saved", step, cpu_ns);
+                        }
                     }
                 }
             }
         }
+        latency_trace::flush();
         Ok(())
     }
 }
