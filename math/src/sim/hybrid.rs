@@ -608,3 +608,30 @@ impl Nodes {
         Some((t, Some(i), marked))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::substeps;
+
+    /// A 10 kHz sample interval is one 0.1 ms sub-step whatever the rounding of its sample
+    /// times (`ceil` gave two for about half of them); longer intervals are cut as `ceil` cuts
+    /// them, so the 100 Hz runs keep their sub-steps.
+    #[test]
+    fn a_sample_interval_as_long_as_a_substep_is_one() {
+        let max_s = 1e-4;
+        let (mut rounded_up, mut checked) = (0, 0);
+        for i in (0..1_600_000_u32).step_by(7) {
+            let d = f64::from(i + 1) / 10_000.0 - f64::from(i) / 10_000.0;
+            rounded_up += usize::from(d > max_s);
+            assert_eq!(substeps(d, max_s), 1, "sample {i}: {d:e}");
+            checked += 1;
+        }
+        assert!(rounded_up > checked / 4, "{rounded_up} of {checked}");
+        for i in 0..16_000_u32 {
+            let d = f64::from(i + 1) / 100.0 - f64::from(i) / 100.0;
+            assert_eq!(substeps(d, max_s), (d / max_s).ceil() as usize, "{d:e}");
+        }
+        assert_eq!(substeps(2.5e-4, max_s), 3);
+        assert_eq!(substeps(1e-9, max_s), 1);
+    }
+}

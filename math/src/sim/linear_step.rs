@@ -149,6 +149,30 @@ mod tests {
         ]
     }
 
+    /// The remembered steps are those built afresh, to the bit, for every length and after a
+    /// change of system.
+    #[test]
+    fn a_remembered_step_is_the_step_of_its_length() {
+        let a = Linear2 {
+            stiffness_per_kg: 6380.0 / 36.0,
+            damping_per_kg: 184.0 / 36.0,
+        };
+        let b = Linear2 {
+            stiffness_per_kg: 2.0 * a.stiffness_per_kg,
+            ..a
+        };
+        let mut steps = LinearSteps::default();
+        for round in 0..3 {
+            for sys in [a, b] {
+                for i in 0..200_u32 {
+                    let h = f64::from(i + 1) / 10_000.0 - f64::from(i) / 10_000.0
+                        + f64::from(round) * 1e-6;
+                    assert_eq!(steps.get(sys, h), LinearStep::new(sys, h), "{h:e}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn the_linear_map_is_the_rk4_step() {
         let sys = Linear2 {
