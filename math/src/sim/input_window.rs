@@ -214,12 +214,10 @@ impl InputWindow {
 /// replay evaluates only the base acceleration between samples; the value and the velocity
 /// cost divisions it does not need).
 pub(crate) fn spline_d2(s: &CubicSpline, t: f64, t_ref: f64) -> f64 {
-    let n = s.y.len();
-    if n < 2 {
+    if s.y.len() < 2 {
         return 0.0;
     }
-    let i = ((t_ref - s.t0) * s.sample_rate_hz).floor();
-    let i = if i < 0.0 { 0 } else { (i as usize).min(n - 2) };
+    let i = s.interval(t_ref);
     let h = 1.0 / s.sample_rate_hz;
     let u = t - (s.t0 + i as f64 * h);
     let w = h - u;

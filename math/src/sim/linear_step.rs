@@ -77,6 +77,50 @@ impl LinearStep {
     }
 }
 
+/// The [`LinearStep`]s of one system for every sub-step length met: at 10 kHz the sample
+/// intervals `(i + 1) / fs - i / fs` take a few dozen lengths that differ in their last bits,
+/// and one remembered step was rebuilt every few samples. Direct-mapped on a hash of the
+/// length.
+#[derive(Debug, Clone)]
+pub(crate) struct LinearSteps {
+    sys: Option<Linear2>,
+    slots: Vec<Option<(f64, LinearStep)>>,
+}
+
+impl Default for LinearSteps {
+    fn default() -> Self {
+        LinearSteps {
+            sys: None,
+            slots: vec![None; Self::SLOTS],
+        }
+    }
+}
+
+impl LinearSteps {
+    const SLOTS: usize = 64;
+
+    /// The step of `sys` of length `h`, built if not met before.
+    #[inline]
+    pub fn get(&mut self, sys: Linear2, h: f64) -> LinearStep {
+        if self.sys != Some(sys) {
+            self.sys = Some(sys);
+            self.slots.fill(None);
+        }
+        // Fibonacci hashing of all the bits: the lengths differ by multiples of the sample
+        // times' ulp, about 2^16 of the length's own, so its lowest bits are all alike.
+        let slot = (h.to_bits().wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 58) as usize;
+        let slot = &mut self.slots[slot];
+        match slot {
+            Some((hh, s)) if *hh == h => *s,
+            _ => {
+                let s = LinearStep::new(sys, h);
+                *slot = Some((h, s));
+                s
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -103,6 +147,30 @@ mod tests {
             y[0] + h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]),
             y[1] + h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]),
         ]
+    }
+
+    /// The remembered steps are those built afresh, to the bit, for every length and after a
+    /// change of system.
+    #[test]
+    fn a_remembered_step_is_the_step_of_its_length() {
+        let a = Linear2 {
+            stiffness_per_kg: 6380.0 / 36.0,
+            damping_per_kg: 184.0 / 36.0,
+        };
+        let b = Linear2 {
+            stiffness_per_kg: 2.0 * a.stiffness_per_kg,
+            ..a
+        };
+        let mut steps = LinearSteps::default();
+        for round in 0..3 {
+            for sys in [a, b] {
+                for i in 0..200_u32 {
+                    let h = f64::from(i + 1) / 10_000.0 - f64::from(i) / 10_000.0
+                        + f64::from(round) * 1e-6;
+                    assert_eq!(steps.get(sys, h), LinearStep::new(sys, h), "{h:e}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -75,8 +75,9 @@ pub(crate) struct RigSystem<'a> {
     base_meas: PiecewiseSignal,
     nz: usize,
     omega_c: Option<f64>,
-    /// The element's (k, c) when it is linear (see `Element::linear_coefficients`).
-    linear: Option<(f64, f64)>,
+    /// The element's `k / m` and `c / m` when it is linear (see `Element::linear_coefficients`;
+    /// divided once, not at every sub-step).
+    linear: Option<Linear2>,
     /// Taylor windows of the true base acceleration and displacement (sine-like pieces).
     windows: RefCell<[Option<InputWindow>; 2]>,
     /// (start, end, index) of the piece of the true base that held at the last `t_ref`
@@ -90,6 +91,10 @@ pub(crate) struct RigSystem<'a> {
     /// for the sample's channels in the pass of its acceleration pair, when its window covers
     /// that time already.
     last_value: Cell<Option<(usize, f64, f64)>>,
+    /// (piece, time, reference time, value) of the last true base acceleration taken from a
+    /// spline: an RK4 sub-step asks twice at its middle and its end is the next one's start,
+    /// so half of a replay's evaluations are the one before.
+    last_spline_d2: Cell<Option<(usize, f64, f64, f64)>>,
     /// The run's sample rate: the displacement is computed beside a pair only at a sample's
     /// time (`i / sample_rate_hz`), where the channels will ask for it.
     sample_rate_hz: f64,
@@ -142,7 +147,16 @@ impl RigSystem<'_> {
             return v;
         }
         match piece {
-            Piece::Spline(s) if order == 2 => spline_d2(s, tl, t_ref - sig.shift),
+            Piece::Spline(s) if order == 2 => {
+                if let Some((lj, lt, lr, v)) = self.last_spline_d2.get()
+                    && (lj, lt, lr) == (j, t, t_ref)
+                {
+                    return v;
+                }
+                let v = spline_d2(s, tl, t_ref - sig.shift);
+                self.last_spline_d2.set(Some((j, t, t_ref, v)));
+                v
+            }
             _ => {
                 let d = piece.eval(tl, t_ref - sig.shift);
                 if order == 0 { d.value } else { d.d2 }
@@ -173,7 +187,9 @@ impl RigSystem<'_> {
         let tl = [t[0] - sig.shift, t[1] - sig.shift];
         let mut windows = self.windows.borrow_mut();
         let [w_d2, w_value] = &mut *windows;
-        let i = (t[1] * self.sample_rate_hz).round();
+        // The nearest sample index (`+ 0.5` and truncation: `round` is a libm call on x86-64,
+        // and a time that is no sample time comes out false either way).
+        let i = (t[1] * self.sample_rate_hz + 0.5) as u64 as f64;
         let at_sample = i / self.sample_rate_hz == t[1];
         let also = at_sample.then_some((&*w_value, 0, tl[1]));
         if let Some((v, value)) = InputWindow::eval_pair_with(w_d2, 2, j, piece, tl, also) {
@@ -272,17 +288,14 @@ impl Hybrid for RigSystem<'_> {
         if self.nz > 0 || self.omega_c.is_some() {
             return None;
         }
-        let (k, c) = self.linear?;
+        let lin = self.linear?;
         let constant_friction = match (mode, &self.friction) {
             (Mode::Free, _) => true,
             // Without a Stribeck excess the slip force is the constant level of `dir`.
             (Mode::Slip(_), Some(fr)) => fr.breakaway_n <= fr.kinetic_n,
             _ => false,
         };
-        constant_friction.then(|| Linear2 {
-            stiffness_per_kg: k / self.mass_kg,
-            damping_per_kg: c / self.mass_kg,
-        })
+        constant_friction.then_some(lin)
     }
 
     fn forcing(&self, t: f64, t_ref: f64, mode: Mode) -> f64 {
@@ -396,11 +409,15 @@ pub(crate) fn run_rig_streamed(
         base_meas,
         nz,
         omega_c: lowpass_hz.map(|f| 2.0 * PI * f),
-        linear: element.linear_coefficients(),
+        linear: element.linear_coefficients().map(|(k, c)| Linear2 {
+            stiffness_per_kg: k / mass_kg,
+            damping_per_kg: c / mass_kg,
+        }),
         windows: RefCell::new([None, None]),
         piece: Cell::new((0.0, 0.0, 0)),
         last_d2: Cell::new(None),
         last_value: Cell::new(None),
+        last_spline_d2: Cell::new(None),
         sample_rate_hz,
     };
     let mut y = vec![0.0; sys.dim()];
