@@ -147,3 +147,10 @@ mod tests {
         assert_eq!(amplified_base(&flat), None);
     }
 }
+
+/// Whether the kinematic identity shows an exciter delay `delay_s` with standard deviation
+/// `std_s`: beyond 4 standard deviations and 0.5 ms (the live diagnosis names it only then; the
+/// pair search takes it as a second effect only then).
+pub fn delay_shown(delay_s: f64, std_s: f64) -> bool {
+    delay_s > 4.0 * std_s && delay_s > 5e-4
+}

@@ -171,6 +171,9 @@ pub struct PairResult {
     pub effects: [Effect; 2],
     pub gap_after_percent: f64,
     pub score_percent: f64,
+    /// Leave-one-step-out cross-validated element-force error of the joint fit on the sine
+    /// steps [%].
+    pub phasor_cv_percent: Option<f64>,
     pub added_parameters: Vec<ParameterValue>,
 }
 
@@ -218,12 +221,25 @@ pub struct DiagnosisDetail {
 /// the held-out best's overrules the held-out ranking (see [`step_tie_break`]).
 pub const DECISIVE_STEP_CV_RATIO: f64 = 0.5;
 
+/// Among candidates (or pairs) tied on the held-out records ([`held_out_tie`]), one whose
+/// cross-validated force error on the sine steps is below this fraction of the held-out best's
+/// goes first ([`step_tie_break`], [`pairs::forward_pair`]).
+pub const STEP_TIE_CV_RATIO: f64 = 0.9;
+
+/// How far above the best penalised held-out score a rival is still tied with it: the best
+/// one's own excess over the noise floor (`best_after - floor`), error that neither it nor the
+/// noise explains and that moves every rival's score alike (see [`step_tie_break`]).
+pub fn held_out_tie(best_after_percent: f64, floor: f64) -> f64 {
+    (best_after_percent - floor).max(0.0)
+}
+
 /// Held-out scores closer to the best one than the best candidate's own excess over the noise
 /// floor cannot tell candidates apart: that excess is error that neither the candidate nor the
 /// noise explains (a biased prediction of the random records, e.g. a strongly nonlinear
 /// spring's response is sensitive to the base filtering), and it moves every candidate's score
-/// alike. Among the candidates so tied with the best, the sine steps decide: the one whose
-/// cross-validated element-force error is lowest, if it is below 0.9 times the best's (the
+/// alike ([`held_out_tie`]). Among the candidates so tied with the best, the sine steps decide:
+/// the one whose cross-validated element-force error is lowest, if it is below
+/// [`STEP_TIE_CV_RATIO`] times the best's (the
 /// averaged periods measure the harmonic content, x^3 against x|x| against a dead zone, far more
 /// precisely than the random records do). The steps also overrule a held-out ranking outright
 /// when a candidate's cross-validated error is below [`DECISIVE_STEP_CV_RATIO`] times the
@@ -242,7 +258,7 @@ fn step_tie_break(
 ) -> Option<usize> {
     let best = &ranked[*order.first()?];
     let best_cv = best.phasor_cv_percent?;
-    let tolerance = (best.gap_after_percent - floor).max(0.0);
+    let tolerance = held_out_tie(best.gap_after_percent, floor);
     let (k, cv) = order
         .iter()
         .enumerate()
@@ -259,7 +275,22 @@ fn step_tie_break(
         })
         .filter_map(|(k, i)| ranked[*i].phasor_cv_percent.map(|cv| (k, cv)))
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
-    (cv < 0.9 * best_cv).then_some(k)
+    (cv < STEP_TIE_CV_RATIO * best_cv).then_some(k)
+}
+
+/// Whether the pair's second effect is shown by the sine steps next to the top candidate
+/// `top`, though not by the held-out records: the pair holds the top one, its penalised score is
+/// tied with the top one's alone ([`held_out_tie`]: the top one already leaves about what its
+/// prediction's bias and the noise leave, so a second effect buys nothing measurable there) and
+/// the joint fit's cross-validated force error on the steps is below [`STEP_TIE_CV_RATIO`] times
+/// the top one's alone.
+fn second_shown_by_steps(top: &RankedEffect, pair: &PairResult, floor: f64) -> bool {
+    pair.effects[0] == top.effect
+        && pair.score_percent <= top.score_percent + held_out_tie(top.gap_after_percent, floor)
+        && matches!(
+            (pair.phasor_cv_percent, top.phasor_cv_percent),
+            (Some(p), Some(t)) if p < STEP_TIE_CV_RATIO * t
+        )
 }
 
 /// A family offers several members (the sensor family: one on every channel, one on a single
@@ -492,6 +523,7 @@ pub fn diagnose(
             mass_kg,
             heldout: &heldout,
             n_eff,
+            floor,
         };
         let structure = |i: usize| {
             let c = &search.candidates[cand_idx[i]];
@@ -505,12 +537,22 @@ pub fn diagnose(
     };
     // When the pair scores better than the top candidate alone, its members rank first and
     // second: the best addition to the top candidate ahead of the alternatives to it, and after
-    // an exchange ([`pairs::forward_pair`]) the pair's better-ranked member on top.
-    if let (Some(p), Some(&top)) = (&best_pair, order.first())
-        && p.score_percent < ranked[top].score_percent
-    {
-        for (slot, e) in p.effects.iter().enumerate() {
-            if let Some(k) = order.iter().position(|&i| ranked[i].effect == *e) {
+    // an exchange ([`pairs::forward_pair`]) the pair's better-ranked member on top. When the
+    // held-out records cannot tell the pair from the top one alone but the sine steps show the
+    // second effect ([`second_shown_by_steps`]), it ranks second, the top one staying first.
+    if let (Some(p), Some(&top)) = (&best_pair, order.first()) {
+        let slots = if p.score_percent < ranked[top].score_percent {
+            0..2
+        } else if second_shown_by_steps(&ranked[top], p, floor) {
+            1..2
+        } else {
+            0..0
+        };
+        for slot in slots {
+            if let Some(k) = order
+                .iter()
+                .position(|&i| ranked[i].effect == p.effects[slot])
+            {
                 let i = order.remove(k);
                 order.insert(slot, i);
             }

@@ -147,7 +147,7 @@ impl PhasorDiagnosis {
         });
         let delay_named = s
             .exciter_delay
-            .is_some_and(|(d, sd)| d > 4.0 * sd && d > 5e-4);
+            .is_some_and(|(d, sd)| super::exciter::delay_shown(d, sd));
         let mut findings = Findings::decide(
             Evidence::CrossValidatedForceError,
             before,
