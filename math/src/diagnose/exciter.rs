@@ -99,6 +99,13 @@ pub fn amplified_base(ratios: &[KinematicRatio]) -> Option<(f64, f64)> {
         .max_by(|a, b| a.1.total_cmp(&b.1))
 }
 
+/// Whether the kinematic identity shows an exciter delay `delay_s` with standard deviation
+/// `std_s`: beyond 4 standard deviations and 0.5 ms (the live diagnosis names it only then; the
+/// pair search takes it as a second effect only then).
+pub fn delay_shown(delay_s: f64, std_s: f64) -> bool {
+    delay_s > 4.0 * std_s && delay_s > 5e-4
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -146,11 +153,4 @@ mod tests {
         let flat = ratios(|_| Complex64::new(1.015, 0.0));
         assert_eq!(amplified_base(&flat), None);
     }
-}
-
-/// Whether the kinematic identity shows an exciter delay `delay_s` with standard deviation
-/// `std_s`: beyond 4 standard deviations and 0.5 ms (the live diagnosis names it only then; the
-/// pair search takes it as a second effect only then).
-pub fn delay_shown(delay_s: f64, std_s: f64) -> bool {
-    delay_s > 4.0 * std_s && delay_s > 5e-4
 }
