@@ -147,6 +147,7 @@ fn expected_endpoints() -> Vec<(&'static str, BTreeSet<(String, String)>)> {
                     ("R", "rt/rig/phasors"),
                     ("R", "rt/rig/phasors/provisional"),
                     ("R", "rt/rig/parameters"),
+                    ("R", "rt/rig/excitation"),
                     ("W", "rt/rig/theta"),
                     ("W", "rt/diagnostics"),
                 ],
