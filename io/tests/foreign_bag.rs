@@ -155,20 +155,26 @@ fn a_custom_type_known_only_from_the_bags_schema_gives_the_rig_bags_theta() {
     assert_same_run(&bag, &map);
 }
 
-/// forcemap's own bag read as a foreign one: its RigSample fields by name, the step from the
-/// samples, the frequency from the ExcitationState topic (once per step). Needs no Python.
-#[test]
-fn the_rig_bag_through_a_map_of_its_own_fields_gives_its_theta() {
-    let map = ChannelMap::from_yaml_str(
-        "channels:
+/// The rig bag's five measured channels by their RigSample field names (a channel map without
+/// step or frequency labels).
+const RIG_SAMPLE_CHANNELS: &str = "channels:
   base_displacement_m: {topic: /rig/samples, field: base_displacement_m}
   relative_displacement_m: {topic: /rig/samples, field: relative_displacement_m}
   mass_acceleration_mps2: {topic: /rig/samples, field: mass_acceleration_mps2}
   mass_displacement_m: {topic: /rig/samples, field: mass_displacement_m}
   base_acceleration_mps2: {topic: /rig/samples, field: base_acceleration_mps2}
-  step: {topic: /rig/samples, field: step}
-  frequency_hz: {topic: /rig/excitation, field: frequency_hz}
-",
+";
+
+/// forcemap's own bag read as a foreign one: its RigSample fields by name, the step from the
+/// samples, the frequency from the ExcitationState topic (once per step). Needs no Python.
+#[test]
+fn the_rig_bag_through_a_map_of_its_own_fields_gives_its_theta() {
+    let map = ChannelMap::from_yaml_str(
+        &format!(
+            "{RIG_SAMPLE_CHANNELS}  step: {{topic: /rig/samples, field: step}}
+  frequency_hz: {{topic: /rig/excitation, field: frequency_hz}}
+"
+        ),
         "map.yaml",
     )
     .unwrap();
@@ -180,17 +186,7 @@ fn the_rig_bag_through_a_map_of_its_own_fields_gives_its_theta() {
 /// and frequency) and so is theta; the random records are cut where the drive changes.
 #[test]
 fn the_rig_bag_without_labels_gives_its_sine_steps_and_theta() {
-    let map = ChannelMap::from_yaml_str(
-        "channels:
-  base_displacement_m: {topic: /rig/samples, field: base_displacement_m}
-  relative_displacement_m: {topic: /rig/samples, field: relative_displacement_m}
-  mass_acceleration_mps2: {topic: /rig/samples, field: mass_acceleration_mps2}
-  mass_displacement_m: {topic: /rig/samples, field: mass_displacement_m}
-  base_acceleration_mps2: {topic: /rig/samples, field: base_acceleration_mps2}
-",
-        "map.yaml",
-    )
-    .unwrap();
+    let map = ChannelMap::from_yaml_str(RIG_SAMPLE_CHANNELS, "map.yaml").unwrap();
     let sines = |records: &[Record]| -> Vec<Record> {
         records
             .iter()

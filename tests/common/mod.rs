@@ -194,22 +194,17 @@ pub fn offline_json(bag: &Path, extra: &[&str]) -> serde_json::Value {
 /// `parameters: [{name, value}, ...]`, as `forcemap identify --json` and the monitor's summary
 /// both write it.
 pub fn theta_of_json(v: &serde_json::Value) -> Theta {
-    v["parameters"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|p| {
-            (
-                p["name"].as_str().unwrap().to_string(),
-                p["value"].as_f64().unwrap(),
-            )
-        })
-        .collect()
+    parameter_field_of_json(v, "value")
 }
 
 /// Each parameter's standard deviation, `parameters: [{name, std}, ...]`, as `forcemap identify
 /// --json` and the monitor's summary both write it.
 pub fn stds_of_json(v: &serde_json::Value) -> Theta {
+    parameter_field_of_json(v, "std")
+}
+
+/// One numeric field of each entry of `parameters: [{name, ...}, ...]`, by parameter name.
+fn parameter_field_of_json(v: &serde_json::Value, field: &str) -> Theta {
     v["parameters"]
         .as_array()
         .unwrap()
@@ -217,7 +212,7 @@ pub fn stds_of_json(v: &serde_json::Value) -> Theta {
         .map(|p| {
             (
                 p["name"].as_str().unwrap().to_string(),
-                p["std"].as_f64().unwrap(),
+                p[field].as_f64().unwrap(),
             )
         })
         .collect()
