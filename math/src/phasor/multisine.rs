@@ -57,6 +57,18 @@ pub struct LineSpectrum {
     pub noise_std: Vec<f64>,
 }
 
+impl LineSpectrum {
+    /// A channel of an averaged period carried as harmonics of the base frequency (what a
+    /// phasor message holds) as the line spectrum it is.
+    pub(crate) fn of_channel(c: &super::ChannelPhasors) -> LineSpectrum {
+        LineSpectrum {
+            channel: c.channel,
+            phasors: c.phasors.clone(),
+            noise_std: c.noise_std.clone(),
+        }
+    }
+}
+
 /// The nonlinear-distortion indicator of one channel over the excited band.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DistortionLevel {
@@ -160,15 +172,8 @@ impl MultisineAnalysis {
             });
         }
         let f0 = an.frequency_hz;
-        let channels: Vec<LineSpectrum> = an
-            .channels
-            .iter()
-            .map(|c| LineSpectrum {
-                channel: c.channel,
-                phasors: c.phasors.clone(),
-                noise_std: c.noise_std.clone(),
-            })
-            .collect();
+        let channels: Vec<LineSpectrum> =
+            an.channels.iter().map(LineSpectrum::of_channel).collect();
         let distortion = channels
             .iter()
             .map(|s| distortion_level(s, &lines, f0))

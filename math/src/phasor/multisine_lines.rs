@@ -65,12 +65,7 @@ pub fn excited_lines_of(
         step,
         channel: driven,
     })?;
-    let spectrum = LineSpectrum {
-        channel: driven,
-        phasors: c.phasors.clone(),
-        noise_std: c.noise_std.clone(),
-    };
-    excited_lines(&spectrum, n, step, an.frequency_hz)
+    excited_lines(&LineSpectrum::of_channel(c), n, step, an.frequency_hz)
 }
 
 /// The excited lines (ascending) of an averaged period of `samples_per_period` samples of the
