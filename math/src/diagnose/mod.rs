@@ -47,6 +47,7 @@ pub mod exciter;
 pub mod findings;
 pub mod fit;
 pub mod locate;
+pub mod multisine;
 pub mod output_error;
 pub mod pairs;
 pub mod phasor;

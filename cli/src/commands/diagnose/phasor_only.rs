@@ -7,8 +7,9 @@ use anyhow::Context as _;
 use forcemap_math::diagnose::{PhasorDiagnosis, PhasorFindings};
 use forcemap_math::identify::{FdMultiOptions, Method};
 use forcemap_math::model::Model;
+use forcemap_math::phasor::MultisineOptions;
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
-use forcemap_math::pipeline::identify_records;
+use forcemap_math::pipeline::{analyse_multisine_records, identify_records};
 use forcemap_math::recipe::Setup;
 use forcemap_math::record::{Excitation, Record};
 
@@ -53,7 +54,15 @@ pub fn run(
     baseline: &Model,
     records: &[Record],
 ) -> anyhow::Result<()> {
-    let (setup, note) = with_known_extras(setup, baseline, records)?;
+    let multisines = analyse_multisine_records(records, &MultisineOptions::default())
+        .with_context(|| format!("{source}: analysing the multisine records"))?;
+    // The identification's equations fit the moving mass with every model; the rebuilt sine
+    // periods need it held.
+    let (setup, note) = if multisines.is_empty() {
+        with_known_extras(setup, baseline, records)?
+    } else {
+        (setup.clone(), None)
+    };
     let mut live = PhasorDiagnosis::new(setup.clone(), baseline.clone());
     for r in records
         .iter()
@@ -63,6 +72,9 @@ pub fn run(
             analyse_record(r, &PhasorOptions::for_identification())
                 .with_context(|| format!("{source}: step {}", r.step))?,
         );
+    }
+    for ms in multisines {
+        live.push_multisine(ms);
     }
     let f = live
         .findings()
@@ -90,13 +102,31 @@ fn print_summary(
     f: &PhasorFindings,
     note: Option<&str>,
 ) {
+    let steps = if f.multisine_steps == 0 {
+        format!("{} sine steps", f.steps)
+    } else {
+        format!(
+            "{} sine steps and {} multisine records (fitted through the identification's equations per line)",
+            f.steps - f.multisine_steps,
+            f.multisine_steps
+        )
+    };
     println!(
-        "{source}: baseline {} on {} sine steps of a {} setup; no records to simulate on, so the evidence is the {}",
+        "{source}: baseline {} on {steps} of a {} setup; no records to simulate on, so the evidence is the {}",
         baseline.name,
-        f.steps,
         setup.kind(),
         f.findings.evidence.measure()
     );
+    if !f.not_fitted.is_empty() {
+        println!(
+            "not fitted on multisine records (not extra element terms): {}",
+            f.not_fitted
+                .iter()
+                .map(|e| e.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     if let Some(n) = note {
         println!("note: {n}");
     }
