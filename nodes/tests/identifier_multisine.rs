@@ -15,10 +15,9 @@ use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::identify_records;
 use forcemap_math::recipe::Setup;
-use forcemap_math::record::{Channel, Excitation, Record};
+use forcemap_math::record::{Excitation, Record};
 use forcemap_math::sim::RunSpec;
-use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, IdentifiedParameters};
-use forcemap_msgs::std_msgs::Header;
+use forcemap_msgs::msg::IdentifiedParameters;
 use forcemap_nodes::node::identifier::{
     IdentifierCore, IdentifierState, Input, Output, RecipeParameters,
 };
