@@ -43,6 +43,7 @@
 pub mod cycles;
 pub mod drift;
 pub mod effects;
+pub mod element_heldout;
 pub mod exciter;
 pub mod findings;
 pub mod fit;

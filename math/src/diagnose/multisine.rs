@@ -15,6 +15,7 @@ use nalgebra::DVector;
 use super::DiagnoseError;
 use super::cycles::synthesize;
 use super::effects::{Effect, Scales, Structure, baseline_has, structures};
+use super::element_heldout::TermFit;
 use super::locate::{Located, StatePlane};
 use super::search::POSITIVE_SYMBOLS;
 use crate::identify::{
@@ -39,6 +40,8 @@ pub struct BlockCandidate {
     pub cv_percent: f64,
     /// (name, value, std) of what the structure added, fitted on every step.
     pub added_parameters: Vec<(String, f64, f64)>,
+    /// Baseline + structure fitted on every step.
+    pub fit: TermFit,
 }
 
 /// The baseline's fit on one step.
@@ -57,6 +60,8 @@ pub struct BlockGap {
 #[derive(Debug, Clone)]
 pub struct BlockSearch {
     pub baseline_cv_percent: f64,
+    /// The baseline fitted on every step.
+    pub baseline_fit: TermFit,
     /// Cross-validated error the noise alone would leave [%].
     pub noise_cv_percent: f64,
     /// Independent real equations over every step (the penalty's N).
@@ -232,6 +237,7 @@ pub fn search_blocks(
     // The baseline on every step, per step.
     let sine_blocks = steps.sine_blocks(baseline)?;
     let theta = steps.identify(baseline, &sine_blocks, None)?.theta();
+    let baseline_fit = term_fit(setup, baseline, &theta);
     let mut equations = 0.0;
     let mut by_step = Vec::new();
     for k in 0..steps.len() {
@@ -290,6 +296,7 @@ pub fn search_blocks(
                     structure,
                     cv_percent: cv,
                     added_parameters: added,
+                    fit: term_fit(setup, &model, &id.theta()),
                 });
             }
         }
@@ -297,6 +304,7 @@ pub fn search_blocks(
     }
     Ok(BlockSearch {
         baseline_cv_percent: baseline_cv,
+        baseline_fit,
         noise_cv_percent: noise_cv,
         equations,
         candidates,
@@ -305,8 +313,25 @@ pub fn search_blocks(
     })
 }
 
+/// `model` with `theta` from the identification: its terms' coefficients, then the moving
+/// mass where the setup leaves it unknown.
+fn term_fit(setup: &Setup, model: &Model, theta: &[f64]) -> TermFit {
+    let n = model.terms.len();
+    let mass_kg = match setup {
+        Setup::Element {
+            moving_mass_kg: Some(m),
+        } => *m,
+        _ => theta.get(n).copied().unwrap_or(0.0),
+    };
+    TermFit {
+        terms: model.terms.clone(),
+        theta: theta[..n].to_vec(),
+        mass_kg,
+    }
+}
+
 /// Whether a structure only adds element terms (so the identification's equations hold it).
-fn is_extra_terms(s: &Structure) -> bool {
+pub(crate) fn is_extra_terms(s: &Structure) -> bool {
     s.hysteresis_yield_m.is_none()
         && s.series_relaxation_s.is_none()
         && !s.drift

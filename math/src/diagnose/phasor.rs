@@ -5,9 +5,11 @@
 use serde::Serialize;
 
 use super::effects::Effect;
+use super::element_heldout::TermFit;
 use super::findings::{Evidence, Findings, TopCandidate, Verdict};
+use super::fit::Fitted;
 use super::locate::{Located, locate};
-use super::multisine::{located_by_step, search_blocks};
+use super::multisine::{is_extra_terms, located_by_step, search_blocks};
 use super::score::penalised;
 use super::search::search;
 use super::{DiagnoseError, ParameterValue, parameter_values};
@@ -28,6 +30,10 @@ pub struct PhasorEffect {
     pub score_percent: f64,
     pub added_parameters: Vec<ParameterValue>,
     pub significant: bool,
+    /// Baseline + effect fitted on every step, where it is extra element terms and the
+    /// moving mass is known or fitted (for held-out element records, [`super::element_heldout`]).
+    #[serde(skip)]
+    pub fit: Option<TermFit>,
 }
 
 /// What the live diagnosis finds after the steps so far.
@@ -51,6 +57,9 @@ pub struct PhasorFindings {
     /// Candidates not fitted: with multisine records, those that are not extra element terms
     /// ([`super::multisine`]).
     pub not_fitted: Vec<Effect>,
+    /// The baseline fitted on every step (as [`PhasorEffect::fit`]).
+    #[serde(skip)]
+    pub baseline_fit: Option<TermFit>,
 }
 
 /// Live gap diagnosis from harmonic analyses, one step at a time.
@@ -158,6 +167,7 @@ impl PhasorDiagnosis {
                 cv_percent: c.cv_percent.unwrap_or(c.fitted.residual_percent),
                 extra_parameters: c.structure.extra_parameters,
                 added_parameters: c.fitted.added_parameters(),
+                fit: self.term_fit(&c.fitted),
             })
             .collect();
         let (mut findings, ranked) = conclude(before, s.noise_cv_percent, s.equations, candidates);
@@ -175,6 +185,7 @@ impl PhasorDiagnosis {
             ranked_effects: ranked,
             kinematic_delay_s: s.exciter_delay.map(|(d, sd)| [d, sd]),
             not_fitted: Vec::new(),
+            baseline_fit: self.term_fit(&s.baseline),
         })
     }
 
@@ -196,6 +207,7 @@ impl PhasorDiagnosis {
                 cv_percent: c.cv_percent,
                 extra_parameters: c.structure.extra_parameters,
                 added_parameters: c.added_parameters.clone(),
+                fit: Some(c.fit.clone()),
             })
             .collect();
         let (findings, ranked) = conclude(
@@ -212,6 +224,23 @@ impl PhasorDiagnosis {
             ranked_effects: ranked,
             kinematic_delay_s: None,
             not_fitted: s.not_fitted,
+            baseline_fit: Some(s.baseline_fit),
+        })
+    }
+
+    /// A fit on the rebuilt sine periods as a [`TermFit`]: where it only adds element terms
+    /// and the element setup's moving mass is known.
+    fn term_fit(&self, f: &Fitted) -> Option<TermFit> {
+        let Setup::Element {
+            moving_mass_kg: Some(m),
+        } = self.setup
+        else {
+            return None;
+        };
+        is_extra_terms(&f.structure).then(|| TermFit {
+            terms: f.terms.clone(),
+            theta: f.theta[..f.terms.len()].to_vec(),
+            mass_kg: m,
         })
     }
 }
@@ -222,6 +251,7 @@ struct Scored {
     cv_percent: f64,
     extra_parameters: usize,
     added_parameters: Vec<(String, f64, f64)>,
+    fit: Option<TermFit>,
 }
 
 /// The ranking and the verdict from the cross-validated errors: the same penalty and rule
@@ -245,6 +275,7 @@ fn conclude(
                 score_percent: score,
                 added_parameters: parameter_values(c.added_parameters),
                 significant: super::significant(before, floor, c.cv_percent, score, base_score),
+                fit: c.fit,
             }
         })
         .collect();
