@@ -4,6 +4,10 @@
 //! force from the measured motion, `diagnose::element_heldout`). With the planted effect the
 //! held-out force NMSE falls to within 1.5 times what the true element leaves on the same
 //! noisy record (the noise floor of this prediction), from several times that.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
 
 use std::sync::Arc;
 

@@ -124,7 +124,7 @@ fn derivative(y: &[f64], fs: f64, cutoff_hz: f64, order: u32) -> Vec<f64> {
             k as f64 - n as f64
         };
         let f = kk * fs / n as f64;
-        if f.abs() > cutoff_hz || (n % 2 == 0 && k == n / 2) {
+        if f.abs() > cutoff_hz || (n.is_multiple_of(2) && k == n / 2) {
             *b = Complex64::new(0.0, 0.0);
         } else {
             *b *= Complex64::new(0.0, std::f64::consts::TAU * f).powu(order) / n as f64;
