@@ -93,6 +93,14 @@ fn a_cubic_spring_is_named_on_three_multisine_realisations() {
     assert!(f.findings.gap_before_percent > 5.0 * f.findings.floor_percent);
     // Candidates that are not element terms are listed, not silently dropped.
     assert!(f.not_fitted.contains(&Effect::Hysteresis));
+    // A constant force has no equation here (the multisine equations start at the first bin).
+    assert!(
+        f.dropped
+            .iter()
+            .any(|d| d.effect == Effect::Preload && d.reason.contains("cannot identify")),
+        "{:?}",
+        f.dropped
+    );
 }
 
 #[test]

@@ -11,6 +11,7 @@
 //! on rebuilt sine periods only and listed as not fitted here.
 
 use nalgebra::DVector;
+use serde::Serialize;
 
 use super::DiagnoseError;
 use super::cycles::synthesize;
@@ -44,6 +45,13 @@ pub struct BlockCandidate {
     pub fit: TermFit,
 }
 
+/// A candidate that gave no fit on these steps, and why.
+#[derive(Debug, Clone, Serialize)]
+pub struct DroppedEffect {
+    pub effect: Effect,
+    pub reason: String,
+}
+
 /// The baseline's fit on one step.
 #[derive(Debug, Clone)]
 pub struct BlockGap {
@@ -69,6 +77,9 @@ pub struct BlockSearch {
     pub candidates: Vec<BlockCandidate>,
     /// Candidate effects that are not extra element terms, so not fitted on these equations.
     pub not_fitted: Vec<Effect>,
+    /// Candidates fitted but dropped, with the first reason (a fit these steps cannot identify,
+    /// or one that needs the opposite sign).
+    pub dropped: Vec<DroppedEffect>,
     pub by_step: Vec<BlockGap>,
 }
 
@@ -254,6 +265,7 @@ pub fn search_blocks(
     let scales = scales(setup, &steps)?;
     let mut candidates = Vec::new();
     let mut not_fitted = Vec::new();
+    let mut dropped = Vec::new();
     for &effect in effects {
         if baseline_has(baseline, effect) {
             continue;
@@ -264,13 +276,18 @@ pub fn search_blocks(
             continue;
         }
         let mut best: Option<BlockCandidate> = None;
+        let mut why_not = None;
         for structure in options {
             let model = baseline.with_terms(
                 format!("{} + {}", baseline.name, effect.name()),
                 &structure.terms,
             );
-            let Ok(id) = steps.identify(&model, &steps.sine_blocks(&model)?, None) else {
-                continue;
+            let id = match steps.identify(&model, &steps.sine_blocks(&model)?, None) {
+                Ok(id) => id,
+                Err(e) => {
+                    why_not.get_or_insert(e.to_string());
+                    continue;
+                }
             };
             let mut added: Vec<(String, f64, f64)> = id.parameters
                 [baseline.terms.len()..model.terms.len()]
@@ -279,10 +296,15 @@ pub fn search_blocks(
                 .collect();
             // A fit that needs the opposite sign is not that effect.
             if !physical(&added) {
+                why_not.get_or_insert("its fit needs the opposite sign".to_string());
                 continue;
             }
-            let Ok((cv, _)) = cross_validated(&steps, &model) else {
-                continue;
+            let cv = match cross_validated(&steps, &model) {
+                Ok((cv, _)) => cv,
+                Err(e) => {
+                    why_not.get_or_insert(format!("leaving a step out: {e}"));
+                    continue;
+                }
             };
             if best.as_ref().is_none_or(|b| cv < b.cv_percent) {
                 added.extend(
@@ -300,7 +322,13 @@ pub fn search_blocks(
                 });
             }
         }
-        candidates.extend(best);
+        match best {
+            Some(b) => candidates.push(b),
+            None => dropped.push(DroppedEffect {
+                effect,
+                reason: why_not.unwrap_or_default(),
+            }),
+        }
     }
     Ok(BlockSearch {
         baseline_cv_percent: baseline_cv,
@@ -309,6 +337,7 @@ pub fn search_blocks(
         equations,
         candidates,
         not_fitted,
+        dropped,
         by_step,
     })
 }

@@ -9,7 +9,7 @@ use super::element_heldout::TermFit;
 use super::findings::{Evidence, Findings, TopCandidate, Verdict};
 use super::fit::Fitted;
 use super::locate::{Located, locate};
-use super::multisine::{is_extra_terms, located_by_step, search_blocks};
+use super::multisine::{DroppedEffect, is_extra_terms, located_by_step, search_blocks};
 use super::score::penalised;
 use super::search::search;
 use super::{DiagnoseError, ParameterValue, parameter_values};
@@ -57,6 +57,8 @@ pub struct PhasorFindings {
     /// Candidates not fitted: with multisine records, those that are not extra element terms
     /// ([`super::multisine`]).
     pub not_fitted: Vec<Effect>,
+    /// With multisine records, candidates that gave no fit on these steps, and why.
+    pub dropped: Vec<DroppedEffect>,
     /// The baseline fitted on every step (as [`PhasorEffect::fit`]).
     #[serde(skip)]
     pub baseline_fit: Option<TermFit>,
@@ -185,6 +187,7 @@ impl PhasorDiagnosis {
             ranked_effects: ranked,
             kinematic_delay_s: s.exciter_delay.map(|(d, sd)| [d, sd]),
             not_fitted: Vec::new(),
+            dropped: Vec::new(),
             baseline_fit: self.term_fit(&s.baseline),
         })
     }
@@ -224,6 +227,7 @@ impl PhasorDiagnosis {
             ranked_effects: ranked,
             kinematic_delay_s: None,
             not_fitted: s.not_fitted,
+            dropped: s.dropped,
             baseline_fit: Some(s.baseline_fit),
         })
     }

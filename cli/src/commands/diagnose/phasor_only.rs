@@ -196,6 +196,9 @@ fn print_summary(
                 .join(", ")
         );
     }
+    for d in &f.dropped {
+        println!("not a candidate here: {}: {}", d.effect.name(), d.reason);
+    }
     if let Some(n) = note {
         println!("note: {n}");
     }
