@@ -43,10 +43,12 @@
 pub mod cycles;
 pub mod drift;
 pub mod effects;
+pub mod element_heldout;
 pub mod exciter;
 pub mod findings;
 pub mod fit;
 pub mod locate;
+pub mod multisine;
 pub mod output_error;
 pub mod pairs;
 pub mod phasor;
