@@ -11,7 +11,8 @@
 use forcemap_math::element::Friction;
 use forcemap_math::sim::excitation::{PAPER_RIG_SINE_AMPLITUDE_M, sine_steps};
 use forcemap_math::sim::{
-    ReplayOptions, RigEffects, RunSpec, SimOutput, TruthElement, simulate_on_sampled_base,
+    ReplayOptions, RigEffects, RunSpec, SimOutput, ThreeDofCase, TruthElement,
+    simulate_on_sampled_base,
 };
 
 /// FNV-1a over 64-bit words.
@@ -192,6 +193,23 @@ fn the_100hz_rig_runs_are_unchanged() {
         h.0,
         0x8417_2d1f_526d_f40f,
         "",
+    );
+    c.assert_none();
+}
+
+/// The other systems share the integrator's loop (nonlinear elements: the RK4 stages).
+#[test]
+fn the_3dof_and_element_runs_are_unchanged() {
+    let mut c = Changed::default();
+    c.run(
+        "three_dof CASE I",
+        &RunSpec::three_dof(ThreeDofCase::I, None, 0),
+        0x7c89_74b0_1014_4909,
+    );
+    c.run(
+        "damper_dyno 40 dB",
+        &RunSpec::damper_dyno(Some(40.0), 2),
+        0xb0cd_00e8_1d22_24c9,
     );
     c.assert_none();
 }
