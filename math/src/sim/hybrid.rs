@@ -116,6 +116,15 @@ pub(crate) trait Hybrid {
 /// The last forcing evaluated at the end of a linear sub-step: (t, t_ref, mode, u).
 type LastForcing = (f64, f64, Mode, f64);
 
+/// What the loop over plain samples knows of an interval's inputs without asking the system.
+#[derive(Debug, Clone, Copy)]
+struct Known {
+    /// [`Hybrid::forcing_affine`] at the interval's `t_ref`.
+    affine: bool,
+    /// The last sub-step's inputs came from the same pieces.
+    same_piece: bool,
+}
+
 /// Per-run statistics of the event-driven integration.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct RunStats {
@@ -163,7 +172,7 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
             self.rk4(t, t_ref, y, dt, mode, out);
             return;
         };
-        [out[0], out[1]] = self.linear_substep(lin, t, t_ref, [y[0], y[1]], dt, mode);
+        [out[0], out[1]] = self.linear_substep(lin, t, t_ref, [y[0], y[1]], dt, mode, false);
     }
 
     /// [`Integrator::full_step`] of a system linear in `mode` (`lin`). Inlined: as a call of
@@ -177,11 +186,13 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         y: [f64; 2],
         dt: f64,
         mode: Mode,
+        same_piece: bool,
     ) -> [f64; 2] {
-        let step = self.linear_steps.get(lin, self.substep_s);
         let u0 = match self.last_forcing {
             Some((tt, tr, m, u))
-                if tt == t && m == mode && (tr == t_ref || self.sys.same_inputs(t_ref, tr)) =>
+                if tt == t
+                    && m == mode
+                    && (same_piece || tr == t_ref || self.sys.same_inputs(t_ref, tr)) =>
             {
                 u
             }
@@ -190,14 +201,18 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         let t1 = t + dt;
         let [uh, u1] = self.sys.forcing_pair([t + 0.5 * dt, t1], t_ref, mode);
         self.last_forcing = Some((t1, t_ref, mode, u1));
-        step.apply(y, u0, uh, u1)
+        // The step by reference (a copy of its 16 numbers per sub-step was 5 % of a 10 kHz run).
+        self.linear_steps
+            .get(lin, self.substep_s)
+            .apply(y, u0, uh, u1)
     }
 
     /// A sample interval of one sub-step, free or slipping without reaching zero velocity,
     /// taken as [`Integrator::advance`] takes it (the same operations, so the same state to the
     /// bit) without its loop and copies: at 10 kHz every interval is one sub-step. `None`
     /// (nothing changed) when the system is not linear in `mode` or a slip ends inside: then
-    /// `advance` takes it.
+    /// `advance` takes it. `same_piece`: the last sub-step's inputs are known to come from the
+    /// pieces at `t_ref` (no breakpoint since), so [`Hybrid::same_inputs`] is not asked.
     fn one_linear_substep(
         &mut self,
         t0: f64,
@@ -205,6 +220,7 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         t_ref: f64,
         y: &[f64],
         mode: Mode,
+        same_piece: bool,
     ) -> Option<[f64; 2]> {
         let dt = t1 - t0;
         if dt <= 0.0 || mode == Mode::Stick || self.sys.vel_index() != 1 {
@@ -212,7 +228,7 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         }
         let lin = self.sys.linear(mode)?;
         let before = self.last_forcing;
-        let next = self.linear_substep(lin, t0, t_ref, [y[0], y[1]], dt, mode);
+        let next = self.linear_substep(lin, t0, t_ref, [y[0], y[1]], dt, mode, same_piece);
         match mode {
             Mode::Slip(dir) if dir * next[1] <= 0.0 || next[1].is_nan() => {
                 self.last_forcing = before;
@@ -456,12 +472,37 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         mut on_sample: impl FnMut(usize, f64, f64, &[f64], Mode) -> bool,
         mut on_substep: impl FnMut(usize, f64, usize),
     ) -> Result<(), SimError> {
-        let mut nodes = Nodes::new(samples, sample_rate_hz, breaks).peekable();
+        let mut nodes = Nodes::new(samples, sample_rate_hz, breaks);
         let mut mode = Mode::Free;
         let mut current = 0usize;
         let mut first = true;
-        while let Some((t, sample, is_break)) = nodes.next() {
-            let t_next = nodes.peek().map(|n| n.0);
+        let mut node = nodes.next();
+        while let Some((t, sample, is_break)) = node {
+            if !first
+                && !is_break
+                && let Some(k) = sample
+            {
+                let reached = self.plain_samples(
+                    k,
+                    &nodes,
+                    y,
+                    &mut mode,
+                    sample_rate_hz,
+                    &mut on_sample,
+                    &mut on_substep,
+                )?;
+                match reached {
+                    None => return Ok(()),
+                    Some(r) if r > k => {
+                        nodes.resume_at(r);
+                        node = nodes.next();
+                        continue;
+                    }
+                    Some(_) => {}
+                }
+            }
+            let next = nodes.next();
+            let t_next = next.map(|n| n.0);
             let t_ref = t_next.map_or(t, |tn| 0.5 * (t + tn));
             if is_break && !first {
                 self.sys.jump(t, y);
@@ -476,40 +517,111 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
                     return Ok(());
                 }
             }
+            node = next;
             let Some(tn) = t_next else { break };
-            if let Some(next) = self.exact_interval(t, tn, t_ref, y, mode) {
-                y[..2].copy_from_slice(&next);
-                if !next.iter().all(|v| v.is_finite()) {
-                    return Err(SimError::NonFinite { time_s: tn });
-                }
-                continue;
+            self.interval(t, tn, t_ref, y, &mut mode, current, &mut on_substep, None)?;
+        }
+        Ok(())
+    }
+
+    /// The plain samples from `k` on (sample `k` just taken from `nodes`): each not a
+    /// breakpoint and followed by the next sample, sampled and integrated to the next as the
+    /// node loop of [`Integrator::run_streamed`] does it (the same calls in the same order, so
+    /// the same state to the bit) without its per-node bookkeeping: at 10 kHz that loop was a
+    /// quarter of a run. Returns the sample it stopped before (`k` when none was plain), or
+    /// `None` when `on_sample` stopped the run.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the node loop's state, passed through"
+    )]
+    fn plain_samples(
+        &mut self,
+        k: usize,
+        nodes: &Nodes,
+        y: &mut [f64],
+        mode: &mut Mode,
+        sample_rate_hz: f64,
+        on_sample: &mut impl FnMut(usize, f64, f64, &[f64], Mode) -> bool,
+        on_substep: &mut impl FnMut(usize, f64, usize),
+    ) -> Result<Option<usize>, SimError> {
+        let (end, next_break) = nodes.plain_after(k);
+        let mut t = k as f64 / sample_rate_hz;
+        // No breakpoint inside the stretch: the inputs come from the same pieces throughout,
+        // so whether they are affine is asked once, and after its first interval every
+        // sub-step's inputs are those of the one before.
+        let mut affine = None;
+        for s in k..end {
+            let tn = (s + 1) as f64 / sample_rate_hz;
+            if next_break.total_cmp(&tn).is_lt() {
+                return Ok(Some(s));
             }
-            let n = substeps(tn - t, self.opts.max_substep_s);
-            let h = (tn - t) / n as f64;
-            self.substep_s = h;
-            if n == 1
-                && let Some(next) = self.one_linear_substep(t, tn, t_ref, y, mode)
-            {
-                [y[0], y[1]] = next;
-                on_substep(current, 0.0, 0);
-                if !next.iter().all(|v| v.is_finite()) {
-                    return Err(SimError::NonFinite { time_s: tn });
-                }
-                continue;
+            let t_ref = 0.5 * (t + tn);
+            if !on_sample(s, t, t_ref, y, *mode) {
+                return Ok(None);
             }
-            for s in 0..n {
-                let a = t + s as f64 * h;
-                let b = if s + 1 == n {
-                    tn
-                } else {
-                    t + (s + 1) as f64 * h
-                };
-                let (st, ev) = self.advance(a, b, t_ref, y, &mut mode)?;
-                on_substep(current, st, ev);
-            }
-            if y.iter().any(|v| !v.is_finite()) {
+            let exact = *affine.get_or_insert_with(|| self.sys.forcing_affine(t_ref));
+            let known = Known {
+                affine: exact,
+                same_piece: s > k,
+            };
+            self.interval(t, tn, t_ref, y, mode, s, on_substep, Some(known))?;
+            t = tn;
+        }
+        Ok(Some(end))
+    }
+
+    /// Integrates `y` over the node interval `[t, tn]` (inputs from the pieces at `t_ref`):
+    /// one exact step, one linear sub-step, or sub-steps with event location.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the node loop's state, passed through"
+    )]
+    #[inline(always)]
+    fn interval(
+        &mut self,
+        t: f64,
+        tn: f64,
+        t_ref: f64,
+        y: &mut [f64],
+        mode: &mut Mode,
+        current: usize,
+        on_substep: &mut impl FnMut(usize, f64, usize),
+        known: Option<Known>,
+    ) -> Result<(), SimError> {
+        let try_exact = known.is_none_or(|k| k.affine);
+        if try_exact && let Some(next) = self.exact_interval(t, tn, t_ref, y, *mode) {
+            y[..2].copy_from_slice(&next);
+            if !next.iter().all(|v| v.is_finite()) {
                 return Err(SimError::NonFinite { time_s: tn });
             }
+            return Ok(());
+        }
+        let n = substeps(tn - t, self.opts.max_substep_s);
+        let h = (tn - t) / n as f64;
+        self.substep_s = h;
+        if n == 1
+            && let Some(next) =
+                self.one_linear_substep(t, tn, t_ref, y, *mode, known.is_some_and(|k| k.same_piece))
+        {
+            [y[0], y[1]] = next;
+            on_substep(current, 0.0, 0);
+            if !next.iter().all(|v| v.is_finite()) {
+                return Err(SimError::NonFinite { time_s: tn });
+            }
+            return Ok(());
+        }
+        for s in 0..n {
+            let a = t + s as f64 * h;
+            let b = if s + 1 == n {
+                tn
+            } else {
+                t + (s + 1) as f64 * h
+            };
+            let (st, ev) = self.advance(a, b, t_ref, y, mode)?;
+            on_substep(current, st, ev);
+        }
+        if y.iter().any(|v| !v.is_finite()) {
+            return Err(SimError::NonFinite { time_s: tn });
         }
         Ok(())
     }

@@ -100,6 +100,8 @@ pub(crate) struct RigSystem<'a> {
     /// The run's sample rate: the displacement is computed beside a pair only at a sample's
     /// time (`i / sample_rate_hz`), where the channels will ask for it.
     sample_rate_hz: f64,
+    /// [`RigSystem::friction_per_kg`] slipping in direction -1 and 1.
+    slip_per_kg: [f64; 2],
 }
 
 impl RigSystem<'_> {
@@ -174,6 +176,17 @@ impl RigSystem<'_> {
     /// The constant part of the forcing of `Hybrid::linear`: minus the slip friction (of
     /// constant level there) per kg.
     fn friction_per_kg(&self, mode: Mode) -> f64 {
+        // Slips are in direction 1 or -1: their values once per run, with the same operations.
+        match mode {
+            Mode::Slip(d) if d == 1.0 => return self.slip_per_kg[1],
+            Mode::Slip(d) if d == -1.0 => return self.slip_per_kg[0],
+            _ => {}
+        }
+        self.friction_per_kg_of(mode)
+    }
+
+    /// [`RigSystem::friction_per_kg`], computed.
+    fn friction_per_kg_of(&self, mode: Mode) -> f64 {
         let fr = match (mode, &self.friction) {
             (Mode::Slip(d), Some(fr)) => slip_force_dir(fr, 0.0, d),
             _ => 0.0,
@@ -233,8 +246,16 @@ impl RigSystem<'_> {
 
     /// Unfiltered channel values in `RIG_CHANNELS` order and the friction force.
     fn channels(&self, t: f64, t_ref: f64, y: &[f64], mode: Mode) -> ([f64; 5], f64) {
-        let b_d2 = self.base_true_d2(t, t_ref);
-        let b_value = self.base_true_window(0, t, t_ref);
+        // The lookups of `base_true_window` first, with one piece index for both: at a sample
+        // both values are those its sub-step computed (at 10 kHz, nearly every sample).
+        let j = self.base_true_index(t_ref);
+        let remembered = |last: &Cell<Option<(usize, f64, f64)>>| match last.get() {
+            Some((lj, lt, v)) if lj == j && lt == t => Some(v),
+            _ => None,
+        };
+        let b_d2 = remembered(&self.last_d2).unwrap_or_else(|| self.base_true_d2(t, t_ref));
+        let b_value =
+            remembered(&self.last_value).unwrap_or_else(|| self.base_true_window(0, t, t_ref));
         // Without an exciter delay the measured base is the true one.
         let (m_value, m_d2) = if self.base_true.shift == self.base_meas.shift {
             (b_value, b_d2)
@@ -421,6 +442,11 @@ pub(crate) fn run_rig_streamed(
         last_value: Cell::new(None),
         last_spline_d2: Cell::new(None),
         sample_rate_hz,
+        slip_per_kg: [0.0; 2],
+    };
+    let sys = RigSystem {
+        slip_per_kg: [-1.0, 1.0].map(|d| sys.friction_per_kg_of(Mode::Slip(d))),
+        ..sys
     };
     let mut y = vec![0.0; sys.dim()];
     let b0 = sys.base_true.eval_right(0.0);

@@ -60,6 +60,10 @@ pub(crate) fn simulate_rig_records(
             true
         },
         |i, stuck_s, ev| {
+            // Nothing to add for an interval free of stick and events (the sums start at +0).
+            if stuck_s == 0.0 && ev == 0 {
+                return;
+            }
             locate(&mut at_interval, i);
             let (k, first) = at_interval;
             if let Some(s) = stick_time_s[k].get_mut(i - first) {
