@@ -213,6 +213,7 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
     /// (nothing changed) when the system is not linear in `mode` or a slip ends inside: then
     /// `advance` takes it. `same_piece`: the last sub-step's inputs are known to come from the
     /// pieces at `t_ref` (no breakpoint since), so [`Hybrid::same_inputs`] is not asked.
+    #[inline(always)]
     fn one_linear_substep(
         &mut self,
         t0: f64,

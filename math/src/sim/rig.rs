@@ -195,6 +195,7 @@ impl RigSystem<'_> {
     }
 
     /// [`RigSystem::base_true_d2`] at two times.
+    #[inline(always)]
     fn base_true_d2_pair(&self, t: [f64; 2], t_ref: f64) -> [f64; 2] {
         let sig = &self.base_true;
         let j = self.base_true_index(t_ref);
@@ -204,7 +205,8 @@ impl RigSystem<'_> {
         let [w_d2, w_value] = &mut *windows;
         // The nearest sample index (`+ 0.5` and truncation: `round` is a libm call on x86-64,
         // and a time that is no sample time comes out false either way).
-        let i = (t[1] * self.sample_rate_hz + 0.5) as u64 as f64;
+        // (`as i64`: one instruction where `as u64` is a dozen; the time is not negative.)
+        let i = (t[1] * self.sample_rate_hz + 0.5) as i64 as f64;
         let at_sample = i / self.sample_rate_hz == t[1];
         let also = at_sample.then_some((&*w_value, 0, tl[1]));
         if let Some((v, value)) = InputWindow::eval_pair_with(w_d2, 2, j, piece, tl, also) {
@@ -222,6 +224,7 @@ impl RigSystem<'_> {
     }
 
     /// Relative acceleration x'' and friction force in `mode`, with base acceleration `b_d2`.
+    #[inline(always)]
     fn accel(&self, b_d2: f64, y: &[f64], mode: Mode) -> (f64, f64) {
         let (x, v) = (y[0], y[1]);
         let z = &y[2..2 + self.nz];
@@ -245,6 +248,10 @@ impl RigSystem<'_> {
     }
 
     /// Unfiltered channel values in `RIG_CHANNELS` order and the friction force.
+    // Inlined, as `accel`, `base_true_d2_pair` and `forcing_pair`: at 10 kHz each is called
+    // once per sample, and the calls' arguments and results through memory cost as much as
+    // their arithmetic.
+    #[inline(always)]
     fn channels(&self, t: f64, t_ref: f64, y: &[f64], mode: Mode) -> ([f64; 5], f64) {
         // The lookups of `base_true_window` first, with one piece index for both: at a sample
         // both values are those its sub-step computed (at 10 kHz, nearly every sample).
@@ -325,6 +332,7 @@ impl Hybrid for RigSystem<'_> {
         self.friction_per_kg(mode) - self.base_true_d2(t, t_ref)
     }
 
+    #[inline(always)]
     fn forcing_pair(&self, t: [f64; 2], t_ref: f64, mode: Mode) -> [f64; 2] {
         let f = self.friction_per_kg(mode);
         let [a, b] = self.base_true_d2_pair(t, t_ref);
