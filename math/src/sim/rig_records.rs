@@ -53,8 +53,10 @@ pub(crate) fn simulate_rig_records(
         |i, values, trace| {
             locate(&mut at_sample, i);
             let k = at_sample.0;
-            for ((_, column), v) in records[k].channels.iter_mut().zip(values) {
-                column.push(v);
+            // The five columns by index (`RIG_CHANNELS` order), not through an iterator pair.
+            let columns = &mut records[k].channels[..5];
+            for (j, v) in values.into_iter().enumerate() {
+                columns[j].1.push(v);
             }
             samples[k].push(trace);
             true
