@@ -178,6 +178,10 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
     /// [`Integrator::full_step`] of a system linear in `mode` (`lin`). Inlined: as a call of
     /// its own (arrays through memory) the 100 Hz paper run took 8 % more CPU.
     #[inline(always)]
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the sub-step's state, passed through"
+    )]
     fn linear_substep(
         &mut self,
         lin: Linear2,

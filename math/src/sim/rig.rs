@@ -178,8 +178,8 @@ impl RigSystem<'_> {
     fn friction_per_kg(&self, mode: Mode) -> f64 {
         // Slips are in direction 1 or -1: their values once per run, with the same operations.
         match mode {
-            Mode::Slip(d) if d == 1.0 => return self.slip_per_kg[1],
-            Mode::Slip(d) if d == -1.0 => return self.slip_per_kg[0],
+            Mode::Slip(1.0) => return self.slip_per_kg[1],
+            Mode::Slip(-1.0) => return self.slip_per_kg[0],
             _ => {}
         }
         self.friction_per_kg_of(mode)
