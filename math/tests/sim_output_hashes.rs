@@ -106,6 +106,16 @@ fn the_10khz_rig_runs_are_unchanged() {
         &delayed,
         0x4a79_b63c_0650_8f42,
     );
+    // A delay of no whole number of samples: the true base's breakpoints fall between samples.
+    let between = sine.clone().with_effects(RigEffects {
+        exciter_delay_s: 0.012_345_67,
+        ..RigEffects::default()
+    });
+    c.run(
+        "rig_10kHz_sine, delay between samples",
+        &between,
+        0x5d6c_f79a_2ee4_b632,
+    );
     // A sensor low-pass: extra states, every sub-step through the RK4 stages.
     let filtered = sine.clone().with_effects(RigEffects {
         sensor_lowpass_hz: Some(30.0),
