@@ -479,6 +479,83 @@ mod tests {
         }
     }
 
+    /// Sine cycles of a coulomb element with Bouc-Wen hysteresis (yield 2 mm) and a
+    /// deterministic misfit; the third cycle stuck.
+    fn hysteretic_cycles() -> Vec<StepCycle> {
+        let l = 128;
+        (0..5)
+            .map(|k| {
+                let f_hz = 1.5 + 0.5 * k as f64;
+                let amp = 0.006 / (1.0 + 0.3 * k as f64);
+                let w = std::f64::consts::TAU * f_hz;
+                let ph = |i: usize| std::f64::consts::TAU * i as f64 / l as f64;
+                let x: Vec<f64> = (0..l).map(|i| amp * ph(i).cos()).collect();
+                let v: Vec<f64> = (0..l).map(|i| -amp * w * ph(i).sin()).collect();
+                let z = bouc_wen::steady_cycle(&v, 1.0 / f_hz, 0.002);
+                let force: Vec<f64> = (0..l)
+                    .map(|i| {
+                        6000.0 * x[i]
+                            + 180.0 * v[i]
+                            + 12.0 * v[i].signum()
+                            + 900.0 * z[i]
+                            + 0.3 * (3.0 * ph(i) + k as f64).sin()
+                    })
+                    .collect();
+                StepCycle {
+                    step: k,
+                    frequency_hz: f_hz,
+                    time_s: 10.0 * k as f64,
+                    amplitude_m: amp,
+                    displacement_m: x,
+                    velocity_mps: v,
+                    force_n: force,
+                    force_noise_n: 0.1,
+                    harmonics: l / 2,
+                    force_response: None,
+                    force_harmonic_noise_n: vec![0.1; l / 2 + 1],
+                    stuck: k == 2,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn cross_validation_with_shared_columns_is_the_leave_one_out_of_fit() {
+        let baseline = Model::by_name("coulomb", &Default::default()).unwrap();
+        let s = Structure {
+            hysteresis_yield_m: Some(0.002),
+            ..Structure::default()
+        };
+        let cycles = hysteretic_cycles();
+        let (mut num, mut den) = (0.0, 0.0);
+        for k in 0..cycles.len() {
+            let f = fit(&baseline, &s, &cycles, Some(k)).unwrap();
+            let (n, d) = residual_sums(&f, &cycles[k]);
+            num += n;
+            den += d;
+        }
+        let by_fit = 100.0 * (num / den).sqrt();
+        let cv = cross_validated_percent(&baseline, &s, &cycles).unwrap();
+        assert_eq!(cv.to_bits(), by_fit.to_bits(), "{cv} vs {by_fit}");
+        assert!(cv > 0.0 && cv < 5.0, "{cv}");
+    }
+
+    #[test]
+    fn the_fitted_element_force_leaves_out_the_friction_term() {
+        let baseline = Model::by_name("coulomb", &Default::default()).unwrap();
+        let s = Structure {
+            hysteresis_yield_m: Some(0.002),
+            ..Structure::default()
+        };
+        let f = fit(&baseline, &s, &hysteretic_cycles(), None).unwrap();
+        let e = f.element();
+        let (x, v, z) = (0.003, -0.05, 0.0012);
+        let want = f.theta[0] * x + f.theta[1] * v + f.theta[3] * z;
+        let got = e.smooth_force(x, v, &[z]);
+        assert!((got - want).abs() <= 1e-12 * want.abs(), "{got} vs {want}");
+        assert!((e.friction().unwrap().kinetic_n - f.theta[2]).abs() < 1e-12);
+    }
+
     #[test]
     fn stribeck_velocity_is_recovered_from_the_term() {
         let t = StribeckVelocity {
