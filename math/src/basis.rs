@@ -269,7 +269,10 @@ impl Term for DeadZone {
         "kfp".into()
     }
     fn formula(&self) -> String {
-        format!("x - clamp(x, -{}, {})", self.contact_neg_m, self.contact_pos_m)
+        format!(
+            "x - clamp(x, -{}, {})",
+            self.contact_neg_m, self.contact_pos_m
+        )
     }
     fn eval(&self, x: f64, _v: f64) -> f64 {
         x - x.clamp(-self.contact_neg_m, self.contact_pos_m)

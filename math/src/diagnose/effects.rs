@@ -7,8 +7,8 @@ use serde::{Deserialize, Serialize};
 
 use super::sensor::SensorFilter;
 use crate::basis::{
-    AbsVelocity, Constant, Cubic, SignVelocity, SignedSquareDisplacement,
-    SignedSquareVelocity, SquareDisplacement, StribeckVelocity, Term,
+    AbsVelocity, Constant, Cubic, SignVelocity, SignedSquareDisplacement, SignedSquareVelocity,
+    SquareDisplacement, StribeckVelocity, Term,
 };
 use crate::model::Model;
 use crate::recipe::SetupKind;

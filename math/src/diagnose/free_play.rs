@@ -288,7 +288,10 @@ mod tests {
         assert!((p - tp).abs() < 0.1e-3, "pos {p}");
         assert_eq!(found.extra_parameters, 3);
         // Three refinements of 8, the splits, the grid descent (two rounds of 2 x 8 at most).
-        assert!(evaluations <= 3 * 8 + 6 + 2 * 16, "{evaluations} evaluations");
+        assert!(
+            evaluations <= 3 * 8 + 6 + 2 * 16,
+            "{evaluations} evaluations"
+        );
     }
 
     #[test]

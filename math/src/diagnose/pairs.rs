@@ -14,8 +14,8 @@
 use super::cycles::StepCycle;
 use super::effects::{Effect, Structure, Transform, structures};
 use super::exciter::delay_shown;
-use super::free_play;
 use super::fit::{cross_validated_percent, fit};
+use super::free_play;
 use super::score::{HeldOut, penalised};
 use super::search::{PhasorSearch, cycles_for, physical};
 use super::{
