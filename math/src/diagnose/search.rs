@@ -12,7 +12,7 @@ use super::effects::{
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
 use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit};
 use super::sensor::{Consistency, SubsetMember, best_subset_member, exact_for};
-use super::series;
+use super::{free_play, series};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
@@ -154,12 +154,18 @@ pub fn search(
             }
         }
         if let Some(b) = best {
-            let b = if effect == Effect::SeriesCompliance {
-                series::refine(b, |s| {
+            let b = match effect {
+                Effect::SeriesCompliance => series::refine(b, |s| {
                     evaluate(setup, baseline, analyses, &cycles, effect, s)
-                })?
-            } else {
-                b
+                })?,
+                Effect::FreePlay => free_play::refine(
+                    b,
+                    scales.max_displacement_m,
+                    |c| &c.structure,
+                    |s| evaluate(setup, baseline, analyses, &cycles, effect, s),
+                    |c| c.cv_percent.unwrap_or(c.fitted.residual_percent),
+                )?,
+                _ => b,
             };
             candidates.push(b);
         }
