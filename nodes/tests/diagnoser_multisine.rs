@@ -31,19 +31,7 @@ fn run() -> Vec<Record> {
     let multisines = RunSpec::shaker_sdof_multisine(Some(30.0), 5)
         .simulate()
         .unwrap();
-    let mut t = 0.0;
-    sines[..4]
-        .iter()
-        .chain(&multisines[..2])
-        .enumerate()
-        .map(|(step, r)| {
-            let mut r = r.clone();
-            r.step = step;
-            r.start_time_s = t;
-            t += r.len() as f64 / r.sample_rate_hz;
-            r
-        })
-        .collect()
+    one_run(sines[..4].iter().chain(&multisines[..2]))
 }
 
 fn offline(records: &[Record]) -> PhasorFindings {

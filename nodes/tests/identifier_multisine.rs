@@ -40,17 +40,7 @@ fn mixed_run() -> Vec<Record> {
         .chain([&multisines[0]])
         .chain(&sines[6..])
         .chain([&multisines[1]]);
-    let mut t = 0.0;
-    order
-        .enumerate()
-        .map(|(step, r)| {
-            let mut r = r.clone();
-            r.step = step;
-            r.start_time_s = t;
-            t += r.len() as f64 / r.sample_rate_hz;
-            r
-        })
-        .collect()
+    one_run(order)
 }
 
 fn offline(records: &[Record], method: Method) -> Identification {

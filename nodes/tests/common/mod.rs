@@ -155,3 +155,19 @@ pub fn step_messages(r: &Record) -> (Option<ExcitationState>, HarmonicPhasors) {
         }
     }
 }
+
+/// `records` renumbered in the order given and placed one after the other in time: one run.
+pub fn one_run<'a>(records: impl IntoIterator<Item = &'a Record>) -> Vec<Record> {
+    let mut t = 0.0;
+    records
+        .into_iter()
+        .enumerate()
+        .map(|(step, r)| {
+            let mut r = r.clone();
+            r.step = step;
+            r.start_time_s = t;
+            t += r.len() as f64 / r.sample_rate_hz;
+            r
+        })
+        .collect()
+}
