@@ -14,12 +14,12 @@
 
 use std::sync::Arc;
 
-use num_complex::Complex64;
 use thiserror::Error;
 
 use crate::basis::Term;
 use crate::pipeline::nmse_percent;
 use crate::record::{Channel, Excitation, Record};
+use crate::signal::differentiate::band_limited_derivative;
 
 /// The velocity keeps the displacement's content up to this multiple of the record's highest
 /// excitation frequency (a cubic term's third harmonic, with margin).
@@ -103,38 +103,6 @@ fn top_frequency_hz(r: &Record) -> Result<f64, HeldOutError> {
     }
 }
 
-/// `order`-th derivative of `y` (sampled at `fs`) in the frequency domain, bins above
-/// `cutoff_hz` dropped; the straight line through the end points is taken out first (and its
-/// slope given back to the first derivative) so the record wraps without a jump.
-fn derivative(y: &[f64], fs: f64, cutoff_hz: f64, order: u32) -> Vec<f64> {
-    let n = y.len();
-    let slope = (y[n - 1] - y[0]) / (n - 1) as f64;
-    let mut buf: Vec<Complex64> = y
-        .iter()
-        .enumerate()
-        .map(|(i, v)| Complex64::new(v - y[0] - slope * i as f64, 0.0))
-        .collect();
-    let mut planner = rustfft::FftPlanner::new();
-    planner.plan_fft_forward(n).process(&mut buf);
-    for (k, b) in buf.iter_mut().enumerate() {
-        // Signed bin frequency.
-        let kk = if k <= n / 2 {
-            k as f64
-        } else {
-            k as f64 - n as f64
-        };
-        let f = kk * fs / n as f64;
-        if f.abs() > cutoff_hz || (n.is_multiple_of(2) && k == n / 2) {
-            *b = Complex64::new(0.0, 0.0);
-        } else {
-            *b *= Complex64::new(0.0, std::f64::consts::TAU * f).powu(order) / n as f64;
-        }
-    }
-    planner.plan_fft_inverse(n).process(&mut buf);
-    let trend = if order == 1 { slope * fs } else { 0.0 };
-    buf.iter().map(|b| b.re + trend).collect()
-}
-
 impl HeldOutState {
     pub fn of(r: &Record) -> Result<HeldOutState, HeldOutError> {
         let step = r.step;
@@ -157,10 +125,10 @@ impl HeldOutState {
         Ok(HeldOutState {
             step,
             displacement_m: x.to_vec(),
-            velocity_mps: derivative(x, fs, cutoff, 1),
+            velocity_mps: band_limited_derivative(x, fs, cutoff, 1),
             acceleration_mps2: match measured_a {
                 Some(a) => a.to_vec(),
-                None => derivative(x, fs, cutoff, 2),
+                None => band_limited_derivative(x, fs, cutoff, 2),
             },
             force_n: f.to_vec(),
             scored: guard..n - guard,
@@ -182,35 +150,5 @@ impl HeldOutState {
             })
             .collect();
         nmse_percent(&self.force_n[s], &predicted)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_band_limited_derivative_of_a_non_periodic_sine_is_its_cosine() {
-        // 7.3 Hz over 10 s at 1 kHz plus an offset and a ramp: not periodic.
-        let fs = 1000.0;
-        let w = std::f64::consts::TAU * 7.3;
-        let y: Vec<f64> = (0..10_000)
-            .map(|i| {
-                let t = i as f64 / fs;
-                0.2 + 0.05 * t + (w * t).sin()
-            })
-            .collect();
-        let (v, a) = (derivative(&y, fs, 30.0, 1), derivative(&y, fs, 30.0, 2));
-        for i in 500..9500 {
-            let t = i as f64 / fs;
-            let want = 0.05 + w * (w * t).cos();
-            assert!((v[i] - want).abs() < 0.01 * w, "{i}: {} vs {want}", v[i]);
-            let want = -w * w * (w * t).sin();
-            assert!(
-                (a[i] - want).abs() < 0.01 * w * w,
-                "{i}: {} vs {want}",
-                a[i]
-            );
-        }
     }
 }

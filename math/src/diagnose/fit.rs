@@ -333,7 +333,13 @@ pub fn cross_validated_percent(
         num += n;
         den += d;
     }
-    Some(100.0 * (num / den.max(f64::MIN_POSITIVE)).sqrt())
+    Some(root_ratio_percent(num, den))
+}
+
+/// 100 sqrt(num / den) [%]: a residual's size relative to the data's, from their sums of
+/// squares (a zero denominator taken as the smallest positive number).
+pub(crate) fn root_ratio_percent(num: f64, den: f64) -> f64 {
+    100.0 * (num / den.max(f64::MIN_POSITIVE)).sqrt()
 }
 
 /// A fitted model as an element: smooth terms, Coulomb/Stribeck friction from the sgn-like

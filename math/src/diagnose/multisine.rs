@@ -17,6 +17,7 @@ use super::DiagnoseError;
 use super::cycles::synthesize;
 use super::effects::{Effect, Scales, Structure, baseline_has, structures};
 use super::element_heldout::TermFit;
+use super::fit::root_ratio_percent;
 use super::locate::{Located, StatePlane};
 use super::search::POSITIVE_SYMBOLS;
 use crate::identify::{
@@ -168,10 +169,6 @@ fn sums(b: &StepEquations, theta: &[f64]) -> (f64, f64, f64) {
     )
 }
 
-fn percent(num: f64, den: f64) -> f64 {
-    100.0 * (num / den.max(f64::MIN_POSITIVE)).sqrt()
-}
-
 /// Leave-one-step-out cross-validated error of `model` [%] and its noise floor [%].
 fn cross_validated(steps: &Steps, model: &Model) -> Result<(f64, f64), DiagnoseError> {
     let sine_blocks = steps.sine_blocks(model)?;
@@ -183,7 +180,7 @@ fn cross_validated(steps: &Steps, model: &Model) -> Result<(f64, f64), DiagnoseE
         den += d;
         noise += s;
     }
-    Ok((percent(num, den), percent(noise, den)))
+    Ok((root_ratio_percent(num, den), root_ratio_percent(noise, den)))
 }
 
 /// The scales a candidate's searched parameter is relative to: the largest displacement and
@@ -258,8 +255,8 @@ pub fn search_blocks(
         by_step.push(BlockGap {
             step: steps.step_number(k),
             multisine: k >= sines.len(),
-            mismatch_percent: percent(n, d),
-            floor_percent: percent(s, d),
+            mismatch_percent: root_ratio_percent(n, d),
+            floor_percent: root_ratio_percent(s, d),
         });
     }
     let scales = scales(setup, &steps)?;

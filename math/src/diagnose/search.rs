@@ -10,7 +10,7 @@ use super::effects::{
     Effect, Scales, Structure, Transform, baseline_has, sensor_structure, structures,
 };
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
-use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit};
+use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit, root_ratio_percent};
 use super::sensor::{Consistency, SubsetMember, best_subset_member, exact_for};
 use super::{free_play, series};
 use crate::model::Model;
@@ -83,7 +83,7 @@ fn noise_cv_percent(cycles: &[StepCycle]) -> f64 {
             }
         }
     }
-    100.0 * (n / d.max(f64::MIN_POSITIVE)).sqrt()
+    root_ratio_percent(n, d)
 }
 
 /// Fits the baseline and every candidate effect not already in it.
