@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 use super::periodic_multisine::{MultisineDesign, multisine_lines, periodic_multisine};
 pub use super::spline::{CubicSpline, SplineEnds};
 use crate::phasor::{SweepKind, SweepLaw};
-use crate::record::Excitation;
+use crate::record::{Excitation, Record};
 
 /// Paper default sampling rate of the suspension rig [Hz].
 pub const PAPER_RIG_SAMPLE_RATE_HZ: f64 = 100.0;
@@ -320,6 +320,22 @@ pub struct Program {
 }
 
 impl Program {
+    /// A program that drives `signal` over the records' sample counts and excitations, at the
+    /// first record's rate: how output error simulates the records it fits.
+    pub fn replaying(records: &[&Record], signal: PiecewiseSignal) -> Program {
+        Program {
+            sample_rate_hz: records[0].sample_rate_hz,
+            records: records
+                .iter()
+                .map(|r| RecordPlan {
+                    samples: r.len(),
+                    excitation: r.excitation.clone(),
+                })
+                .collect(),
+            signal,
+        }
+    }
+
     /// A stepped-sine or random program from steps, each `samples_per_record` long. Sine
     /// steps are phase-continuous (phase accumulator; the first starts at phase 0), so a run
     /// of constant-amplitude sines has a continuous value; random records use seeds derived

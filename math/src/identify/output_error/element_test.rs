@@ -37,7 +37,7 @@ use crate::identify::{Identification, IdentifyError};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::record::{Channel, Record};
-use crate::sim::excitation::{PiecewiseSignal, Program, RecordPlan};
+use crate::sim::excitation::{PiecewiseSignal, Program};
 use crate::sim::{ElementDrive, SimOutput, SolverOptions, simulate_element};
 
 /// The channels an element test is fitted on, in the order of each step's residual block (the
@@ -318,18 +318,10 @@ impl<'a> ElementOutputError<'a> {
             ElementDrive::Force => (0.0, offset),
         };
         let element = ModelElement::new(&self.model, &p[..p_model]).with_offsets(x0, f0);
-        let program = Program {
-            sample_rate_hz: self.records[0].sample_rate_hz,
-            records: self
-                .records
-                .iter()
-                .map(|r| RecordPlan {
-                    samples: r.len(),
-                    excitation: r.excitation.clone(),
-                })
-                .collect(),
-            signal: self.drive_signal(&p[self.p_element()..p.len() - 1]),
-        };
+        let program = Program::replaying(
+            &self.records,
+            self.drive_signal(&p[self.p_element()..p.len() - 1]),
+        );
         simulate_element(
             &element,
             mass_kg,

@@ -31,9 +31,7 @@ use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::record::{Channel, Record};
 use crate::signal::lowpass::zero_phase_lowpass;
-use crate::sim::excitation::{
-    CubicSpline, Piece, PiecewiseSignal, Program, RecordPlan, SplineEnds,
-};
+use crate::sim::excitation::{CubicSpline, Piece, PiecewiseSignal, Program, SplineEnds};
 use crate::sim::{RigEffects, RigInitial, SimOutput, SolverOptions, simulate_rig};
 
 /// How the rig simulation of an output-error fit is driven (see the module docs).
@@ -337,18 +335,7 @@ impl<'a> RigOutputError<'a> {
     fn simulate(&self, p: &[f64]) -> Result<SimOutput, IdentifyError> {
         let p_model = self.model.terms.len();
         let element = ModelElement::new(&self.model, &p[..p_model]);
-        let program = Program {
-            sample_rate_hz: self.records[0].sample_rate_hz,
-            records: self
-                .records
-                .iter()
-                .map(|r| RecordPlan {
-                    samples: r.len(),
-                    excitation: r.excitation.clone(),
-                })
-                .collect(),
-            signal: self.base_signal(p),
-        };
+        let program = Program::replaying(&self.records, self.base_signal(p));
         simulate_rig(
             &element,
             self.mass_kg,
