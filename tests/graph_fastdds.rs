@@ -100,15 +100,27 @@ fn steps_used(v: &serde_json::Value) -> Vec<u64> {
         .collect()
 }
 
-fn run_peer(exe: &Path, args: &[String]) -> std::process::Output {
+/// What Fast DDS 2.9 prints when its own statistics bookkeeping aborts the peer: a send to a
+/// remote locator its transport has not registered yet (a race with discovery, assertions on in
+/// Debian's build; eProsima/Fast-DDS#3285). Seen once so far, in a CI run on a machine loaded
+/// by three other builds. Such a run says nothing about forcemap: the scenario runs again, once.
+const FASTDDS_STATISTICS_ABORT: &str = "OutputTrafficManager::set_statistics_message_data";
+
+/// The peer's output; `None` when Fast DDS aborted itself as [`FASTDDS_STATISTICS_ABORT`]
+/// says; any other failure fails the test.
+fn run_peer(exe: &Path, args: &[String]) -> Option<std::process::Output> {
     let out = Command::new(exe).args(args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && stderr.contains(FASTDDS_STATISTICS_ABORT) {
+        eprintln!("fastdds_peer {args:?}: Fast DDS aborted in its statistics module: {stderr}");
+        return None;
+    }
     assert!(
         out.status.success(),
-        "fastdds_peer {args:?} failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
+        "fastdds_peer {args:?} failed: {stderr}\n{}",
         String::from_utf8_lossy(&out.stdout)
     );
-    out
+    Some(out)
 }
 
 #[test]
@@ -116,7 +128,15 @@ fn fast_dds_publishes_samples_receives_the_offline_theta_and_a_late_joiner_only_
     let Some(exe) = peer::fastdds_peer() else {
         return;
     };
-    let d = domain(20);
+    // A second try on its own domain, only when Fast DDS aborted itself in the first.
+    let completed = [domain(20), domain(22)]
+        .into_iter()
+        .any(|d| offline_theta_live_and_only_the_latest_to_a_late_joiner(&exe, d).is_some());
+    assert!(completed, "Fast DDS aborted itself in both tries");
+}
+
+/// The scenario of the test on domain `d`; `None` when the Fast DDS peer aborted itself.
+fn offline_theta_live_and_only_the_latest_to_a_late_joiner(exe: &Path, d: u16) -> Option<()> {
     let bag = repo().join("bags/rig_40db");
     let dir = tempfile::tempdir().unwrap();
     let messages = dir.path().join("messages.tsv");
@@ -130,7 +150,7 @@ fn fast_dds_publishes_samples_receives_the_offline_theta_and_a_late_joiner_only_
     );
     harmonic.wait_for("waiting for samples", Duration::from_secs(30));
     let out = run_peer(
-        &exe,
+        exe,
         &[
             "publish".into(),
             d.to_string(),
@@ -138,7 +158,7 @@ fn fast_dds_publishes_samples_receives_the_offline_theta_and_a_late_joiner_only_
             "10".into(),
             "90".into(),
         ],
-    );
+    )?;
     let thetas = theta_lines(&out.stdout);
     let last = thetas.last().expect("no theta received");
     assert_eq!(steps_used(last).len(), 10, "{last}");
@@ -154,7 +174,7 @@ fn fast_dds_publishes_samples_receives_the_offline_theta_and_a_late_joiner_only_
 
     // The identifier has published ten thetas (one per step); a control node joining now must
     // get only the tenth, whatever its reader's depth: the writer's history is one deep.
-    let out = run_peer(&exe, &["late".into(), d.to_string(), "3".into()]);
+    let out = run_peer(exe, &["late".into(), d.to_string(), "3".into()])?;
     let late = theta_lines(&out.stdout);
     for reader in ["keep_last_1", "keep_last_100"] {
         let got: Vec<(Vec<u64>, &serde_json::Value)> = late
@@ -168,4 +188,5 @@ fn fast_dds_publishes_samples_receives_the_offline_theta_and_a_late_joiner_only_
             "{reader}: the late joiner must receive exactly one theta, the latest (steps used and values of each theta received)"
         );
     }
+    Some(())
 }
