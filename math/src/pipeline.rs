@@ -278,6 +278,20 @@ pub fn validate_rig(
     validate_rig_with(model, mass_kg, record, Some(VALIDATION_BASE_LOWPASS_HZ))
 }
 
+/// [`validate_rig`] on every band-random record of `records` in their order: the records that
+/// identification leaves for validation.
+pub fn validate_rig_on_random_records(
+    model: &IdentifiedModel,
+    mass_kg: f64,
+    records: &[Record],
+) -> Result<Vec<Validation>, PipelineError> {
+    records
+        .iter()
+        .filter(|r| matches!(r.excitation, Excitation::Random { .. }))
+        .map(|r| validate_rig(model, mass_kg, r))
+        .collect()
+}
+
 /// [`validate_rig`] with a chosen base low-pass (None: the raw samples).
 pub fn validate_rig_with(
     model: &IdentifiedModel,

@@ -123,14 +123,8 @@ fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Th
     let t3 = Clocks::start();
     if let Setup::BaseExcited { mass_kg } = setup {
         let fitted = IdentifiedModel::new(model.clone(), id.theta());
-        for rec in import
-            .records
-            .iter()
-            .filter(|r| matches!(r.excitation, Excitation::Random { .. }))
-        {
-            pipeline::validate_rig(&fitted, mass_kg, rec)
-                .with_context(|| format!("{file}: validating on random record {}", rec.step))?;
-        }
+        pipeline::validate_rig_on_random_records(&fitted, mass_kg, &import.records)
+            .with_context(|| format!("{file}: validating on the random records"))?;
     }
     let (validation_s, validation_cpu_s) = t3.elapsed();
     let theta = id

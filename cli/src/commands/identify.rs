@@ -183,20 +183,14 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     };
 
     // Validation on the random records (rig only: the model is simulated on the measured base).
-    let mut validations = Vec::new();
-    if let Setup::BaseExcited { mass_kg } = setup {
-        let fitted = IdentifiedModel::new(model.clone(), id.theta());
-        for rec in import
-            .records
-            .iter()
-            .filter(|r| matches!(r.excitation, Excitation::Random { .. }))
-        {
-            validations.push(
-                pipeline::validate_rig(&fitted, mass_kg, rec)
-                    .with_context(|| format!("{file}: validating on random record {}", rec.step))?,
-            );
+    let validations = match setup {
+        Setup::BaseExcited { mass_kg } => {
+            let fitted = IdentifiedModel::new(model.clone(), id.theta());
+            pipeline::validate_rig_on_random_records(&fitted, mass_kg, &import.records)
+                .with_context(|| format!("{file}: validating on the random records"))?
         }
-    }
+        _ => Vec::new(),
+    };
     // The element force with the parameters the setup added (an identified moving mass).
     let theta = id.theta();
     let element_setup = setup.with_extra_values(&id.extra_values(&setup));
