@@ -247,8 +247,9 @@ pub enum ExcitationArg {
     Stepped,
     /// Periodic multisines (random-odd lines), then a band-random validation record.
     Multisine,
-    /// One sine sweep over the stepped sine's band and time (rig, shaker-sdof; the law by
-    /// --sweep-kind), then (rig, unless --no-random) the two band-random validation records.
+    /// One sine sweep over the stepped sine's band and time (rig, damper-dyno, shaker-sdof; the
+    /// law by --sweep-kind), then (rig, unless --no-random) the two band-random validation
+    /// records.
     Sweep,
     /// Rig: one band-random record over the stepped sine's band and time as the identification
     /// record (identified in the time domain: `forcemap identify --method td-all`).
@@ -276,7 +277,8 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// The drive: stepped sines; (shaker-sdof only) two periodic multisines and a band-random
-    /// validation record; (rig, shaker-sdof) one sine sweep; (rig) one band-random record.
+    /// validation record; (rig, damper-dyno, shaker-sdof) one sine sweep; (rig) one band-random
+    /// record.
     #[arg(long, value_enum, default_value_t = ExcitationArg::Stepped)]
     pub excitation: ExcitationArg,
     /// The law of --excitation sweep.

@@ -17,7 +17,6 @@ use forcemap_math::identify;
 use forcemap_math::model::IdentifiedModel;
 use forcemap_math::pipeline;
 use forcemap_math::recipe::Setup;
-use forcemap_math::record::Excitation;
 use serde_json::json;
 
 use crate::cli::BenchIdentifyArgs;

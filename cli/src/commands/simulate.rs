@@ -243,13 +243,16 @@ fn check_excitation(args: &SimulateArgs) -> anyhow::Result<()> {
     };
     let systems = match args.excitation {
         ExcitationArg::Multisine => "--system shaker-sdof",
-        ExcitationArg::Sweep => "--system rig and shaker-sdof",
+        ExcitationArg::Sweep => "--system rig, damper-dyno and shaker-sdof",
         _ => "--system rig",
     };
     let known = matches!(
         (args.excitation, args.system),
         (ExcitationArg::Multisine, SystemArg::ShakerSdof)
-            | (ExcitationArg::Sweep, SystemArg::Rig | SystemArg::ShakerSdof)
+            | (
+                ExcitationArg::Sweep,
+                SystemArg::Rig | SystemArg::DamperDyno | SystemArg::ShakerSdof
+            )
             | (ExcitationArg::Random, SystemArg::Rig)
     );
     if !known {
@@ -289,6 +292,9 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
                 );
             }
             let spec = match (system, args.excitation) {
+                (SystemArg::DamperDyno, ExcitationArg::Sweep) => {
+                    RunSpec::damper_dyno_sweep(sweep_kind, args.snr_db, args.seed)
+                }
                 (SystemArg::DamperDyno, _) => RunSpec::damper_dyno(args.snr_db, args.seed),
                 (SystemArg::ShakerSdof, ExcitationArg::Multisine) => {
                     RunSpec::shaker_sdof_multisine(args.snr_db, args.seed)

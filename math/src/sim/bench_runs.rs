@@ -63,6 +63,22 @@ impl RunSpec {
         }
     }
 
+    /// [`RunSpec::damper_dyno`] driven by one linear or logarithmic 1-8 Hz displacement sweep of
+    /// 10 mm (peak speed 0.5 m/s at 8 Hz) as long as the twelve steps of the stepped program.
+    pub fn damper_dyno_sweep(kind: SweepKind, snr_db: Option<f64>, seed: u64) -> RunSpec {
+        let stepped = RunSpec::damper_dyno(snr_db, seed);
+        RunSpec {
+            steps: vec![StepSpec::Sweep {
+                sweep: kind,
+                start_frequency_hz: 1.0,
+                end_frequency_hz: 8.0,
+                amplitude: 0.01,
+            }],
+            samples_per_record: stepped.samples_per_record * stepped.steps.len(),
+            ..stepped
+        }
+    }
+
     /// The `damper` model's parameters of [`RunSpec::damper_dyno`]: c and ca are the mean
     /// and half the difference of rebound and compression damping.
     pub const DAMPER_DYNO_THETA: [(&'static str, f64); 5] = [
