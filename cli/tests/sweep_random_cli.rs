@@ -123,8 +123,9 @@ fn a_shaker_sweep_identifies_the_cubic_shaker_and_its_mass() {
 /// The damper dyno swept 1-8 Hz at 10 mm in 48 s (displacement-driven element test with
 /// rebound/compression damping, 40 N Coulomb friction, 150 N gas force; the fixture's mass
 /// identified). Measured noise-free: linear offset -0.007, k +0.003, c +0.003, ca +0.011,
-/// F_d -0.007, m +0.005 %; log F_d +0.106 %, the rest within 0.013 %; at 30 dB seed 1 the loosest are k (-0.62 % log; its std 1.1 %) and
-/// m (+2.34 % log; its std 2.3 %); c within 0.05 %.
+/// F_d -0.007, m +0.005 %; log F_d +0.106 %, the rest within 0.013 %; at 30 dB seed 1 the
+/// loosest are k (-0.62 % log; its std 0.78 %) and m (+2.34 % log; its std 2.2 %); c within
+/// 0.06 %.
 #[test]
 fn a_dyno_sweep_identifies_the_damper_and_its_fixture_mass() {
     let dir = tempfile::tempdir().unwrap();
