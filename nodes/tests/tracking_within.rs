@@ -61,6 +61,10 @@ fn true_c_at(t_s: f64) -> f64 {
 /// The run: the dyno damper of `RunSpec::damper_dyno` driven at 1, 2, 4, 8 Hz in turn, its
 /// damping scaled per step, 30 dB SNR, the steps back to back.
 fn fading_run() -> Vec<Record> {
+    fading_run_at(30.0)
+}
+
+fn fading_run_at(snr_db: f64) -> Vec<Record> {
     let base = RunSpec::damper_dyno(None, 0).element;
     (0..STEPS)
         .map(|j| {
@@ -71,7 +75,7 @@ fn fading_run() -> Vec<Record> {
                 compression_n_s_per_m: 1000.0 * scale,
             });
             let run = RunSpec {
-                snr_db: Some(30.0),
+                snr_db: Some(snr_db),
                 seed: 300 + j as u64,
                 ..RunSpec::element_test(
                     ElementDrive::Displacement,
@@ -557,5 +561,53 @@ fn theta_is_stamped_with_the_end_of_its_data() {
             .add_secs_f64(f64::from(ph.periods_used) / ph.frequency_hz);
         assert_eq!(thetas(&o)[0].header.stamp, end);
         assert_eq!(forcemap_nodes::node::identifier::data_end_time(&ph), end);
+    }
+}
+
+#[test]
+fn scratch_fading_cuts() {
+    use forcemap_io::steps::unlabelled::split_run;
+    use forcemap_math::segment::SegmentOptions;
+    for snr in [30.0, 40.0] {
+        let records = fading_run_at(snr);
+        let driven = RunSpec::damper_dyno(None, 0).driven_channel();
+        // Offline: the whole run as one record.
+        let mut whole = records[0].clone();
+        for r in &records[1..] {
+            for (c, v) in whole.channels.iter_mut() {
+                v.extend_from_slice(r.channel(*c).unwrap());
+            }
+        }
+        let times: Vec<f64> = (0..whole.len()).map(|i| whole.time_s(i)).collect();
+        let off = split_run(&whole, driven, &times, &SegmentOptions::default()).unwrap();
+        let lens: Vec<usize> = off.iter().map(|(r, _)| r.len()).collect();
+        println!("{snr} dB offline: {} steps {lens:?}", lens.len());
+        let mut c = identifier(0.8);
+        let fed = fed_track(&records, &mut c, driven, None, true);
+        let mut end = 0;
+        let offs: Vec<i64> = fed
+            .step_samples
+            .iter()
+            .map(|(_, n)| {
+                end += n;
+                end as i64
+                    - 8000
+                        * (1 + fed.step_samples.iter().position(|x| x.1 == *n).unwrap_or(0)) as i64
+            })
+            .collect();
+        let _ = offs;
+        let mut e = 0i64;
+        let mut worst = 0i64;
+        let mut off = 0usize;
+        for (j, (_, n)) in fed.step_samples.iter().enumerate() {
+            e += *n as i64;
+            let d = e - 8000 * (j as i64 + 1);
+            worst = worst.max(d.abs());
+            off += usize::from(d != 0);
+        }
+        println!(
+            "{snr} dB live: {} steps, {off} ends off, worst {worst}",
+            fed.step_samples.len()
+        );
     }
 }
