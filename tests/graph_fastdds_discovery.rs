@@ -160,6 +160,7 @@ fn expected_endpoints() -> Vec<(&'static str, BTreeSet<(String, String)>)> {
                 &[
                     ("R", "rt/rig/phasors"),
                     ("R", "rt/rig/parameters"),
+                    ("R", "rt/rig/excitation"),
                     ("W", "rt/rig/diagnosis"),
                     ("W", "rt/diagnostics"),
                 ],

@@ -394,14 +394,17 @@ fn parse_order(s: &str) -> Result<(u32, u32), String> {
 
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
-    /// A bag directory, a bare .mcap or a test-bench CSV export (sine steps are fitted, random
-    /// records held out); or an EMPS .mat file (time-domain path, scored on --validate).
+    /// A bag directory, a bare .mcap or a test-bench CSV export (sine steps and, for an element
+    /// test, multisine records are fitted, random records held out); or an EMPS .mat file
+    /// (time-domain path, scored on --validate).
     #[arg(required_unless_present = "demo")]
     pub data: Option<PathBuf>,
     /// The baseline model (see `forcemap models`; for EMPS: emps-viscous or emps-coulomb).
     #[arg(long, required_unless_present = "demo")]
     pub model: Option<String>,
-    /// More held-out data (same forms as DATA).
+    /// More held-out data (same forms as DATA): the rig's records simulated on the rig; an
+    /// element test's sweep or band-random records, its force predicted from the measured
+    /// motion.
     #[arg(long)]
     pub validate: Option<PathBuf>,
     /// Sine steps to hold out as well, e.g. 3,7.

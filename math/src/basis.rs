@@ -82,11 +82,23 @@ pub struct AbsVelocity;
 /// phase with x^2.
 #[derive(Debug, Clone, Copy)]
 pub struct SquareDisplacement;
-/// x - clamp(x, -gap/2, gap/2): a spring that engages only outside a free-play gap of total
-/// width `gap_m`, coefficient kfp [N/m].
+/// x - clamp(x, -neg, pos): a spring that engages only outside a free-play gap, in contact
+/// beyond `contact_pos_m` (x > 0) and below `-contact_neg_m` (x < 0; a positive width), so the
+/// gap is `contact_neg_m + contact_pos_m` wide and need not be centred; coefficient kfp [N/m].
 #[derive(Debug, Clone, Copy)]
 pub struct DeadZone {
-    pub gap_m: f64,
+    pub contact_neg_m: f64,
+    pub contact_pos_m: f64,
+}
+
+impl DeadZone {
+    /// A gap of total width `gap_m` centred on x = 0.
+    pub fn symmetric(gap_m: f64) -> DeadZone {
+        DeadZone {
+            contact_neg_m: 0.5 * gap_m,
+            contact_pos_m: 0.5 * gap_m,
+        }
+    }
 }
 /// sgn(x') exp(-(x'/vs)^2): the Stribeck excess of static over kinetic friction, decaying with
 /// speed (the law of `element::Friction`), coefficient fs [N] = breakaway - kinetic level.
@@ -257,11 +269,13 @@ impl Term for DeadZone {
         "kfp".into()
     }
     fn formula(&self) -> String {
-        format!("x - clamp(x, +/-{} / 2)", self.gap_m)
+        format!(
+            "x - clamp(x, -{}, {})",
+            self.contact_neg_m, self.contact_pos_m
+        )
     }
     fn eval(&self, x: f64, _v: f64) -> f64 {
-        let half = 0.5 * self.gap_m;
-        x - x.clamp(-half, half)
+        x - x.clamp(-self.contact_neg_m, self.contact_pos_m)
     }
 }
 

@@ -12,13 +12,12 @@
 use forcemap_io::params::ParamValue;
 use forcemap_math::identify::{FdMultiOptions, Identification, Method};
 use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::phasor::{MultisineOptions, PhasorOptions, analyse_multisine, analyse_record};
+use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::identify_records;
 use forcemap_math::recipe::Setup;
-use forcemap_math::record::{Channel, Excitation, Record};
+use forcemap_math::record::{Excitation, Record};
 use forcemap_math::sim::RunSpec;
-use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, IdentifiedParameters};
-use forcemap_msgs::std_msgs::Header;
+use forcemap_msgs::msg::IdentifiedParameters;
 use forcemap_nodes::node::identifier::{
     IdentifierCore, IdentifierState, Input, Output, RecipeParameters,
 };
@@ -41,44 +40,7 @@ fn mixed_run() -> Vec<Record> {
         .chain([&multisines[0]])
         .chain(&sines[6..])
         .chain([&multisines[1]]);
-    let mut t = 0.0;
-    order
-        .enumerate()
-        .map(|(step, r)| {
-            let mut r = r.clone();
-            r.step = step;
-            r.start_time_s = t;
-            t += r.len() as f64 / r.sample_rate_hz;
-            r
-        })
-        .collect()
-}
-
-/// What the harmonic node and the sensor publish for `r`: a sine step's phasors, or a
-/// multisine's state (its lines not carried) and the bins of its averaged period.
-fn messages(r: &Record) -> (Option<ExcitationState>, HarmonicPhasors) {
-    let header = Header::new(RUN_START, "rig");
-    match &r.excitation {
-        Excitation::Multisine { rms, .. } => {
-            let an = analyse_multisine(r, &MultisineOptions::default()).unwrap();
-            let mut ph =
-                HarmonicPhasors::from_analysis(&an.as_harmonic_analysis(*rms), RUN_START, header);
-            ph.harmonic_cap = HarmonicPhasors::MULTISINE_CAP;
-            let state = ExcitationState::from_excitation(
-                Header::new(RUN_START, "rig"),
-                r.step,
-                RUN_START.add_secs_f64(r.start_time_s),
-                &r.excitation,
-                Channel::ForceN,
-                r.len(),
-            );
-            (Some(state), ph)
-        }
-        _ => {
-            let an = analyse_record(r, &PhasorOptions::for_identification()).unwrap();
-            (None, HarmonicPhasors::from_analysis(&an, RUN_START, header))
-        }
-    }
+    one_run(order)
 }
 
 fn offline(records: &[Record], method: Method) -> Identification {
@@ -125,7 +87,7 @@ fn logs(out: &[Output]) -> Vec<&str> {
 fn feed(c: &mut IdentifierCore, records: &[Record]) -> Vec<Output> {
     let mut out = Vec::new();
     for r in records {
-        let (state, ph) = messages(r);
+        let (state, ph) = step_messages(r);
         if let Some(s) = state {
             out.extend(c.handle(Input::Excitation(Box::new(s)), RUN_START).unwrap());
         }
@@ -195,7 +157,7 @@ fn a_multisine_waits_for_its_state_and_is_refused_without_it() {
     let records = mixed_run();
     let mut c = cubic();
     feed(&mut c, &records[..6]);
-    let (state, ph) = messages(&records[6]);
+    let (state, ph) = step_messages(&records[6]);
     // Phasors before the state: held.
     let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
     assert!(thetas(&o).is_empty());
@@ -213,12 +175,12 @@ fn a_multisine_waits_for_its_state_and_is_refused_without_it() {
     // The second multisine's state never comes: the next step's phasors let it go.
     let mut c = cubic();
     feed(&mut c, &records[..13]);
-    let (_, ph) = messages(&records[13]);
+    let (_, ph) = step_messages(&records[13]);
     c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
     let mut later = records[7].clone();
     later.step = 14;
     later.start_time_s += 1000.0;
-    let (_, ph) = messages(&later);
+    let (_, ph) = step_messages(&later);
     let o = c.handle(Input::Phasors(Box::new(ph)), RUN_START).unwrap();
     assert!(
         logs(&o).iter().any(|l| l.contains(

@@ -7,8 +7,8 @@ use serde::{Deserialize, Serialize};
 
 use super::sensor::SensorFilter;
 use crate::basis::{
-    AbsVelocity, Constant, Cubic, DeadZone, SignVelocity, SignedSquareDisplacement,
-    SignedSquareVelocity, SquareDisplacement, StribeckVelocity, Term,
+    AbsVelocity, Constant, Cubic, SignVelocity, SignedSquareDisplacement, SignedSquareVelocity,
+    SquareDisplacement, StribeckVelocity, Term,
 };
 use crate::model::Model;
 use crate::recipe::SetupKind;
@@ -96,7 +96,9 @@ impl Effect {
             Effect::CubicStiffness => "s x^3",
             Effect::QuadraticStiffness => "k2 x|x| + k2a x^2",
             Effect::AsymmetricDamping => "ca |x'|  (rebound c + ca, compression c - ca)",
-            Effect::FreePlay => "kfp (x - clamp(x, +/- gap/2)), gap searched",
+            Effect::FreePlay => {
+                "kfp (x - clamp(x, -neg, pos)): contact at +pos and -neg, the gap searched centred, then each contact point searched and refined (an uneven gap counts one more parameter)"
+            }
             Effect::Hysteresis => {
                 "alpha z, Bouc-Wen z' = x' - |x'| z / (2 zy) - x' |z| / (2 zy), yield zy searched"
             }
@@ -234,7 +236,8 @@ impl Structure {
     }
 }
 
-/// Free-play gaps searched, relative to the largest relative displacement amplitude.
+/// Free-play gaps searched centred, relative to the largest relative displacement amplitude
+/// (then each contact point, [`super::free_play::CONTACT_FRACTIONS`]).
 pub const FREE_PLAY_GAP_FRACTIONS: [f64; 7] = [0.1, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0];
 /// Hysteresis yield displacements searched, relative to the largest amplitude.
 pub const HYSTERESIS_YIELD_FRACTIONS: [f64; 6] = [0.02, 0.05, 0.1, 0.2, 0.4, 0.8];
@@ -360,15 +363,14 @@ pub fn structures_on(
             ],
         )],
         Effect::AsymmetricDamping => vec![one(effect, vec![Arc::new(AbsVelocity)])],
+        // The centred gaps; the search refines each contact point from the best of them
+        // ([`super::free_play::refine`]).
         Effect::FreePlay => grid
             .free_play_gap_fractions
             .iter()
             .map(|f| {
-                let gap = f * scales.max_displacement_m;
-                let mut s = one(effect, vec![Arc::new(DeadZone { gap_m: gap })]);
-                s.extra_parameters += 1;
-                s.searched.push(("gap_m".into(), gap));
-                s
+                let half = 0.5 * f * scales.max_displacement_m;
+                super::free_play::structure(half, half)
             })
             .collect(),
         Effect::Hysteresis => grid

@@ -43,10 +43,13 @@
 pub mod cycles;
 pub mod drift;
 pub mod effects;
+pub mod element_heldout;
 pub mod exciter;
 pub mod findings;
 pub mod fit;
+pub mod free_play;
 pub mod locate;
+pub mod multisine;
 pub mod output_error;
 pub mod pairs;
 pub mod phasor;
@@ -221,13 +224,14 @@ pub struct DiagnosisDetail {
 }
 
 /// The family member a fit stands for and its fitted shape (sensor_lowpass, series_compliance,
-/// drift; see [`RankedEffect::member`]).
+/// free_play, drift; see [`RankedEffect::member`]).
 pub fn member_of(f: &Fitted, run: Option<&drift::RunDissipation>) -> Option<String> {
     f.structure
         .transform
         .sensor
         .map(|s| s.describe())
         .or_else(|| series::describe(f))
+        .or_else(|| free_play::describe(f))
         .or_else(|| drift::describe(f, run))
 }
 

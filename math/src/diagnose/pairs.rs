@@ -15,6 +15,7 @@ use super::cycles::StepCycle;
 use super::effects::{Effect, Structure, Transform, structures};
 use super::exciter::delay_shown;
 use super::fit::{cross_validated_percent, fit};
+use super::free_play;
 use super::score::{HeldOut, penalised};
 use super::search::{PhasorSearch, cycles_for, physical};
 use super::{
@@ -71,7 +72,8 @@ impl Cycles<'_> {
 
 /// `fixed` combined with each member of `partner`'s family worth trying, best by
 /// cross-validated force error of the joint fit on the sine steps (in-sample residual with
-/// fewer than 3 steps): the joint structure, the partner's member in it and the joint fit's
+/// fewer than 3 steps; free play's contact points refined as alone, [`free_play::refine`]):
+/// the joint structure, the partner's member in it and the joint fit's
 /// cross-validated error (None with fewer than 3 steps); None when no joint fit is physical.
 fn joint_structure(
     ctx: &PairContext,
@@ -85,21 +87,39 @@ fn joint_structure(
     } else {
         vec![alone.clone()]
     };
-    let mut best: Option<(f64, Structure, Structure, Option<f64>)> = None;
-    for o in options {
+    // (key, joint structure, partner's member, cross-validated error) of one member.
+    type Joint = (f64, Structure, Structure, Option<f64>);
+    let mut joint = |o: Structure| -> Result<Option<Joint>, DiagnoseError> {
         let s = fixed.combine(&o);
         let cycles = cycles.under(&s.transform)?;
         let Ok(f) = fit(ctx.baseline, &s, cycles, None) else {
-            continue;
+            return Ok(None);
         };
         if !physical(&f) {
-            continue;
+            return Ok(None);
         }
         let cv = cross_validated_percent(ctx.baseline, &s, cycles);
-        let key = cv.unwrap_or(f.residual_percent);
-        if best.as_ref().is_none_or(|(b, _, _, _)| key < *b) {
-            best = Some((key, s, o, cv));
+        Ok(Some((cv.unwrap_or(f.residual_percent), s, o, cv)))
+    };
+    let mut best: Option<Joint> = None;
+    for o in options {
+        if let Some(j) = joint(o)?
+            && best.as_ref().is_none_or(|b| j.0 < b.0)
+        {
+            best = Some(j);
         }
+    }
+    // Free play's contact points are refined from the best centred gap, as alone.
+    if partner == Effect::FreePlay
+        && let Some(b) = best.take()
+    {
+        best = Some(free_play::refine(
+            b,
+            ctx.search.scales.max_displacement_m,
+            |j| &j.2,
+            &mut joint,
+            |j| j.0,
+        )?);
     }
     Ok(best.map(|(_, s, o, cv)| (s, o, cv)))
 }

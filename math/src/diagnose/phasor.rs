@@ -5,13 +5,16 @@
 use serde::Serialize;
 
 use super::effects::Effect;
+use super::element_heldout::TermFit;
 use super::findings::{Evidence, Findings, TopCandidate, Verdict};
+use super::fit::Fitted;
 use super::locate::{Located, locate};
+use super::multisine::{DroppedEffect, is_extra_terms, located_by_step, search_blocks};
 use super::score::penalised;
 use super::search::search;
 use super::{DiagnoseError, ParameterValue, parameter_values};
 use crate::model::Model;
-use crate::phasor::HarmonicAnalysis;
+use crate::phasor::{HarmonicAnalysis, MultisineAnalysis};
 use crate::recipe::Setup;
 
 /// Fewest steps before [`PhasorDiagnosis::findings`] can cross-validate.
@@ -27,6 +30,10 @@ pub struct PhasorEffect {
     pub score_percent: f64,
     pub added_parameters: Vec<ParameterValue>,
     pub significant: bool,
+    /// Baseline + effect fitted on every step, where it is extra element terms and the
+    /// moving mass is known or fitted (for held-out element records, [`super::element_heldout`]).
+    #[serde(skip)]
+    pub fit: Option<TermFit>,
 }
 
 /// What the live diagnosis finds after the steps so far.
@@ -45,6 +52,16 @@ pub struct PhasorFindings {
     /// deviations) and exceeds 0.5 ms; the force fit cannot see it (the element's own channels
     /// are consistent).
     pub kinematic_delay_s: Option<[f64; 2]>,
+    /// Of `steps`, the periodic multisine records.
+    pub multisine_steps: usize,
+    /// Candidates not fitted: with multisine records, those that are not extra element terms
+    /// ([`super::multisine`]).
+    pub not_fitted: Vec<Effect>,
+    /// With multisine records, candidates that gave no fit on these steps, and why.
+    pub dropped: Vec<DroppedEffect>,
+    /// The baseline fitted on every step (as [`PhasorEffect::fit`]).
+    #[serde(skip)]
+    pub baseline_fit: Option<TermFit>,
 }
 
 /// Live gap diagnosis from harmonic analyses, one step at a time.
@@ -74,6 +91,7 @@ pub struct PhasorDiagnosis {
     setup: Setup,
     baseline: Model,
     analyses: Vec<HarmonicAnalysis>,
+    multisines: Vec<MultisineAnalysis>,
     effects: Vec<Effect>,
 }
 
@@ -88,6 +106,7 @@ impl PhasorDiagnosis {
             setup,
             baseline,
             analyses: Vec::new(),
+            multisines: Vec::new(),
             effects,
         }
     }
@@ -100,73 +119,187 @@ impl PhasorDiagnosis {
         }
     }
 
+    /// Adds (or replaces, by step number) one periodic multisine record's analysis: the
+    /// diagnosis then fits every step through the identification's equations
+    /// ([`super::multisine`]).
+    pub fn push_multisine(&mut self, analysis: MultisineAnalysis) {
+        match self.multisines.iter_mut().find(|a| a.step == analysis.step) {
+            Some(a) => *a = analysis,
+            None => self.multisines.push(analysis),
+        }
+    }
+
+    /// Steps so far: sine steps and multisine records.
     pub fn steps(&self) -> usize {
-        self.analyses.len()
+        self.analyses.len() + self.multisines.len()
     }
 
     /// Forgets every step (e.g. when the rig or the baseline changes).
     pub fn clear(&mut self) {
         self.analyses.clear();
+        self.multisines.clear();
     }
 
-    /// The current findings; an error until [`MIN_STEPS`] steps are in.
+    /// Steps needed before [`findings`](Self::findings) can cross-validate: [`MIN_STEPS`] sine
+    /// steps, or [`super::multisine::MIN_BLOCKS`] steps when one is a multisine record.
+    pub fn min_steps(&self) -> usize {
+        if self.multisines.is_empty() {
+            MIN_STEPS
+        } else {
+            super::multisine::MIN_BLOCKS
+        }
+    }
+
+    /// The current findings; an error until [`min_steps`](Self::min_steps) steps are in.
     pub fn findings(&self) -> Result<PhasorFindings, DiagnoseError> {
-        if self.analyses.len() < MIN_STEPS {
+        if self.steps() < self.min_steps() {
             return Err(DiagnoseError::NoSineSteps);
         }
+        if !self.multisines.is_empty() {
+            return self.findings_on_equations();
+        }
         let s = search(&self.setup, &self.baseline, &self.analyses, &self.effects)?;
-        let floor = s.noise_cv_percent;
         let before = s.baseline_cv_percent.unwrap_or(s.baseline.residual_percent);
-        let n_eff = s.equations;
-        // The CV error is an RMS ratio; the penalty applies to its square (a variance).
-        let pen = |e: f64, p: usize| penalised(e * e, p, n_eff).sqrt();
-        let base_score = pen(before, 0);
-        let mut ranked: Vec<PhasorEffect> = s
+        let candidates = s
             .candidates
             .iter()
             .filter(|c| c.effect != Effect::ExciterDelay)
-            .map(|c| {
-                let cv = c.cv_percent.unwrap_or(c.fitted.residual_percent);
-                let score = pen(cv, c.structure.extra_parameters);
-                PhasorEffect {
-                    effect: c.effect,
-                    cv_percent: cv,
-                    score_percent: score,
-                    added_parameters: parameter_values(c.fitted.added_parameters()),
-                    significant: super::significant(before, floor, cv, score, base_score),
-                }
+            .map(|c| Scored {
+                effect: c.effect,
+                cv_percent: c.cv_percent.unwrap_or(c.fitted.residual_percent),
+                extra_parameters: c.structure.extra_parameters,
+                added_parameters: c.fitted.added_parameters(),
+                fit: self.term_fit(&c.fitted),
             })
             .collect();
-        ranked.sort_by(|a, b| a.score_percent.total_cmp(&b.score_percent));
-        // A family's members (the sensor family's two) stand for one effect: its best.
-        let mut seen = Vec::new();
-        ranked.retain(|r| {
-            let first = !seen.contains(&r.effect);
-            seen.push(r.effect);
-            first
-        });
+        let (mut findings, ranked) = conclude(before, s.noise_cv_percent, s.equations, candidates);
         let delay_named = s
             .exciter_delay
             .is_some_and(|(d, sd)| super::exciter::delay_shown(d, sd));
-        let mut findings = Findings::decide(
-            Evidence::CrossValidatedForceError,
-            before,
-            floor,
-            ranked.first().map(|r| TopCandidate {
-                effect: r.effect,
-                gap_after_percent: r.cv_percent,
-                significant: r.significant,
-            }),
-        );
         if delay_named && findings.verdict != Verdict::Explained {
             findings = findings.explained_by(Effect::ExciterDelay);
         }
         Ok(PhasorFindings {
             steps: self.analyses.len(),
+            multisine_steps: 0,
             findings,
             located: locate(&s.baseline, &s.cycles),
             ranked_effects: ranked,
             kinematic_delay_s: s.exciter_delay.map(|(d, sd)| [d, sd]),
+            not_fitted: Vec::new(),
+            dropped: Vec::new(),
+            baseline_fit: self.term_fit(&s.baseline),
         })
     }
+
+    /// The findings with multisine records: every step fitted through the identification's
+    /// equations ([`search_blocks`]); the residual located per step only.
+    fn findings_on_equations(&self) -> Result<PhasorFindings, DiagnoseError> {
+        let s = search_blocks(
+            &self.setup,
+            &self.baseline,
+            &self.analyses,
+            &self.multisines,
+            &self.effects,
+        )?;
+        let candidates = s
+            .candidates
+            .iter()
+            .map(|c| Scored {
+                effect: c.effect,
+                cv_percent: c.cv_percent,
+                extra_parameters: c.structure.extra_parameters,
+                added_parameters: c.added_parameters.clone(),
+                fit: Some(c.fit.clone()),
+            })
+            .collect();
+        let (findings, ranked) = conclude(
+            s.baseline_cv_percent,
+            s.noise_cv_percent,
+            s.equations,
+            candidates,
+        );
+        Ok(PhasorFindings {
+            steps: self.steps(),
+            multisine_steps: self.multisines.len(),
+            findings,
+            located: located_by_step(&s.by_step),
+            ranked_effects: ranked,
+            kinematic_delay_s: None,
+            not_fitted: s.not_fitted,
+            dropped: s.dropped,
+            baseline_fit: Some(s.baseline_fit),
+        })
+    }
+
+    /// A fit on the rebuilt sine periods as a [`TermFit`]: where it only adds element terms
+    /// and the element setup's moving mass is known.
+    fn term_fit(&self, f: &Fitted) -> Option<TermFit> {
+        let Setup::Element {
+            moving_mass_kg: Some(m),
+        } = self.setup
+        else {
+            return None;
+        };
+        is_extra_terms(&f.structure).then(|| TermFit {
+            terms: f.terms.clone(),
+            theta: f.theta[..f.terms.len()].to_vec(),
+            mass_kg: m,
+        })
+    }
+}
+
+/// One candidate's evidence before ranking.
+struct Scored {
+    effect: Effect,
+    cv_percent: f64,
+    extra_parameters: usize,
+    added_parameters: Vec<(String, f64, f64)>,
+    fit: Option<TermFit>,
+}
+
+/// The ranking and the verdict from the cross-validated errors: the same penalty and rule
+/// whatever the steps were fitted on.
+fn conclude(
+    before: f64,
+    floor: f64,
+    n_eff: f64,
+    candidates: Vec<Scored>,
+) -> (Findings, Vec<PhasorEffect>) {
+    // The CV error is an RMS ratio; the penalty applies to its square (a variance).
+    let pen = |e: f64, p: usize| penalised(e * e, p, n_eff).sqrt();
+    let base_score = pen(before, 0);
+    let mut ranked: Vec<PhasorEffect> = candidates
+        .into_iter()
+        .map(|c| {
+            let score = pen(c.cv_percent, c.extra_parameters);
+            PhasorEffect {
+                effect: c.effect,
+                cv_percent: c.cv_percent,
+                score_percent: score,
+                added_parameters: parameter_values(c.added_parameters),
+                significant: super::significant(before, floor, c.cv_percent, score, base_score),
+                fit: c.fit,
+            }
+        })
+        .collect();
+    ranked.sort_by(|a, b| a.score_percent.total_cmp(&b.score_percent));
+    // A family's members (the sensor family's two) stand for one effect: its best.
+    let mut seen = Vec::new();
+    ranked.retain(|r| {
+        let first = !seen.contains(&r.effect);
+        seen.push(r.effect);
+        first
+    });
+    let findings = Findings::decide(
+        Evidence::CrossValidatedForceError,
+        before,
+        floor,
+        ranked.first().map(|r| TopCandidate {
+            effect: r.effect,
+            gap_after_percent: r.cv_percent,
+            significant: r.significant,
+        }),
+    );
+    (findings, ranked)
 }

@@ -10,9 +10,9 @@ use super::effects::{
     Effect, Scales, Structure, Transform, baseline_has, sensor_structure, structures,
 };
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
-use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit};
+use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit, root_ratio_percent};
 use super::sensor::{Consistency, SubsetMember, best_subset_member, exact_for};
-use super::series;
+use super::{free_play, series};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
@@ -83,7 +83,7 @@ fn noise_cv_percent(cycles: &[StepCycle]) -> f64 {
             }
         }
     }
-    100.0 * (n / d.max(f64::MIN_POSITIVE)).sqrt()
+    root_ratio_percent(n, d)
 }
 
 /// Fits the baseline and every candidate effect not already in it.
@@ -154,12 +154,18 @@ pub fn search(
             }
         }
         if let Some(b) = best {
-            let b = if effect == Effect::SeriesCompliance {
-                series::refine(b, |s| {
+            let b = match effect {
+                Effect::SeriesCompliance => series::refine(b, |s| {
                     evaluate(setup, baseline, analyses, &cycles, effect, s)
-                })?
-            } else {
-                b
+                })?,
+                Effect::FreePlay => free_play::refine(
+                    b,
+                    scales.max_displacement_m,
+                    |c| &c.structure,
+                    |s| evaluate(setup, baseline, analyses, &cycles, effect, s),
+                    |c| c.cv_percent.unwrap_or(c.fitted.residual_percent),
+                )?,
+                _ => b,
             };
             candidates.push(b);
         }

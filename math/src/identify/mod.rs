@@ -30,7 +30,9 @@ pub use accumulator::EquationAccumulator;
 pub use cycle::{Cycle, rebuilt_cycle};
 
 pub use fd::{ElementHarmonics, element_harmonics, step_equations};
-pub use multisine::{accumulate_multisines, identify_with_multisines, multisine_equations};
+pub use multisine::{
+    accumulate_multisines, identify_with_multisines, multisine_equations, multisine_equations_about,
+};
 pub use output_error::{
     ElementOutputError, RigDrive, RigMisfit, RigOutputError, element_drive_of, refine_output_error,
 };

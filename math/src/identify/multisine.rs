@@ -41,6 +41,20 @@ pub fn multisine_equations(
     multisine_block(model, setup, an, options, None)
 }
 
+/// [`multisine_equations`], each equation weighted by its whole noise about `prior` (a first
+/// estimate of the parameters, the moving mass last where it is one): the block the second
+/// pass of [`accumulate_multisines`] adds, for scoring a record the estimate was not fitted on
+/// in the units of its noise (the diagnosis's cross-validation).
+pub fn multisine_equations_about(
+    model: &Model,
+    setup: &Setup,
+    an: &MultisineAnalysis,
+    options: &FdMultiOptions,
+    prior: &[f64],
+) -> Result<StepEquations, IdentifyError> {
+    multisine_block(model, setup, an, options, Some(prior))
+}
+
 /// [`multisine_equations`], each equation weighted by its whole noise when `prior` (a first
 /// estimate of the parameters, the moving mass last where it is one) is given: the force's,
 /// and the displacement's and acceleration's propagated through the element linearised

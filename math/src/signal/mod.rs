@@ -1,6 +1,6 @@
 //! Signal processing shared by the rig path and the time-domain path: IIR low-pass filters
 //! and zero-phase filtering ([`iir`]), the validation's zero-phase low-pass and the sensor
-//! low-pass model ([`lowpass`]), central differences ([`differentiate`]), MATLAB-style
+//! low-pass model ([`lowpass`]), central differences and the band-limited derivative ([`differentiate`]), MATLAB-style
 //! decimation ([`decimate`]) and the Bouc-Wen hysteretic state ([`bouc_wen`]).
 //!
 //! Pure functions of sampled data, as the rest of the crate. Where two users need the same

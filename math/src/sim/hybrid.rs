@@ -9,6 +9,7 @@
 //! friction leaves `[-B_-, B_+]`, again located by bisection on the sub-step length.
 //! Events are located to `event_tolerance_s` (default 1e-12 s).
 
+mod node_loop;
 mod nodes;
 
 use serde::{Deserialize, Serialize};
@@ -17,7 +18,6 @@ use super::SimError;
 use super::exact_step::{ExactStep, slip_holds};
 use super::linear_step::{Linear2, LinearSteps};
 use crate::element::Friction;
-use nodes::{Nodes, substeps};
 
 /// Integration settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -163,12 +163,16 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
             self.rk4(t, t_ref, y, dt, mode, out);
             return;
         };
-        [out[0], out[1]] = self.linear_substep(lin, t, t_ref, [y[0], y[1]], dt, mode);
+        [out[0], out[1]] = self.linear_substep(lin, t, t_ref, [y[0], y[1]], dt, mode, false);
     }
 
     /// [`Integrator::full_step`] of a system linear in `mode` (`lin`). Inlined: as a call of
     /// its own (arrays through memory) the 100 Hz paper run took 8 % more CPU.
     #[inline(always)]
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the sub-step's state, passed through"
+    )]
     fn linear_substep(
         &mut self,
         lin: Linear2,
@@ -177,11 +181,13 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         y: [f64; 2],
         dt: f64,
         mode: Mode,
+        same_piece: bool,
     ) -> [f64; 2] {
-        let step = self.linear_steps.get(lin, self.substep_s);
         let u0 = match self.last_forcing {
             Some((tt, tr, m, u))
-                if tt == t && m == mode && (tr == t_ref || self.sys.same_inputs(t_ref, tr)) =>
+                if tt == t
+                    && m == mode
+                    && (same_piece || tr == t_ref || self.sys.same_inputs(t_ref, tr)) =>
             {
                 u
             }
@@ -190,14 +196,19 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         let t1 = t + dt;
         let [uh, u1] = self.sys.forcing_pair([t + 0.5 * dt, t1], t_ref, mode);
         self.last_forcing = Some((t1, t_ref, mode, u1));
-        step.apply(y, u0, uh, u1)
+        // The step by reference (a copy of its 16 numbers per sub-step was 5 % of a 10 kHz run).
+        self.linear_steps
+            .get(lin, self.substep_s)
+            .apply(y, u0, uh, u1)
     }
 
     /// A sample interval of one sub-step, free or slipping without reaching zero velocity,
     /// taken as [`Integrator::advance`] takes it (the same operations, so the same state to the
     /// bit) without its loop and copies: at 10 kHz every interval is one sub-step. `None`
     /// (nothing changed) when the system is not linear in `mode` or a slip ends inside: then
-    /// `advance` takes it.
+    /// `advance` takes it. `same_piece`: the last sub-step's inputs are known to come from the
+    /// pieces at `t_ref` (no breakpoint since), so [`Hybrid::same_inputs`] is not asked.
+    #[inline(always)]
     fn one_linear_substep(
         &mut self,
         t0: f64,
@@ -205,6 +216,7 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         t_ref: f64,
         y: &[f64],
         mode: Mode,
+        same_piece: bool,
     ) -> Option<[f64; 2]> {
         let dt = t1 - t0;
         if dt <= 0.0 || mode == Mode::Stick || self.sys.vel_index() != 1 {
@@ -212,7 +224,7 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         }
         let lin = self.sys.linear(mode)?;
         let before = self.last_forcing;
-        let next = self.linear_substep(lin, t0, t_ref, [y[0], y[1]], dt, mode);
+        let next = self.linear_substep(lin, t0, t_ref, [y[0], y[1]], dt, mode, same_piece);
         match mode {
             Mode::Slip(dir) if dir * next[1] <= 0.0 || next[1].is_nan() => {
                 self.last_forcing = before;
@@ -409,108 +421,5 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
         };
         self.trial = trial;
         result.map(|()| (stuck, events))
-    }
-
-    /// Integrates a whole run sampled at `i / sample_rate_hz`, `i = 0..samples`, with input
-    /// breakpoints `breaks` (jump conditions applied there). `y` holds the state at t = 0.
-    /// `on_sample(i, t, t_ref, y, mode)` is called at every sample (right limit).
-    pub fn run(
-        &mut self,
-        y: &mut [f64],
-        samples: usize,
-        sample_rate_hz: f64,
-        breaks: &[f64],
-        mut on_sample: impl FnMut(usize, f64, f64, &[f64], Mode),
-    ) -> Result<RunStats, SimError> {
-        let mut stats = RunStats {
-            stick_time_s: vec![0.0; samples],
-            events: vec![0; samples],
-        };
-        self.run_streamed(
-            y,
-            samples,
-            sample_rate_hz,
-            breaks,
-            |i, t, t_ref, y, mode| {
-                on_sample(i, t, t_ref, y, mode);
-                true
-            },
-            |i, stuck_s, events| {
-                stats.stick_time_s[i] += stuck_s;
-                stats.events[i] += events;
-            },
-        )?;
-        Ok(stats)
-    }
-
-    /// [`run`](Self::run) in memory independent of the run's length: the nodes are generated
-    /// as the integration reaches them, each sub-step's stuck time and events go to
-    /// `on_substep(sample interval, stuck_s, events)`, and `on_sample` returning false stops
-    /// the run there (Ok).
-    pub fn run_streamed(
-        &mut self,
-        y: &mut [f64],
-        samples: usize,
-        sample_rate_hz: f64,
-        breaks: &[f64],
-        mut on_sample: impl FnMut(usize, f64, f64, &[f64], Mode) -> bool,
-        mut on_substep: impl FnMut(usize, f64, usize),
-    ) -> Result<(), SimError> {
-        let mut nodes = Nodes::new(samples, sample_rate_hz, breaks).peekable();
-        let mut mode = Mode::Free;
-        let mut current = 0usize;
-        let mut first = true;
-        while let Some((t, sample, is_break)) = nodes.next() {
-            let t_next = nodes.peek().map(|n| n.0);
-            let t_ref = t_next.map_or(t, |tn| 0.5 * (t + tn));
-            if is_break && !first {
-                self.sys.jump(t, y);
-            }
-            if first || is_break {
-                mode = self.consistent(t, t_ref, y, mode);
-            }
-            first = false;
-            if let Some(i) = sample {
-                current = i;
-                if !on_sample(i, t, t_ref, y, mode) {
-                    return Ok(());
-                }
-            }
-            let Some(tn) = t_next else { break };
-            if let Some(next) = self.exact_interval(t, tn, t_ref, y, mode) {
-                y[..2].copy_from_slice(&next);
-                if !next.iter().all(|v| v.is_finite()) {
-                    return Err(SimError::NonFinite { time_s: tn });
-                }
-                continue;
-            }
-            let n = substeps(tn - t, self.opts.max_substep_s);
-            let h = (tn - t) / n as f64;
-            self.substep_s = h;
-            if n == 1
-                && let Some(next) = self.one_linear_substep(t, tn, t_ref, y, mode)
-            {
-                [y[0], y[1]] = next;
-                on_substep(current, 0.0, 0);
-                if !next.iter().all(|v| v.is_finite()) {
-                    return Err(SimError::NonFinite { time_s: tn });
-                }
-                continue;
-            }
-            for s in 0..n {
-                let a = t + s as f64 * h;
-                let b = if s + 1 == n {
-                    tn
-                } else {
-                    t + (s + 1) as f64 * h
-                };
-                let (st, ev) = self.advance(a, b, t_ref, y, &mut mode)?;
-                on_substep(current, st, ev);
-            }
-            if y.iter().any(|v| !v.is_finite()) {
-                return Err(SimError::NonFinite { time_s: tn });
-            }
-        }
-        Ok(())
     }
 }

@@ -127,7 +127,9 @@ impl InputWindow {
     /// value at that time when the window is of the same piece and covers the time already
     /// (it is never rebuilt here, so what it gives later is unchanged), in the same pass: the
     /// chains are independent, so the third costs little more than its operations. Each value
-    /// is computed with the operations of [`InputWindow::eval`], to the bit.
+    /// is computed with the operations of [`InputWindow::eval`], to the bit. Inlined: at 10 kHz
+    /// the rig calls it once per sample, and its results through memory were a tenth of it.
+    #[inline(always)]
     pub fn eval_pair_with(
         window: &mut Option<InputWindow>,
         order: u32,

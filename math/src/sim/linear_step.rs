@@ -101,7 +101,7 @@ impl LinearSteps {
 
     /// The step of `sys` of length `h`, built if not met before.
     #[inline]
-    pub fn get(&mut self, sys: Linear2, h: f64) -> LinearStep {
+    pub fn get(&mut self, sys: Linear2, h: f64) -> &LinearStep {
         if self.sys != Some(sys) {
             self.sys = Some(sys);
             self.slots.fill(None);
@@ -110,14 +110,11 @@ impl LinearSteps {
         // times' ulp, about 2^16 of the length's own, so its lowest bits are all alike.
         let slot = (h.to_bits().wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 58) as usize;
         let slot = &mut self.slots[slot];
-        match slot {
-            Some((hh, s)) if *hh == h => *s,
-            _ => {
-                let s = LinearStep::new(sys, h);
-                *slot = Some((h, s));
-                s
-            }
+        if !matches!(slot, Some((hh, _)) if *hh == h) {
+            *slot = Some((h, LinearStep::new(sys, h)));
         }
+        let (_, step) = slot.as_ref().expect("the slot holds the step of length h");
+        step
     }
 }
 
@@ -167,7 +164,7 @@ mod tests {
                 for i in 0..200_u32 {
                     let h = f64::from(i + 1) / 10_000.0 - f64::from(i) / 10_000.0
                         + f64::from(round) * 1e-6;
-                    assert_eq!(steps.get(sys, h), LinearStep::new(sys, h), "{h:e}");
+                    assert_eq!(*steps.get(sys, h), LinearStep::new(sys, h), "{h:e}");
                 }
             }
         }

@@ -100,6 +100,8 @@ pub(crate) struct RigSystem<'a> {
     /// The run's sample rate: the displacement is computed beside a pair only at a sample's
     /// time (`i / sample_rate_hz`), where the channels will ask for it.
     sample_rate_hz: f64,
+    /// [`RigSystem::friction_per_kg`] slipping in direction -1 and 1.
+    slip_per_kg: [f64; 2],
 }
 
 impl RigSystem<'_> {
@@ -174,6 +176,17 @@ impl RigSystem<'_> {
     /// The constant part of the forcing of `Hybrid::linear`: minus the slip friction (of
     /// constant level there) per kg.
     fn friction_per_kg(&self, mode: Mode) -> f64 {
+        // Slips are in direction 1 or -1: their values once per run, with the same operations.
+        match mode {
+            Mode::Slip(1.0) => return self.slip_per_kg[1],
+            Mode::Slip(-1.0) => return self.slip_per_kg[0],
+            _ => {}
+        }
+        self.friction_per_kg_of(mode)
+    }
+
+    /// [`RigSystem::friction_per_kg`], computed.
+    fn friction_per_kg_of(&self, mode: Mode) -> f64 {
         let fr = match (mode, &self.friction) {
             (Mode::Slip(d), Some(fr)) => slip_force_dir(fr, 0.0, d),
             _ => 0.0,
@@ -182,6 +195,7 @@ impl RigSystem<'_> {
     }
 
     /// [`RigSystem::base_true_d2`] at two times.
+    #[inline(always)]
     fn base_true_d2_pair(&self, t: [f64; 2], t_ref: f64) -> [f64; 2] {
         let sig = &self.base_true;
         let j = self.base_true_index(t_ref);
@@ -191,7 +205,8 @@ impl RigSystem<'_> {
         let [w_d2, w_value] = &mut *windows;
         // The nearest sample index (`+ 0.5` and truncation: `round` is a libm call on x86-64,
         // and a time that is no sample time comes out false either way).
-        let i = (t[1] * self.sample_rate_hz + 0.5) as u64 as f64;
+        // (`as i64`: one instruction where `as u64` is a dozen; the time is not negative.)
+        let i = (t[1] * self.sample_rate_hz + 0.5) as i64 as f64;
         let at_sample = i / self.sample_rate_hz == t[1];
         let also = at_sample.then_some((&*w_value, 0, tl[1]));
         if let Some((v, value)) = InputWindow::eval_pair_with(w_d2, 2, j, piece, tl, also) {
@@ -209,6 +224,7 @@ impl RigSystem<'_> {
     }
 
     /// Relative acceleration x'' and friction force in `mode`, with base acceleration `b_d2`.
+    #[inline(always)]
     fn accel(&self, b_d2: f64, y: &[f64], mode: Mode) -> (f64, f64) {
         let (x, v) = (y[0], y[1]);
         let z = &y[2..2 + self.nz];
@@ -232,9 +248,21 @@ impl RigSystem<'_> {
     }
 
     /// Unfiltered channel values in `RIG_CHANNELS` order and the friction force.
+    // Inlined, as `accel`, `base_true_d2_pair` and `forcing_pair`: at 10 kHz each is called
+    // once per sample, and the calls' arguments and results through memory cost as much as
+    // their arithmetic.
+    #[inline(always)]
     fn channels(&self, t: f64, t_ref: f64, y: &[f64], mode: Mode) -> ([f64; 5], f64) {
-        let b_d2 = self.base_true_d2(t, t_ref);
-        let b_value = self.base_true_window(0, t, t_ref);
+        // The lookups of `base_true_window` first, with one piece index for both: at a sample
+        // both values are those its sub-step computed (at 10 kHz, nearly every sample).
+        let j = self.base_true_index(t_ref);
+        let remembered = |last: &Cell<Option<(usize, f64, f64)>>| match last.get() {
+            Some((lj, lt, v)) if lj == j && lt == t => Some(v),
+            _ => None,
+        };
+        let b_d2 = remembered(&self.last_d2).unwrap_or_else(|| self.base_true_d2(t, t_ref));
+        let b_value =
+            remembered(&self.last_value).unwrap_or_else(|| self.base_true_window(0, t, t_ref));
         // Without an exciter delay the measured base is the true one.
         let (m_value, m_d2) = if self.base_true.shift == self.base_meas.shift {
             (b_value, b_d2)
@@ -304,6 +332,7 @@ impl Hybrid for RigSystem<'_> {
         self.friction_per_kg(mode) - self.base_true_d2(t, t_ref)
     }
 
+    #[inline(always)]
     fn forcing_pair(&self, t: [f64; 2], t_ref: f64, mode: Mode) -> [f64; 2] {
         let f = self.friction_per_kg(mode);
         let [a, b] = self.base_true_d2_pair(t, t_ref);
@@ -421,6 +450,11 @@ pub(crate) fn run_rig_streamed(
         last_value: Cell::new(None),
         last_spline_d2: Cell::new(None),
         sample_rate_hz,
+        slip_per_kg: [0.0; 2],
+    };
+    let sys = RigSystem {
+        slip_per_kg: [-1.0, 1.0].map(|d| sys.friction_per_kg_of(Mode::Slip(d))),
+        ..sys
     };
     let mut y = vec![0.0; sys.dim()];
     let b0 = sys.base_true.eval_right(0.0);

@@ -53,13 +53,19 @@ pub(crate) fn simulate_rig_records(
         |i, values, trace| {
             locate(&mut at_sample, i);
             let k = at_sample.0;
-            for ((_, column), v) in records[k].channels.iter_mut().zip(values) {
-                column.push(v);
+            // The five columns by index (`RIG_CHANNELS` order), not through an iterator pair.
+            let columns = &mut records[k].channels[..5];
+            for (j, v) in values.into_iter().enumerate() {
+                columns[j].1.push(v);
             }
             samples[k].push(trace);
             true
         },
         |i, stuck_s, ev| {
+            // Nothing to add for an interval free of stick and events (the sums start at +0).
+            if stuck_s == 0.0 && ev == 0 {
+                return;
+            }
             locate(&mut at_interval, i);
             let (k, first) = at_interval;
             if let Some(s) = stick_time_s[k].get_mut(i - first) {

@@ -1,6 +1,8 @@
 //! The diagnoser node: the gap diagnosis of `forcemap diagnose`, live from the phasor stream.
 //! After every step it refits the baseline and each candidate effect on the steps so far
-//! (cross-validated by leaving each step out) and publishes its findings as a
+//! (cross-validated by leaving each step out; a periodic multisine step's lines are found on
+//! the driven channel its `ExcitationState` names, as the identifier finds them, and every step
+//! is then fitted through the identification's equations) and publishes its findings as a
 //! `forcemap_msgs/msg/GapDiagnosis` on `diagnosis` and as a status on /diagnostics (OK when the
 //! baseline is adequate, WARN with the named effect or "unexplained" otherwise).
 //!
@@ -10,13 +12,12 @@
 use std::time::Duration;
 
 use anyhow::Context as _;
-use forcemap_math::diagnose::phasor::MIN_STEPS;
 use forcemap_math::diagnose::{PhasorDiagnosis, PhasorFindings, Verdict};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::recipe::check_mass_kg;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
-use forcemap_msgs::msg::{GapDiagnosis, HarmonicPhasors};
+use forcemap_msgs::msg::{ExcitationState, GapDiagnosis, HarmonicPhasors};
 use forcemap_msgs::std_msgs::Header;
 use tokio::sync::mpsc;
 
@@ -110,11 +111,15 @@ impl DiagnoserCore {
             let d = self
                 .live
                 .get_or_insert_with(|| PhasorDiagnosis::new(setup, baseline.clone()));
-            d.push(r.analysis);
-            if d.steps() < MIN_STEPS {
+            match r.multisine {
+                Some(ms) => d.push_multisine(ms),
+                None => d.push(r.analysis),
+            }
+            if d.steps() < d.min_steps() {
                 out.push(Output::Log(format!(
-                    "after {} steps: waiting for {MIN_STEPS} steps (the diagnosis leaves one step out at a time)",
-                    d.steps()
+                    "after {} steps: waiting for {} steps (the diagnosis leaves one step out at a time)",
+                    d.steps(),
+                    d.min_steps()
                 )));
                 continue;
             }
@@ -172,12 +177,17 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let mut ros = RosNode::start(setup.clone())?;
     let phasors = ros.subscription::<HarmonicPhasors>(topics::PHASORS, qos::phasors())?;
     let rig = ros.subscription::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
+    // A multisine step's state names the driven channel its lines are found on.
+    let excitation = ros.subscription::<ExcitationState>(topics::EXCITATION, qos::excitation())?;
     let diagnosis_pub = ros.publisher::<GapDiagnosis>(topics::DIAGNOSIS, qos::theta())?;
     let diag_pub = ros.publisher::<DiagnosticArray>(topics::DIAGNOSTICS, qos::diagnostics())?;
 
     let (tx, mut rx) = mpsc::unbounded_channel::<Input>();
     forward(phasors, tx.clone(), OnTakeError::Stop, |m, _| {
         Some(Input::Phasors(Box::new(m)))
+    });
+    forward(excitation, tx.clone(), OnTakeError::Stop, |m, _| {
+        Some(Input::Excitation(Box::new(m)))
     });
     forward(rig, tx, OnTakeError::Stop, |m, _| {
         rig_mass_kg(&m).map(Input::RigMass)

@@ -3,8 +3,7 @@
 //! rig's `parameters` topic), in one place. A periodic multisine step's phasors (its averaged
 //! period's bins, `harmonic_cap` [`HarmonicPhasors::MULTISINE_CAP`]) are also held until the
 //! `ExcitationState` of their step names the driven channel, on which their excited lines are
-//! found ([`excited_lines_of`], as a bag's reader finds them on the samples), where the node
-//! takes multisines at all ([`SetupGate::with_multisines`]).
+//! found ([`excited_lines_of`], as a bag's reader finds them on the samples).
 
 use std::collections::VecDeque;
 
@@ -56,31 +55,19 @@ pub struct SetupGate {
     /// Phasors held, in the order they arrived (a step after a held one is held too, so that
     /// steps are let through in order).
     waiting: Vec<HarmonicPhasors>,
-    /// Whether multisine phasors are let through (else skipped with a log line).
-    multisines: bool,
     /// The latest MULTISINE excitation states, newest last.
     multisine_plans: VecDeque<MultisinePlan>,
 }
 
 impl SetupGate {
-    /// A gate that skips multisine phasors, saying so: the diagnoser's (it diagnoses sine
-    /// steps).
+    /// A gate that lets multisine phasors through with their excited lines, once the
+    /// `ExcitationState` of their step ([`Input::Excitation`]) names the driven channel.
     pub fn new(given: SetupConstants) -> SetupGate {
         SetupGate {
             given,
             carried: SetupConstants::default(),
             waiting: Vec::new(),
-            multisines: false,
             multisine_plans: VecDeque::new(),
-        }
-    }
-
-    /// A gate that lets multisine phasors through with their excited lines, once the
-    /// `ExcitationState` of their step ([`Input::Excitation`]) names the driven channel.
-    pub fn with_multisines(given: SetupConstants) -> SetupGate {
-        SetupGate {
-            multisines: true,
-            ..SetupGate::new(given)
         }
     }
 
@@ -116,12 +103,6 @@ impl SetupGate {
             }
             let step = ph.step;
             let multisine = ph.harmonic_cap == HarmonicPhasors::MULTISINE_CAP;
-            if multisine && !self.multisines {
-                log.push(format!(
-                    "step {step}: multisine phasors are not diagnosed live (the diagnosis takes sine steps); skipped"
-                ));
-                continue;
-            }
             let analysis = match ph.to_analysis(Time::ZERO) {
                 Ok(a) => a,
                 Err(e) => {

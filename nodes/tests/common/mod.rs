@@ -1,5 +1,5 @@
-//! What the identifier's tests share: the committed rig bag's phasor messages and a core fed
-//! with them.
+//! What the identifier's and the diagnoser's tests share: the committed rig bag's phasor
+//! messages and a core fed with them, and the messages of a simulated step.
 #![allow(
     dead_code,
     clippy::unwrap_used,
@@ -12,13 +12,13 @@ use forcemap_io::params::{ParamValue, Params};
 use forcemap_io::rig_bag::{DEFAULT_RUN_START, read_rig_bag};
 use forcemap_math::identify::{FdMultiOptions, Method};
 use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::phasor::{PhasorOptions, analyse_record};
+use forcemap_math::phasor::{MultisineOptions, PhasorOptions, analyse_multisine, analyse_record};
 use forcemap_math::pipeline::identify_records;
 use forcemap_math::recipe::Setup;
-use forcemap_math::record::Excitation;
+use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::DiagnosticStatus;
-use forcemap_msgs::msg::{HarmonicPhasors, IdentifiedParameters};
+use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, IdentifiedParameters};
 use forcemap_msgs::std_msgs::Header;
 use forcemap_nodes::node::identifier::{IdentifierCore, Input, Output, RecipeParameters, Setting};
 
@@ -127,4 +127,47 @@ pub fn offline_rig_theta(model: &str) -> Vec<f64> {
     )
     .unwrap()
     .theta()
+}
+
+/// What the harmonic node and the sensor publish for `r`: a sine step's phasors, or a
+/// multisine's state (its lines not carried) and the bins of its averaged period.
+pub fn step_messages(r: &Record) -> (Option<ExcitationState>, HarmonicPhasors) {
+    let header = Header::new(RUN_START, "rig");
+    match &r.excitation {
+        Excitation::Multisine { rms, .. } => {
+            let an = analyse_multisine(r, &MultisineOptions::default()).unwrap();
+            let mut ph =
+                HarmonicPhasors::from_analysis(&an.as_harmonic_analysis(*rms), RUN_START, header);
+            ph.harmonic_cap = HarmonicPhasors::MULTISINE_CAP;
+            let state = ExcitationState::from_excitation(
+                Header::new(RUN_START, "rig"),
+                r.step,
+                RUN_START.add_secs_f64(r.start_time_s),
+                &r.excitation,
+                Channel::ForceN,
+                r.len(),
+            );
+            (Some(state), ph)
+        }
+        _ => {
+            let an = analyse_record(r, &PhasorOptions::for_identification()).unwrap();
+            (None, HarmonicPhasors::from_analysis(&an, RUN_START, header))
+        }
+    }
+}
+
+/// `records` renumbered in the order given and placed one after the other in time: one run.
+pub fn one_run<'a>(records: impl IntoIterator<Item = &'a Record>) -> Vec<Record> {
+    let mut t = 0.0;
+    records
+        .into_iter()
+        .enumerate()
+        .map(|(step, r)| {
+            let mut r = r.clone();
+            r.step = step;
+            r.start_time_s = t;
+            t += r.len() as f64 / r.sample_rate_hz;
+            r
+        })
+        .collect()
 }

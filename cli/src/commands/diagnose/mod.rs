@@ -58,17 +58,14 @@ fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data
     )?
     .setup()?;
     let validation = match &args.validate {
-        Some(v) if import.kind != SetupKind::BaseExcited => bail!(
-            "{}: held-out validation data are simulated on the base-excited rig; a {} setup is diagnosed on its sine steps alone",
-            v.display(),
-            import.kind
-        ),
         Some(v) => {
             let vi = forcemap_io::input::load_mapped(v, args.channels.as_deref())?;
-            if vi.kind != SetupKind::BaseExcited {
+            if vi.kind != import.kind {
                 bail!(
-                    "{}: validation data must hold the rig channels",
-                    v.display()
+                    "{}: validation data must hold the channels of the data's {} setup; these are a {} setup's",
+                    v.display(),
+                    import.kind,
+                    vi.kind
                 );
             }
             vi.records
@@ -149,7 +146,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
                 data.source
             );
         }
-        return phasor_only::run(args, &data.source, &data.setup, &baseline, &data.records);
+        return phasor_only::run(args, &data, &baseline);
     }
     let pb = super::progress_spinner();
     pb.set_message(format!("diagnosing {} against {}", model_name, data.source));

@@ -4,14 +4,17 @@
 //! cross-validated by leaving each step out.
 
 use anyhow::Context as _;
+use forcemap_math::diagnose::element_heldout::{HeldOutState, excitation_kind};
 use forcemap_math::diagnose::{PhasorDiagnosis, PhasorFindings};
 use forcemap_math::identify::{FdMultiOptions, Method};
 use forcemap_math::model::Model;
+use forcemap_math::phasor::MultisineOptions;
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
-use forcemap_math::pipeline::identify_records;
+use forcemap_math::pipeline::{analyse_multisine_records, identify_records};
 use forcemap_math::recipe::Setup;
 use forcemap_math::record::{Excitation, Record};
 
+use super::Data;
 use crate::cli::DiagnoseArgs;
 use crate::report::{HtmlReport, parameters_text};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
@@ -46,16 +49,65 @@ fn with_known_extras(
     Ok((setup.with_extra_values(&extras), Some(note)))
 }
 
-pub fn run(
-    args: &DiagnoseArgs,
-    source: &str,
-    setup: &Setup,
-    baseline: &Model,
-    records: &[Record],
-) -> anyhow::Result<()> {
-    let (setup, note) = with_known_extras(setup, baseline, records)?;
+/// One held-out record's force NMSE with the baseline and with the top candidate.
+#[derive(Debug, Clone, serde::Serialize)]
+struct HeldOut {
+    step: usize,
+    excitation: &'static str,
+    baseline_nmse_percent: f64,
+    effect: Option<&'static str>,
+    /// None when the candidate is not extra element terms (an internal state or a channel
+    /// transformation), which this path does not predict.
+    effect_nmse_percent: Option<f64>,
+    acceleration_measured: bool,
+}
+
+fn held_out(f: &PhasorFindings, records: &[&Record]) -> anyhow::Result<Vec<HeldOut>> {
+    let Some(base) = &f.baseline_fit else {
+        return Ok(Vec::new());
+    };
+    let top = f.ranked_effects.first();
+    records
+        .iter()
+        .map(|r| {
+            let state = HeldOutState::of(r)?;
+            Ok(HeldOut {
+                step: r.step,
+                excitation: excitation_kind(&r.excitation),
+                baseline_nmse_percent: state.force_nmse_percent(base),
+                effect: top.map(|t| t.effect.name()),
+                effect_nmse_percent: top
+                    .and_then(|t| t.fit.as_ref())
+                    .map(|fit| state.force_nmse_percent(fit)),
+                acceleration_measured: state.acceleration_measured,
+            })
+        })
+        .collect()
+}
+
+pub(super) fn run(args: &DiagnoseArgs, data: &Data, baseline: &Model) -> anyhow::Result<()> {
+    let source = data.source.as_str();
+    // Sine steps and multisine records are fitted; sweep and band-random records, in the data
+    // or in --validate, are held out.
+    let (fitted, in_data): (Vec<&Record>, Vec<&Record>) = data.records.iter().partition(|r| {
+        matches!(
+            r.excitation,
+            Excitation::Sine { .. } | Excitation::Multisine { .. }
+        )
+    });
+    let fitted: Vec<Record> = fitted.into_iter().cloned().collect();
+    let heldout_records: Vec<&Record> = in_data.into_iter().chain(&data.validation).collect();
+    let multisines = analyse_multisine_records(&fitted, &MultisineOptions::default())
+        .with_context(|| format!("{source}: analysing the multisine records"))?;
+    // The identification's equations fit the moving mass with every model; the rebuilt sine
+    // periods need it held.
+    let (setup, note) = if multisines.is_empty() {
+        with_known_extras(&data.setup, baseline, &fitted)?
+    } else {
+        (data.setup.clone(), None)
+    };
     let mut live = PhasorDiagnosis::new(setup.clone(), baseline.clone());
-    for r in records
+    for r in fitted
         .iter()
         .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
     {
@@ -64,23 +116,52 @@ pub fn run(
                 .with_context(|| format!("{source}: step {}", r.step))?,
         );
     }
+    for ms in multisines {
+        live.push_multisine(ms);
+    }
     let f = live
         .findings()
         .with_context(|| format!("{source}: diagnosing a {} setup", setup.kind()))?;
+    let held =
+        held_out(&f, &heldout_records).with_context(|| format!("{source}: held-out records"))?;
     if args.json {
         let mut v = serde_json::to_value(&f)?;
         v["baseline_model"] = baseline.name.clone().into();
         v["setup"] = setup.kind().to_string().into();
         v["notes"] = note.iter().cloned().collect::<Vec<_>>().into();
+        v["heldout"] = serde_json::to_value(&held)?;
         println!("{v}");
     } else {
         print_summary(source, &setup, baseline, &f, note.as_deref());
+        print_held_out(&held, baseline);
     }
     if let Some(dir) = &args.report {
         write_report(dir, source, baseline, &f)?;
         eprintln!("wrote {}", dir.join("index.html").display());
     }
     Ok(())
+}
+
+fn print_held_out(held: &[HeldOut], baseline: &Model) {
+    for h in held {
+        let after = match (h.effect, h.effect_nmse_percent) {
+            (Some(e), Some(n)) => format!(" -> {n:.2} % with {e}"),
+            (Some(e), None) => format!(" ({e} is not extra element terms: not predicted here)"),
+            (None, _) => String::new(),
+        };
+        println!(
+            "held-out record {} ({}): force NMSE {:.2} % with {}{after}; the force predicted from the measured motion ({})",
+            h.step,
+            h.excitation,
+            h.baseline_nmse_percent,
+            baseline.name,
+            if h.acceleration_measured {
+                "displacement differentiated, acceleration measured"
+            } else {
+                "displacement differentiated once and twice"
+            }
+        );
+    }
 }
 
 fn print_summary(
@@ -90,13 +171,34 @@ fn print_summary(
     f: &PhasorFindings,
     note: Option<&str>,
 ) {
+    let steps = if f.multisine_steps == 0 {
+        format!("{} sine steps", f.steps)
+    } else {
+        format!(
+            "{} sine steps and {} multisine records (fitted through the identification's equations per line)",
+            f.steps - f.multisine_steps,
+            f.multisine_steps
+        )
+    };
     println!(
-        "{source}: baseline {} on {} sine steps of a {} setup; no records to simulate on, so the evidence is the {}",
+        "{source}: baseline {} on {steps} of a {} setup; no records to simulate on, so the evidence is the {}",
         baseline.name,
-        f.steps,
         setup.kind(),
         f.findings.evidence.measure()
     );
+    if !f.not_fitted.is_empty() {
+        println!(
+            "not fitted on multisine records (not extra element terms): {}",
+            f.not_fitted
+                .iter()
+                .map(|e| e.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    for d in &f.dropped {
+        println!("not a candidate here: {}: {}", d.effect.name(), d.reason);
+    }
     if let Some(n) = note {
         println!("note: {n}");
     }

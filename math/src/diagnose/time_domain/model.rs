@@ -114,7 +114,7 @@ pub(super) fn relative_error(y: &[f64], prediction: &[f64]) -> f64 {
         num += (t - p).powi(2);
         den += t * t;
     }
-    100.0 * (num / den.max(f64::MIN_POSITIVE)).sqrt()
+    crate::diagnose::fit::root_ratio_percent(num, den)
 }
 
 /// Least squares of the decimated force on decimated columns.

@@ -87,6 +87,27 @@ impl Iterator for Nodes {
 }
 
 impl Nodes {
+    /// After sample `k` was taken: the samples from `k` on that are plain nodes followed by the
+    /// next sample, as far as marks and the run's end say (`k..end`, each not a breakpoint and
+    /// not the last sample), and the next breakpoint between samples (infinity if none): an
+    /// interval `[t_s, t_s+1]` of that range is a node interval only while that breakpoint is
+    /// not before `t_s+1`.
+    pub(super) fn plain_after(&self, k: usize) -> (usize, f64) {
+        let last = self.samples.saturating_sub(1);
+        let end = self
+            .marked
+            .get(self.next_marked)
+            .map_or(last, |&m| m.min(last));
+        let between = self.between.get(self.next_between).copied();
+        (end.max(k), between.unwrap_or(f64::INFINITY))
+    }
+
+    /// Goes on from sample `i` (after samples up to `i - 1` were taken outside the iterator,
+    /// none of them a breakpoint and no breakpoint between them).
+    pub(super) fn resume_at(&mut self, i: usize) {
+        self.next_sample = i;
+    }
+
     pub(super) fn take_sample(&mut self, t: f64) -> Option<(f64, Option<usize>, bool)> {
         let i = self.next_sample;
         self.next_sample += 1;

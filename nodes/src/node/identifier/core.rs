@@ -161,7 +161,7 @@ impl IdentifierCore {
                 if s.keeps_all_phasors() && !s.phasors.is_empty() {
                     let steps = s.phasors.len();
                     let old = IdentifierCore {
-                        gate: SetupGate::with_multisines(parameters.constants.clone()),
+                        gate: SetupGate::new(parameters.constants.clone()),
                         parameters: parameters.clone(),
                         model: model.clone(),
                         state: Some(s),
@@ -189,7 +189,7 @@ impl IdentifierCore {
         }
         Ok((
             IdentifierCore {
-                gate: SetupGate::with_multisines(parameters.constants.clone()),
+                gate: SetupGate::new(parameters.constants.clone()),
                 parameters,
                 model,
                 state,

@@ -1,0 +1,412 @@
+//! The phasor diagnosis on periodic multisine records (and the sine steps beside them): the
+//! baseline and each candidate effect identified through the equations `forcemap identify`
+//! solves (the sine steps' fd-multi blocks, every multisine record's per-line block through
+//! [`accumulate_multisines`]), cross-validated by leaving out a whole step (a sine step or a
+//! multisine realisation) and scoring its equations, weighted by their noise, with the
+//! parameters fitted on the others.
+//!
+//! Only the candidates that are extra element terms are fitted on these equations (friction,
+//! damping and stiffness nonlinearities, free play, preload); those that change the state's
+//! dynamics or the channels (hysteresis, series compliance, drift, sensor low-pass) are fitted
+//! on rebuilt sine periods only and listed as not fitted here.
+
+use nalgebra::DVector;
+use serde::Serialize;
+
+use super::DiagnoseError;
+use super::cycles::synthesize;
+use super::effects::{Effect, Scales, Structure, baseline_has, structures};
+use super::element_heldout::TermFit;
+use super::fit::root_ratio_percent;
+use super::locate::{Located, StatePlane};
+use super::search::POSITIVE_SYMBOLS;
+use crate::identify::{
+    EquationAccumulator, FdMultiOptions, Identification, Method, StepEquations,
+    accumulate_multisines, multisine_equations_about, step_equations,
+};
+use crate::model::Model;
+use crate::phasor::{HarmonicAnalysis, MultisineAnalysis};
+use crate::recipe::Setup;
+use crate::record::Channel;
+
+/// Fewest steps (sine steps and multisine realisations) to cross-validate over when one is a
+/// multisine: one realisation determines every parameter, so two can predict each other.
+pub const MIN_BLOCKS: usize = 2;
+
+/// One candidate fitted on the equations of every step.
+#[derive(Debug, Clone)]
+pub struct BlockCandidate {
+    pub effect: Effect,
+    pub structure: Structure,
+    /// Leave-one-step-out cross-validated error of the weighted equations [%].
+    pub cv_percent: f64,
+    /// (name, value, std) of what the structure added, fitted on every step.
+    pub added_parameters: Vec<(String, f64, f64)>,
+    /// Baseline + structure fitted on every step.
+    pub fit: TermFit,
+}
+
+/// A candidate that gave no fit on these steps, and why.
+#[derive(Debug, Clone, Serialize)]
+pub struct DroppedEffect {
+    pub effect: Effect,
+    pub reason: String,
+}
+
+/// The baseline's fit on one step.
+#[derive(Debug, Clone)]
+pub struct BlockGap {
+    pub step: usize,
+    pub multisine: bool,
+    /// 100 * |weighted residual| / |weighted force| on the step's equations, fitted on every
+    /// step [%].
+    pub mismatch_percent: f64,
+    /// What the noise alone would leave on them [%].
+    pub floor_percent: f64,
+}
+
+/// Result of [`search_blocks`].
+#[derive(Debug, Clone)]
+pub struct BlockSearch {
+    pub baseline_cv_percent: f64,
+    /// The baseline fitted on every step.
+    pub baseline_fit: TermFit,
+    /// Cross-validated error the noise alone would leave [%].
+    pub noise_cv_percent: f64,
+    /// Independent real equations over every step (the penalty's N).
+    pub equations: f64,
+    pub candidates: Vec<BlockCandidate>,
+    /// Candidate effects that are not extra element terms, so not fitted on these equations.
+    pub not_fitted: Vec<Effect>,
+    /// Candidates fitted but dropped, with the first reason (a fit these steps cannot identify,
+    /// or one that needs the opposite sign).
+    pub dropped: Vec<DroppedEffect>,
+    pub by_step: Vec<BlockGap>,
+}
+
+/// The steps of the diagnosis: sine steps first, then multisine records (indices in that order).
+struct Steps<'a> {
+    setup: &'a Setup,
+    sines: &'a [HarmonicAnalysis],
+    multisines: &'a [MultisineAnalysis],
+    options: FdMultiOptions,
+}
+
+impl Steps<'_> {
+    fn len(&self) -> usize {
+        self.sines.len() + self.multisines.len()
+    }
+
+    /// `model` identified on every step but `leave` as `forcemap identify` does it.
+    fn identify(
+        &self,
+        model: &Model,
+        sine_blocks: &[StepEquations],
+        leave: Option<usize>,
+    ) -> Result<Identification, DiagnoseError> {
+        let mut acc = EquationAccumulator::new(model, self.setup, Method::FdMulti);
+        for (i, b) in sine_blocks.iter().enumerate() {
+            if Some(i) != leave {
+                acc.add(b)?;
+            }
+        }
+        let ns = self.sines.len();
+        let ms: Vec<MultisineAnalysis> = self
+            .multisines
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| Some(ns + j) != leave)
+            .map(|(_, m)| m.clone())
+            .collect();
+        Ok(accumulate_multisines(&acc, model, self.setup, &ms, &self.options)?.solve()?)
+    }
+
+    /// The equations of step `index`, a multisine's weighted by its whole noise about `theta`.
+    fn block(
+        &self,
+        model: &Model,
+        sine_blocks: &[StepEquations],
+        index: usize,
+        theta: &[f64],
+    ) -> Result<StepEquations, DiagnoseError> {
+        Ok(match index.checked_sub(self.sines.len()) {
+            None => sine_blocks[index].clone(),
+            Some(j) => multisine_equations_about(
+                model,
+                self.setup,
+                &self.multisines[j],
+                &self.options,
+                theta,
+            )?,
+        })
+    }
+
+    fn sine_blocks(&self, model: &Model) -> Result<Vec<StepEquations>, DiagnoseError> {
+        Ok(self
+            .sines
+            .iter()
+            .map(|an| step_equations(model, self.setup, Method::FdMulti, an, &self.options))
+            .collect::<Result<_, _>>()?)
+    }
+
+    fn step_number(&self, index: usize) -> usize {
+        match index.checked_sub(self.sines.len()) {
+            None => self.sines[index].step,
+            Some(j) => self.multisines[j].step,
+        }
+    }
+}
+
+/// (sum of squared weighted residuals, sum of squared weighted right-hand sides, what the
+/// noise alone leaves: half an independent real equation each, a complex equation's noise
+/// weighted to unit magnitude).
+fn sums(b: &StepEquations, theta: &[f64]) -> (f64, f64, f64) {
+    let r = &b.a * DVector::from_column_slice(theta) - &b.b;
+    (
+        r.norm_squared(),
+        b.b.norm_squared(),
+        0.5 * b.independent_equations,
+    )
+}
+
+/// Leave-one-step-out cross-validated error of `model` [%] and its noise floor [%].
+fn cross_validated(steps: &Steps, model: &Model) -> Result<(f64, f64), DiagnoseError> {
+    let sine_blocks = steps.sine_blocks(model)?;
+    let (mut num, mut den, mut noise) = (0.0, 0.0, 0.0);
+    for k in 0..steps.len() {
+        let theta = steps.identify(model, &sine_blocks, Some(k))?.theta();
+        let (n, d, s) = sums(&steps.block(model, &sine_blocks, k, &theta)?, &theta);
+        num += n;
+        den += d;
+        noise += s;
+    }
+    Ok((root_ratio_percent(num, den), root_ratio_percent(noise, den)))
+}
+
+/// The scales a candidate's searched parameter is relative to: the largest displacement and
+/// velocity of any step's period and the highest excited frequency.
+fn scales(setup: &Setup, steps: &Steps) -> Result<Scales, DiagnoseError> {
+    let mut s = Scales {
+        max_displacement_m: f64::MIN_POSITIVE,
+        max_velocity_mps: f64::MIN_POSITIVE,
+        max_frequency_hz: 0.0,
+    };
+    for an in steps.sines {
+        let eh = crate::identify::element_harmonics(setup, an, false)?;
+        let w = eh.omega_rad_s;
+        let peak = |scale: f64| eh.displacement.get(1).map_or(0.0, |c| c.norm() * scale);
+        s.max_displacement_m = s.max_displacement_m.max(peak(1.0));
+        s.max_velocity_mps = s.max_velocity_mps.max(peak(w));
+        s.max_frequency_hz = s.max_frequency_hz.max(an.frequency_hz);
+    }
+    for ms in steps.multisines {
+        let Some(x) = ms.channel(Channel::RelativeDisplacementM) else {
+            continue;
+        };
+        let w0 = std::f64::consts::TAU * ms.base_frequency_hz;
+        let top = ms.lines.last().copied().unwrap_or(1);
+        // The period rebuilt from its excited lines (DC left out: it moves no scale).
+        let mut c = vec![num_complex::Complex64::new(0.0, 0.0); top + 1];
+        for &k in &ms.lines {
+            c[k] = x.phasors[k];
+        }
+        let l = (8 * (top + 1)).next_power_of_two();
+        let peak = |v: Vec<f64>| v.iter().fold(0.0f64, |m, y| m.max(y.abs()));
+        s.max_displacement_m = s
+            .max_displacement_m
+            .max(peak(synthesize(&c, l, |_| 1.0.into())));
+        s.max_velocity_mps = s.max_velocity_mps.max(peak(synthesize(&c, l, |k| {
+            num_complex::Complex64::new(0.0, k as f64 * w0)
+        })));
+        s.max_frequency_hz = s.max_frequency_hz.max(top as f64 * ms.base_frequency_hz);
+    }
+    Ok(s)
+}
+
+/// Fits the baseline and every candidate of `effects` that is an extra element term on the
+/// equations of `sines` and `multisines` (see the module docs).
+pub fn search_blocks(
+    setup: &Setup,
+    baseline: &Model,
+    sines: &[HarmonicAnalysis],
+    multisines: &[MultisineAnalysis],
+    effects: &[Effect],
+) -> Result<BlockSearch, DiagnoseError> {
+    let steps = Steps {
+        setup,
+        sines,
+        multisines,
+        options: FdMultiOptions::default(),
+    };
+    if steps.len() < MIN_BLOCKS {
+        return Err(DiagnoseError::NoSineSteps);
+    }
+    let (baseline_cv, noise_cv) = cross_validated(&steps, baseline)?;
+    // The baseline on every step, per step.
+    let sine_blocks = steps.sine_blocks(baseline)?;
+    let theta = steps.identify(baseline, &sine_blocks, None)?.theta();
+    let baseline_fit = term_fit(setup, baseline, &theta);
+    let mut equations = 0.0;
+    let mut by_step = Vec::new();
+    for k in 0..steps.len() {
+        let b = steps.block(baseline, &sine_blocks, k, &theta)?;
+        equations += b.independent_equations;
+        let (n, d, s) = sums(&b, &theta);
+        by_step.push(BlockGap {
+            step: steps.step_number(k),
+            multisine: k >= sines.len(),
+            mismatch_percent: root_ratio_percent(n, d),
+            floor_percent: root_ratio_percent(s, d),
+        });
+    }
+    let scales = scales(setup, &steps)?;
+    let mut candidates = Vec::new();
+    let mut not_fitted = Vec::new();
+    let mut dropped = Vec::new();
+    for &effect in effects {
+        if baseline_has(baseline, effect) {
+            continue;
+        }
+        let options = structures(baseline, effect, &scales);
+        if options.is_empty() || !options.iter().all(is_extra_terms) {
+            not_fitted.push(effect);
+            continue;
+        }
+        let mut best: Option<BlockCandidate> = None;
+        let mut why_not = None;
+        for structure in options {
+            let model = baseline.with_terms(
+                format!("{} + {}", baseline.name, effect.name()),
+                &structure.terms,
+            );
+            let id = match steps.identify(&model, &steps.sine_blocks(&model)?, None) {
+                Ok(id) => id,
+                Err(e) => {
+                    why_not.get_or_insert(e.to_string());
+                    continue;
+                }
+            };
+            let mut added: Vec<(String, f64, f64)> = id.parameters
+                [baseline.terms.len()..model.terms.len()]
+                .iter()
+                .map(|p| (p.name.clone(), p.value, p.std))
+                .collect();
+            // A fit that needs the opposite sign is not that effect.
+            if !physical(&added) {
+                why_not.get_or_insert("its fit needs the opposite sign".to_string());
+                continue;
+            }
+            let cv = match cross_validated(&steps, &model) {
+                Ok((cv, _)) => cv,
+                Err(e) => {
+                    why_not.get_or_insert(format!("leaving a step out: {e}"));
+                    continue;
+                }
+            };
+            if best.as_ref().is_none_or(|b| cv < b.cv_percent) {
+                added.extend(
+                    structure
+                        .searched
+                        .iter()
+                        .map(|(n, v)| (n.clone(), *v, f64::NAN)),
+                );
+                best = Some(BlockCandidate {
+                    effect,
+                    structure,
+                    cv_percent: cv,
+                    added_parameters: added,
+                    fit: term_fit(setup, &model, &id.theta()),
+                });
+            }
+        }
+        match best {
+            Some(b) => candidates.push(b),
+            None => dropped.push(DroppedEffect {
+                effect,
+                reason: why_not.unwrap_or_default(),
+            }),
+        }
+    }
+    Ok(BlockSearch {
+        baseline_cv_percent: baseline_cv,
+        baseline_fit,
+        noise_cv_percent: noise_cv,
+        equations,
+        candidates,
+        not_fitted,
+        dropped,
+        by_step,
+    })
+}
+
+/// `model` with `theta` from the identification: its terms' coefficients, then the moving
+/// mass where the setup leaves it unknown.
+fn term_fit(setup: &Setup, model: &Model, theta: &[f64]) -> TermFit {
+    let n = model.terms.len();
+    let mass_kg = match setup {
+        Setup::Element {
+            moving_mass_kg: Some(m),
+        } => *m,
+        _ => theta.get(n).copied().unwrap_or(0.0),
+    };
+    TermFit {
+        terms: model.terms.clone(),
+        theta: theta[..n].to_vec(),
+        mass_kg,
+    }
+}
+
+/// Whether a structure only adds element terms (so the identification's equations hold it).
+pub(crate) fn is_extra_terms(s: &Structure) -> bool {
+    s.hysteresis_yield_m.is_none()
+        && s.series_relaxation_s.is_none()
+        && !s.drift
+        && s.transform == Default::default()
+}
+
+/// The sign rule of [`super::search::physical`] on (name, value, std) of the added terms.
+fn physical(added: &[(String, f64, f64)]) -> bool {
+    added
+        .iter()
+        .all(|(n, v, _)| !POSITIVE_SYMBOLS.contains(&n.as_str()) || *v > 0.0)
+}
+
+/// Where the baseline's residual lies, per step only: a multisine's equations are lines of
+/// one period, not a state-plane cycle per frequency and amplitude, so the harmonic orders,
+/// the regions and the state plane are left empty (their halves NaN).
+pub fn located_by_step(by_step: &[BlockGap]) -> Located {
+    let mut gaps: Vec<&BlockGap> = by_step.iter().collect();
+    gaps.sort_by(|a, b| b.mismatch_percent.total_cmp(&a.mismatch_percent));
+    let summary = gaps
+        .iter()
+        .map(|g| {
+            format!(
+                "step {} ({}): baseline residual {:.2} % of the force on its equations (noise alone {:.2} %)",
+                g.step,
+                if g.multisine {
+                    "multisine, its lines and distortion bins"
+                } else {
+                    "sine, its harmonics"
+                },
+                g.mismatch_percent,
+                g.floor_percent
+            )
+        })
+        .collect();
+    Located {
+        by_step: Vec::new(),
+        by_harmonic: Vec::new(),
+        regions: Vec::new(),
+        state_plane: StatePlane {
+            displacement_edges_m: Vec::new(),
+            velocity_edges_mps: Vec::new(),
+            rms_residual_n: Vec::new(),
+            mean_residual_n: Vec::new(),
+        },
+        low_amplitude_mismatch_percent: f64::NAN,
+        high_amplitude_mismatch_percent: f64::NAN,
+        low_frequency_mismatch_percent: f64::NAN,
+        high_frequency_mismatch_percent: f64::NAN,
+        summary,
+    }
+}
