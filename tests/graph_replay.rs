@@ -152,6 +152,51 @@ fn damper_dyno_bag_tracked_within_steps_live_gives_the_offline_track_end() {
     println!("{provisional} provisional thetas live");
 }
 
+/// Tracking within the steps live without excitation states (issue 12): the harmonic node
+/// ignores the bag's states and finds the steps in the samples (`find_steps:=true`), with
+/// provisional phasors every 2 s of a step's samples; the identifier (forgetting 0.7) ends on
+/// the theta `forcemap identify --forgetting-per-step 0.7 --update-period-s 2` ends on with
+/// the bag's labels (the finder cuts the rig bag's sine steps where its states do), and
+/// publishes provisional thetas, each before its step's final theta.
+#[test]
+fn rig_bag_without_states_tracked_within_steps_live_gives_the_labelled_track_end() {
+    let ((live, offline), log) = replay_with(
+        "bags/rig_40db",
+        domain(59),
+        &["find_steps:=true".into(), "update_period_s:=2.0".into()],
+        &[
+            "model:=coulomb".into(),
+            "method:=fd-multi".into(),
+            "forgetting_per_step:=0.7".into(),
+        ],
+        &[
+            "--model",
+            "coulomb",
+            "--method",
+            "fd-multi",
+            "--forgetting-per-step",
+            "0.7",
+            "--update-period-s",
+            "2",
+        ],
+    );
+    assert_same_theta(&live, &offline, 1e-9);
+    let position = |needle: &str| log.iter().position(|l| l.contains(needle));
+    let mut provisional = 0;
+    for step in 0..10 {
+        let last_final = position(&format!("step {step}: "))
+            .unwrap_or_else(|| panic!("no final theta of step {step}:\n{}", log.join("\n")));
+        for (i, l) in log.iter().enumerate() {
+            if l.contains(&format!("step {step} (provisional,")) {
+                assert!(i < last_final, "step {step}:\n{}", log.join("\n"));
+                provisional += usize::from(!l.contains("no theta"));
+            }
+        }
+    }
+    assert!(provisional > 0, "no provisional theta:\n{}", log.join("\n"));
+    println!("{provisional} provisional thetas live, the final theta {live:?}");
+}
+
 /// A periodic multisine run live: the committed bag of the force-driven cubic single DOF (two
 /// multisine realisations, then a band-random record) through harmonic node, identifier and
 /// monitor. The identifier finds each step's lines on the driven channel its ExcitationState

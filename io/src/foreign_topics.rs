@@ -6,10 +6,21 @@
 //! Live, the map must name each topic's type (`type:` in one of its entries), as a subscriber
 //! needs it before any message comes. The reference topic and the tolerance are those of the
 //! bag (the first stamped data topic; 1 % of its median interval), the interval measured on
-//! its first [`LEARN_MESSAGES`] messages, which wait with the others' until then. A topic
-//! without a header is timed by when its messages were received (which aligns with stamped
-//! topics only if the publisher's stamps are its clock at publishing). The labels (`step`,
-//! `frequency_hz`) are not read: the harmonic node finds the steps itself.
+//! its first [`LEARN_MESSAGES`] messages, which wait with the others' until then. The labels
+//! (`step`, `frequency_hz`) are not read: the harmonic node finds the steps itself.
+//!
+//! **A topic without a header** (e.g. `std_msgs/Float64`) is timed by when its messages were
+//! received. Beside a stamped reference, receive times lag the stamps by the network and
+//! scheduling delay (milliseconds, with jitter), far more than the 1 % tolerance, so such a
+//! message is put on the reference's sample times ([`on_reference_times`]): its receive time
+//! less the reference's own delay (the median of receive time less stamp over the reference's
+//! first [`LEARN_MESSAGES`] messages), rounded to the nearest sample time (the latest reference
+//! stamp plus whole intervals). This assumes the headerless topic is published at the same
+//! instants as the reference and travels alike: a message whose delay differs from the
+//! reference's median by more than half a sample interval lands on a neighbouring sample. When
+//! the reference's delays spread over half an interval or more (interquartile range), no
+//! consistent offset exists: reported, and the messages learnt from are dropped. With an
+//! unstamped reference every topic is timed by receive times as they are.
 
 use forcemap_math::record::Channel;
 
@@ -88,6 +99,21 @@ pub struct ForeignTopics {
     learning: Vec<(usize, i64, Vec<f64>)>,
     /// Per sample row (the topics' values concatenated), the channels in map order.
     channels: Vec<Channel>,
+    /// Receive time less stamp of the reference's messages while the interval is measured.
+    reference_delays_ns: Vec<i64>,
+    /// The reference's delay and interval [ns], once learnt with a stamped reference: for
+    /// the topics without a header.
+    receive_timing: Option<(i64, f64)>,
+    /// The latest reference stamp [ns].
+    last_reference_ns: Option<i64>,
+}
+
+/// The time of a message received at `receive_ns` on the reference's sample times: the receive
+/// time less the reference's median delay `delay_ns`, rounded to the nearest of `anchor_ns`
+/// (a reference stamp) plus whole intervals of `interval_ns`.
+pub fn on_reference_times(receive_ns: i64, delay_ns: i64, anchor_ns: i64, interval_ns: f64) -> i64 {
+    let intervals = ((receive_ns - delay_ns - anchor_ns) as f64 / interval_ns).round();
+    anchor_ns + (intervals * interval_ns).round() as i64
 }
 
 impl ForeignTopics {
@@ -164,6 +190,9 @@ impl ForeignTopics {
             aligner: None,
             learning: Vec::new(),
             channels,
+            reference_delays_ns: Vec::new(),
+            receive_timing: None,
+            last_reference_ns: None,
         })
     }
 
@@ -211,6 +240,24 @@ impl ForeignTopics {
         } else {
             receive_ns
         };
+        let reference_stamped = self.topics[0].stamped;
+        if topic == 0 && reference_stamped {
+            if self.aligner.is_none() {
+                self.reference_delays_ns.push(receive_ns - t_ns);
+            }
+            self.last_reference_ns = Some(t_ns);
+        }
+        // A headerless topic beside a stamped reference, once the delay is known (while it is
+        // learnt, its receive times wait in `learning` and are moved at the end).
+        let t_ns = match (t.stamped || !reference_stamped, self.receive_timing) {
+            (false, Some((delay_ns, interval_ns))) => on_reference_times(
+                t_ns,
+                delay_ns,
+                self.last_reference_ns.unwrap_or(t_ns - delay_ns),
+                interval_ns,
+            ),
+            _ => t_ns,
+        };
         let mut values = Vec::with_capacity(t.channels.len());
         for (c, s) in &t.channels {
             match s.field.get(&value) {
@@ -245,6 +292,7 @@ impl ForeignTopics {
                 }
                 let interval = median_interval_ns(reference);
                 if interval <= 0.0 {
+                    self.reference_delays_ns.clear();
                     out.push(Output::Misaligned(format!(
                         "{}: most of its first {LEARN_MESSAGES} messages share one stamp: no sample interval; dropped them",
                         self.topics[0].name
@@ -252,9 +300,45 @@ impl ForeignTopics {
                     self.learning.clear();
                     return;
                 }
+                let delays = std::mem::take(&mut self.reference_delays_ns);
+                let headerless = self.topics[0].stamped && self.topics.iter().any(|t| !t.stamped);
+                if headerless {
+                    match receive_delay_ns(delays, interval) {
+                        Ok(delay_ns) => self.receive_timing = Some((delay_ns, interval)),
+                        Err(spread_ns) => {
+                            out.push(Output::Misaligned(format!(
+                                "{}: its receive times lag its stamps by amounts that spread over {:.6} s (interquartile range of its first {LEARN_MESSAGES} messages), half a sample interval ({:.6} s) or more: no consistent offset to time the topics without a header ({}) by; dropped them (publish a type with a header, stamped with the reference's clock)",
+                                self.topics[0].name,
+                                spread_ns as f64 * 1e-9,
+                                0.5 * interval * 1e-9,
+                                self.topics
+                                    .iter()
+                                    .filter(|t| !t.stamped)
+                                    .map(|t| t.name.as_str())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            )));
+                            self.learning.clear();
+                            return;
+                        }
+                    }
+                }
                 let mut a =
                     StampAligner::new(self.topics.len(), tolerance_ns(interval), MAX_PENDING);
+                // The learnt messages in arrival order, the headerless ones moved onto the
+                // reference's sample times as they would have been live.
+                let mut anchor = self.learning.iter().find(|(k, _, _)| *k == 0).map(|m| m.1);
                 for (k, t, v) in self.learning.drain(..) {
+                    let t = match (k, self.receive_timing) {
+                        (0, _) => {
+                            anchor = Some(t);
+                            t
+                        }
+                        (_, Some((delay_ns, interval_ns))) if !self.topics[k].stamped => {
+                            on_reference_times(t, delay_ns, anchor.unwrap_or(t), interval_ns)
+                        }
+                        _ => t,
+                    };
                     a.push(k, t, v, &mut aligned);
                 }
                 self.aligner = Some(a);
@@ -285,4 +369,19 @@ impl ForeignTopics {
             });
         }
     }
+}
+
+/// The reference's delay [ns] (median of receive time less stamp), or the spread of the delays
+/// (interquartile range) when it is half of `interval_ns` or more.
+fn receive_delay_ns(mut delays_ns: Vec<i64>, interval_ns: f64) -> Result<i64, i64> {
+    delays_ns.sort_unstable();
+    let n = delays_ns.len();
+    if n == 0 {
+        return Err(0);
+    }
+    let spread = delays_ns[(3 * n) / 4] - delays_ns[n / 4];
+    if spread as f64 >= 0.5 * interval_ns {
+        return Err(spread);
+    }
+    Ok(delays_ns[n / 2])
 }

@@ -265,3 +265,80 @@ fn malformed_payloads_are_reported_and_skipped() {
         "{out:?}"
     );
 }
+
+#[derive(Serialize)]
+struct Float64 {
+    data: f64,
+}
+
+/// The load as a `std_msgs/Float64` (no header): timed by when it is received.
+const HEADERLESS_MAP: &str = "channels:
+  relative_displacement_m: {topic: /bench/joints, type: sensor_msgs/msg/JointState, field: 'position[stroke]', scale: 0.001}
+  base_displacement_m: {topic: /bench/joints, field: 'position[base]'}
+  mass_acceleration_mps2: {topic: /bench/load, type: std_msgs/msg/Float64, field: data, scale: 4.0}
+";
+
+/// Messages 0..n of both topics, each received `delay_ns` plus a jitter uniform in
+/// +-`jitter_ns` after its sample time (a live graph: the publisher stamps the joints when it
+/// samples, the network and the scheduler delay every message), fed in the order received.
+fn feed_received(n: i64, delay_ns: i64, jitter_ns: i64) -> Vec<Output> {
+    let mut state = 11u64;
+    let mut jitter = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * jitter_ns as f64
+    };
+    let mut messages: Vec<(i64, usize, Vec<u8>)> = Vec::new();
+    for i in 0..n {
+        let sampled = T0 + i * DT;
+        messages.push((sampled + delay_ns + jitter() as i64, 0, joints(i, 0)));
+        let load = forcemap_msgs::encode(&Float64 {
+            data: 0.25 * i as f64,
+        });
+        messages.push((sampled + delay_ns + jitter() as i64, 1, load));
+    }
+    messages.sort_by_key(|m| m.0);
+    let mut f = topics(HEADERLESS_MAP).unwrap();
+    let mut out = Vec::new();
+    for (receive_ns, k, payload) in messages {
+        f.push(k, &payload, receive_ns, &mut out);
+    }
+    out
+}
+
+/// A headerless topic beside a stamped one, live: receive times 4 ms behind the stamps with
+/// +-3 ms of jitter (at 100 Hz: 40 % and 30 % of the interval, 400 and 300 times the
+/// stamps' 1 % tolerance) still give every sample, each load value with the joints of its own
+/// sample. Delays that spread over half an interval give a report naming the topics and no
+/// sample.
+#[test]
+fn a_headerless_topic_received_late_aligns_with_the_stamped_one() {
+    let out = feed_received(200, 4_000_000, 3_000_000);
+    let mut samples = 0;
+    for o in &out {
+        let Output::Sample { t_ns, values } = o else {
+            panic!("{o:?}");
+        };
+        let i = (t_ns - T0) / DT;
+        assert_eq!(*t_ns, T0 + i * DT);
+        let value = |c: Channel| values.iter().find(|(d, _)| *d == c).unwrap().1;
+        assert_eq!(value(Channel::BaseDisplacementM), i as f64);
+        assert_eq!(value(Channel::MassAccelerationMps2), i as f64);
+        samples += 1;
+    }
+    // Every sample (the first and last may fall outside the span both topics cover).
+    assert!(samples >= 198, "{samples} of 200");
+    // Jitter of +-8 ms: the delays' interquartile range is about 8 ms, over half the 10 ms
+    // interval.
+    let out = feed_received(40, 4_000_000, 8_000_000);
+    assert!(!out.iter().any(|o| matches!(o, Output::Sample { .. })));
+    let Some(Output::Misaligned(m)) = out.first() else {
+        panic!("{out:?}");
+    };
+    assert!(
+        m.contains("/bench/joints: its receive times lag its stamps")
+            && m.contains("no consistent offset to time the topics without a header (/bench/load)"),
+        "{m}"
+    );
+}

@@ -109,7 +109,13 @@ impl Ctx<'_> {
             w[a.first].start + half
         };
         let a_from = a_from.max(lo.saturating_sub(MODEL_WINDOWS * len)).min(lo);
-        let b_to = if b_is_last { n } else { w[b.last].start + half };
+        // The last run's model ends with its last window, not the series: windows after it
+        // that form no run (a change too recent to show) are not its step's.
+        let b_to = if b_is_last {
+            w[b.last].start + len
+        } else {
+            w[b.last].start + half
+        };
         let b_to = b_to.min(hi + MODEL_WINDOWS * len).max(hi);
         let (mut ma, mut mb) = (self.model(a, a_from, lo), self.model(b, hi, b_to));
         pool_noise(&mut ma, &mut mb);

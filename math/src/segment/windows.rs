@@ -17,6 +17,12 @@ pub(super) const MIN_RUN_WINDOWS: usize = 3;
 const STRONG_LINE_FRACTION: f64 = 0.1;
 /// Rounding floor of the agreement and cleanness tests (relative): noise-free data.
 pub(super) const ROUNDING_REL: f64 = 1e-9;
+/// A window shows a sine only when it holds at least this many periods of it. Less of a
+/// period is fitted by sines of many frequencies and amplitudes whose standard deviations
+/// understate how far apart neighbouring windows' fits fall, so they disagree and cut a step
+/// in two: a series too short for `window_periods` periods per window (its window is clamped
+/// to a third of it), as the live step finder's buffer is early in a long low step.
+pub(super) const MIN_WINDOW_PERIODS: f64 = 2.0;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Class {
@@ -102,7 +108,10 @@ pub(super) fn analyse(x: &[f64], options: &SegmentOptions, fitter: &mut SineFitt
     let is_rest = |f: &Option<SineFit>| {
         f.is_none_or(|f| f.total_rms <= options.rest_fraction * largest || largest == 0.0)
     };
-    let is_sine = |f: &SineFit| f.unexplained() < options.sine_max_unexplained;
+    let periods = |f: &SineFit| f.omega * window as f64 / (2.0 * std::f64::consts::PI);
+    let is_sine = |f: &SineFit| {
+        f.unexplained() < options.sine_max_unexplained && periods(f) >= MIN_WINDOW_PERIODS
+    };
     let mut residuals: Vec<f64> = fits
         .iter()
         .filter(|(_, f)| !is_rest(f))

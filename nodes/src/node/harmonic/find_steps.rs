@@ -2,17 +2,18 @@
 //! the driven channel ([`segment_run`], the segmentation `forcemap identify` uses on an
 //! unlabelled export), so a step is cut where the CSV reader would cut it.
 //!
-//! A step is complete once its end lies at least one detection window before the buffer's end
-//! (the next step then has a run of windows of its own, so its boundary is placed from both
-//! sides as in a whole-run segmentation); its samples are then dropped from the buffer. The
-//! buffer is searched again when it has grown by a quarter (at least [`MIN_SEARCH_SAMPLES`]),
-//! so the work per sample stays bounded while a step is reported at most a quarter of the
-//! buffer late. At the end of a run (no sample for a while) every step left is complete.
+//! A step is complete once its end lies [`COMPLETE_AFTER_WINDOWS`] detection windows before the
+//! buffer's end (the next step then has a run of windows of its own, so its boundary is placed
+//! from both sides as in a whole-run segmentation); its samples are then dropped from the
+//! buffer. The buffer is searched again when it has grown by a quarter (at least
+//! [`MIN_SEARCH_SAMPLES`]), so the work per sample stays bounded while a step is reported at
+//! most a quarter of the buffer late. At the end of a run (no sample for a while) every step left is complete.
 //!
 //! With updates ([`StepFinder::with_updates`]), the step in progress also gives provisional
 //! phasors every `update_period_s` of its samples, from the samples known to be its own
 //! ([`open_step`](super::open_step)); the rest of its due updates come when it closes, before
-//! its record.
+//! its record (all of them, from a stream of its record, when it had no stream: see
+//! `StepFinder::close_step`).
 
 use forcemap_io::steps::unlabelled::{is_record, segment_run, step_record};
 use forcemap_io::steps::{
@@ -20,7 +21,7 @@ use forcemap_io::steps::{
 };
 use forcemap_math::phasor::{PhasorOptions, PhasorStream, ProvisionalUpdates};
 use forcemap_math::recipe::SetupKind;
-use forcemap_math::record::{Excitation, Record};
+use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_math::segment::{DetectedKind, DetectedStep, MIN_SERIES_SAMPLES, SegmentOptions};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::RigSample;
@@ -29,6 +30,12 @@ use super::open_step::OpenStep;
 
 /// Fewest new samples between two searches of the buffer.
 pub const MIN_SEARCH_SAMPLES: usize = 256;
+/// A step is complete once its end lies this many detection windows before the buffer's end:
+/// the next step then has a run of three windows of its own (1.5 windows at a hop of a
+/// quarter) and half a window more for its model, so its boundary is placed from both sides as
+/// in a whole-run segmentation. After one window only, the windows past the end all straddle
+/// the change and the boundary came out up to 12 samples off on a 30 dB dyno run.
+pub const COMPLETE_AFTER_WINDOWS: usize = 2;
 /// The buffer is searched again once it has grown by this fraction since the last search.
 const SEARCH_GROWTH: f64 = 0.25;
 
@@ -69,7 +76,7 @@ pub struct StepFinder {
     /// Its stream, once two searches agreed on its frequency.
     open: Option<OpenStep>,
     /// The run's sample rate and driven channel, as the last search found them.
-    rate_and_driven: Option<(f64, forcemap_math::record::Channel)>,
+    rate_and_driven: Option<(f64, Channel)>,
     /// Buffer length at the last check of the open step's samples.
     checked_len: usize,
 }
@@ -234,8 +241,8 @@ impl StepFinder {
         let mut consumed = 0;
         let mut out = Vec::new();
         let mut rest = seg.steps.iter().peekable();
-        while let Some(s) = rest.next_if(|s| all || (s.end < n && s.end + seg.window_samples <= n))
-        {
+        let after = COMPLETE_AFTER_WINDOWS * seg.window_samples;
+        while let Some(s) = rest.next_if(|s| all || (s.end < n && s.end + after <= n)) {
             // The open step, if any, is the first to complete (it starts the buffer).
             let open = self.open.take();
             self.candidate = None;
@@ -245,9 +252,14 @@ impl StepFinder {
                 self.next_step += 1;
                 let level = record.channel(driven).map_or(f64::NAN, rms_about_mean);
                 record.excitation = estimated_excitation(frequency, level);
-                if let Some(open) = open {
-                    out.extend(close_open(open, &record, frequency, &self.buffer));
-                }
+                out.extend(self.close_step(
+                    open,
+                    s,
+                    &record,
+                    frequency,
+                    seg.window_samples,
+                    driven,
+                ));
                 out.push(Found::Step(Ok(record)));
             }
         }
@@ -326,32 +338,66 @@ impl StepFinder {
         self.checked_len = self.buffer.len();
         provisional(open.feed(&self.buffer, upto, 0))
     }
-}
 
-/// The open step closes as `record` (the samples from the buffer's start): its remaining due
-/// updates when its stream analyses that record, and a warning when copies held more samples
-/// than the record has.
-fn close_open(
-    mut open: OpenStep,
-    record: &Record,
-    frequency: Option<f64>,
-    buffer: &[StepSample],
-) -> Vec<Found> {
-    let len = record.len();
-    let mut out = Vec::new();
-    if open.published() > len {
-        out.push(Found::Misattributed {
-            message: format!(
-                "provisional phasors of step {} were given for {} samples, but the step has {len}",
-                record.step,
-                open.published()
-            ),
-        });
+    /// Step `s` (the buffer's samples `s.start..s.end`) closes as `record`: the due updates
+    /// that its open stream has not given, so that a step gives as many as the offline
+    /// [`provisional_analyses`](forcemap_math::phasor::provisional_analyses) of its record.
+    /// They come from a new stream of the record when the step had none (no two searches
+    /// agreed on its frequency while it was in progress: a next step too short to be found
+    /// pulls the estimate of a whole-buffer search) or its stream analyses another frequency
+    /// or more samples than the record has; a new stream gives only updates past the most
+    /// samples a copy held. A warning when copies held more samples than the step has.
+    fn close_step(
+        &self,
+        open: Option<OpenStep>,
+        s: &DetectedStep,
+        record: &Record,
+        frequency: Option<f64>,
+        window_samples: usize,
+        driven: Channel,
+    ) -> Vec<Found> {
+        let Some((period_s, options)) = &self.updates else {
+            return Vec::new();
+        };
+        let len = record.len();
+        let mut out = Vec::new();
+        let published = open.as_ref().map_or(0, OpenStep::published);
+        if published > len {
+            out.push(Found::Misattributed {
+                message: format!(
+                    "provisional phasors of step {} were given for {published} samples, but the step has {len}",
+                    record.step
+                ),
+            });
+        }
+        let samples = &self.buffer[s.start..];
+        let open = open
+            .filter(|o| o.matches(record, frequency) && o.fed() <= len)
+            .or_else(|| {
+                let (DetectedKind::Sine { amplitude, .. }, Some(frequency_hz)) =
+                    (&s.kind, frequency)
+                else {
+                    return None;
+                };
+                OpenStep::new(
+                    record.step,
+                    frequency_hz,
+                    *amplitude,
+                    samples,
+                    record.sample_rate_hz,
+                    window_samples,
+                    driven,
+                    &self.options,
+                    options,
+                    *period_s,
+                    published,
+                )
+            });
+        if let Some(mut open) = open {
+            out.extend(provisional(open.feed(samples, len, len)));
+        }
+        out
     }
-    if open.matches(record, frequency) && open.fed() <= len {
-        out.extend(provisional(open.feed(buffer, len, len)));
-    }
-    out
 }
 
 fn provisional(streams: Vec<PhasorStream>) -> Vec<Found> {
