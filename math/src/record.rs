@@ -78,6 +78,13 @@ pub enum Excitation {
 }
 
 impl Excitation {
+    /// What drove a record nobody labelled (no plan, or a run not yet cut into steps): random,
+    /// band and level unknown.
+    pub const UNKNOWN: Excitation = Excitation::Random {
+        band_hz: None,
+        rms: f64::NAN,
+    };
+
     pub fn frequency_hz(&self) -> Option<f64> {
         match self {
             Excitation::Sine { frequency_hz, .. } => Some(*frequency_hz),

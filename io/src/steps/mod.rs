@@ -377,13 +377,7 @@ impl StepAssembler {
             self.building = Some(Building {
                 record: Record {
                     step,
-                    excitation: plan.map_or(
-                        Excitation::Random {
-                            band_hz: None,
-                            rms: f64::NAN,
-                        },
-                        |p| p.excitation.clone(),
-                    ),
+                    excitation: plan.map_or(Excitation::UNKNOWN, |p| p.excitation.clone()),
                     sample_rate_hz: 0.0,
                     start_time_s: sample.t_s,
                     channels: sample

@@ -191,10 +191,7 @@ impl StepFinder {
     /// same channels throughout).
     fn run_record(&self) -> Result<Record, StepError> {
         let plan = StepPlan {
-            excitation: Excitation::Random {
-                band_hz: None,
-                rms: f64::NAN,
-            },
+            excitation: Excitation::UNKNOWN,
             sample_count: 0,
             driven: None,
             multisine_band_hz: None,

@@ -86,13 +86,7 @@ impl StepStream {
     pub(super) fn new(step: usize, plan: Option<&StepPlan>) -> StepStream {
         StepStream {
             step,
-            excitation: plan.map_or(
-                Excitation::Random {
-                    band_hz: None,
-                    rms: f64::NAN,
-                },
-                |p| p.excitation.clone(),
-            ),
+            excitation: plan.map_or(Excitation::UNKNOWN, |p| p.excitation.clone()),
             expected: plan.map_or(0, |p| p.sample_count),
             first: None,
             phasors: None,
