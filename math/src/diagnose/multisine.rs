@@ -311,9 +311,8 @@ pub fn search_blocks(
                 }
             }
         }
-        let best = best.map(|b| {
-            multisine_state::refine(b, |s| evaluate(&steps, baseline, effect, s).ok())
-        });
+        let best = best
+            .map(|b| multisine_state::refine(b, |s| evaluate(&steps, baseline, effect, s).ok()));
         match best {
             Some(b) => candidates.push(b),
             None => dropped.push(DroppedEffect {
@@ -351,8 +350,7 @@ pub(super) fn evaluate(
     let id = steps
         .identify(&model, &sine_blocks, None)
         .map_err(|e| e.to_string())?;
-    let mut added: Vec<(String, f64, f64)> = id.parameters
-        [baseline.terms.len()..model.terms.len()]
+    let mut added: Vec<(String, f64, f64)> = id.parameters[baseline.terms.len()..model.terms.len()]
         .iter()
         .map(|p| (p.name.clone(), p.value, p.std))
         .collect();

@@ -23,14 +23,10 @@ use super::effects::{
 };
 use super::multisine::{BlockCandidate, Steps};
 use super::sensor::{self, SensorFilter};
-use super::series::DAMPER_SYMBOL;
+use super::series::{DAMPER_SYMBOL, golden_section_ln};
 use crate::identify::TermLag;
 use crate::model::Model;
 use crate::record::Channel;
-
-/// Golden-section steps of a shape parameter's refinement (each a fit and a cross-validation):
-/// they narrow a bracket of a factor 1.7 either side to about 1 %.
-const REFINE_STEPS: usize = 10;
 
 /// Channels a single-channel sensor member may sit on in a multisine record (the element
 /// setup's motion channels; the force is what the members compare against).
@@ -48,7 +44,7 @@ pub(super) fn not_fitted_reason(s: &Structure, steps: &Steps) -> Option<String> 
     }
     if s.drift {
         return Some(
-            "a drift of the damping over the run is not written into the per-line equations (each record's damper column scaled by its time); within a record a trend is no line of the period, it leaks into the low bins and the period-to-period scatter; fitted on sine steps alone".into(),
+            "a drift of the damping over the run is not written into the per-line equations (across records it could be: each record's damper column scaled by its time; within a record a trend is no line of the period, it leaks into the low bins and the period-to-period scatter); fitted on sine steps alone".into(),
         );
     }
     if s.series_relaxation_s.is_some() && !steps.sines.is_empty() {
@@ -77,9 +73,11 @@ pub(super) fn with_members(
         if steps.multisines.iter().all(|m| m.channel(ch).is_none()) {
             continue;
         }
-        options.extend(LOWPASS_CUTOFF_MULTIPLES.iter().map(|m| {
-            sensor_structure(&SensorFilter::on(ch, 1, m * max_frequency_hz, 1.0))
-        }));
+        options.extend(
+            LOWPASS_CUTOFF_MULTIPLES
+                .iter()
+                .map(|m| sensor_structure(&SensorFilter::on(ch, 1, m * max_frequency_hz, 1.0))),
+        );
     }
     options
 }
@@ -109,8 +107,12 @@ pub(super) fn steps_for<'a>(
         );
     }
     if let Some(tau) = s.series_relaxation_s {
-        let term = damper_index(baseline)
-            .ok_or_else(|| format!("the baseline {} has no damper {DAMPER_SYMBOL}", baseline.name))?;
+        let term = damper_index(baseline).ok_or_else(|| {
+            format!(
+                "the baseline {} has no damper {DAMPER_SYMBOL}",
+                baseline.name
+            )
+        })?;
         out.lag = Some(TermLag {
             term,
             relaxation_s: tau,
@@ -144,7 +146,7 @@ pub(super) fn derived(steps: &Steps, theta: &[f64]) -> Vec<(String, f64, f64)> {
 
 /// `best` with its shape parameter (a sensor member's cutoff, a series relaxation time)
 /// refined by golden section of the cross-validated error on its log, between the grid's
-/// neighbours; `evaluate` fits one structure (None when it gives no candidate). Other
+/// neighbours ([`golden_section_ln`], as on sine steps); `evaluate` fits one structure (None when it gives no candidate). Other
 /// candidates are returned as they are.
 pub(super) fn refine(
     best: BlockCandidate,
@@ -167,34 +169,13 @@ pub(super) fn refine(
         } else {
             return best;
         };
-    let spacing = spacing.ln();
-    let mut at = |u: f64| {
+    let infallible = golden_section_ln(value, spacing.ln(), |u| {
         let c = evaluate(build(u.exp()));
-        (c.as_ref().map_or(f64::INFINITY, |c| c.cv_percent), c)
-    };
-    let (mut a, mut b) = (value.ln() - spacing, value.ln() + spacing);
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let mut c1 = b - g * (b - a);
-    let mut c2 = a + g * (b - a);
-    let mut f1 = at(c1);
-    let mut f2 = at(c2);
-    for _ in 0..REFINE_STEPS {
-        if f1.0 < f2.0 {
-            b = c2;
-            c2 = c1;
-            f2 = f1;
-            c1 = b - g * (b - a);
-            f1 = at(c1);
-        } else {
-            a = c1;
-            c1 = c2;
-            f1 = f2;
-            c2 = a + g * (b - a);
-            f2 = at(c2);
-        }
-    }
+        Ok::<_, std::convert::Infallible>((c.as_ref().map_or(f64::INFINITY, |c| c.cv_percent), c))
+    });
+    let Ok(last) = infallible;
     let mut winner = best;
-    for (k, c) in [f1, f2] {
+    for (k, c) in last {
         if let Some(c) = c
             && k < winner.cv_percent
         {
