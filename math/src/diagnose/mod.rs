@@ -50,6 +50,7 @@ pub mod fit;
 pub mod free_play;
 pub mod locate;
 pub mod multisine;
+mod multisine_state;
 pub mod output_error;
 pub mod pairs;
 pub mod phasor;

@@ -5,10 +5,14 @@
 //! multisine realisation) and scoring its equations, weighted by their noise, with the
 //! parameters fitted on the others.
 //!
-//! Only the candidates that are extra element terms are fitted on these equations (friction,
-//! damping and stiffness nonlinearities, free play, preload); those that change the state's
-//! dynamics or the channels (hysteresis, series compliance, drift, sensor low-pass) are fitted
-//! on rebuilt sine periods only and listed as not fitted here.
+//! The candidates that are extra element terms are fitted on these equations (friction,
+//! damping and stiffness nonlinearities, free play, preload), and so are the two that are
+//! linear per line ([`super::multisine_state`]): sensor_lowpass (each member's filter undone on
+//! every step's phasors) and series_compliance (the damper's column lagged per line; on
+//! multisine records only). Hysteresis and drift are listed, with the reason, as not fitted
+//! here.
+
+use std::borrow::Cow;
 
 use nalgebra::DVector;
 use serde::Serialize;
@@ -19,10 +23,11 @@ use super::effects::{Effect, Scales, Structure, baseline_has, structures};
 use super::element_heldout::TermFit;
 use super::fit::root_ratio_percent;
 use super::locate::{Located, StatePlane};
+use super::multisine_state;
 use super::search::POSITIVE_SYMBOLS;
 use crate::identify::{
-    EquationAccumulator, FdMultiOptions, Identification, Method, StepEquations,
-    accumulate_multisines, multisine_equations_about, step_equations,
+    EquationAccumulator, FdMultiOptions, Identification, Method, StepEquations, TermLag,
+    accumulate_multisines_lagged, multisine_equations_about_lagged, step_equations,
 };
 use crate::model::Model;
 use crate::phasor::{HarmonicAnalysis, MultisineAnalysis};
@@ -42,8 +47,9 @@ pub struct BlockCandidate {
     pub cv_percent: f64,
     /// (name, value, std) of what the structure added, fitted on every step.
     pub added_parameters: Vec<(String, f64, f64)>,
-    /// Baseline + structure fitted on every step.
-    pub fit: TermFit,
+    /// Baseline + structure fitted on every step, where it only adds element terms (a
+    /// held-out record is predicted from the terms alone, without a filter or a lag).
+    pub fit: Option<TermFit>,
 }
 
 /// A candidate that gave no fit on these steps, and why.
@@ -76,20 +82,26 @@ pub struct BlockSearch {
     /// Independent real equations over every step (the penalty's N).
     pub equations: f64,
     pub candidates: Vec<BlockCandidate>,
-    /// Candidate effects that are not extra element terms, so not fitted on these equations.
+    /// Candidate effects with nothing to fit on these equations (no structure for this
+    /// baseline, e.g. series compliance or drift without a damper).
     pub not_fitted: Vec<Effect>,
-    /// Candidates fitted but dropped, with the first reason (a fit these steps cannot identify,
-    /// or one that needs the opposite sign).
+    /// Candidates not fitted or fitted but dropped, with the first reason (a state these
+    /// equations do not hold, a fit these steps cannot identify, or one that needs the
+    /// opposite sign).
     pub dropped: Vec<DroppedEffect>,
     pub by_step: Vec<BlockGap>,
 }
 
-/// The steps of the diagnosis: sine steps first, then multisine records (indices in that order).
-struct Steps<'a> {
-    setup: &'a Setup,
-    sines: &'a [HarmonicAnalysis],
-    multisines: &'a [MultisineAnalysis],
-    options: FdMultiOptions,
+/// The steps of the diagnosis: sine steps first, then multisine records (indices in that
+/// order); a sensor_lowpass member's steps have its filter undone, a series_compliance
+/// structure's lag one term ([`super::multisine_state::steps_for`]).
+#[derive(Clone)]
+pub(super) struct Steps<'a> {
+    pub(super) setup: &'a Setup,
+    pub(super) sines: Cow<'a, [HarmonicAnalysis]>,
+    pub(super) multisines: Cow<'a, [MultisineAnalysis]>,
+    pub(super) options: FdMultiOptions,
+    pub(super) lag: Option<TermLag>,
 }
 
 impl Steps<'_> {
@@ -118,7 +130,10 @@ impl Steps<'_> {
             .filter(|(j, _)| Some(ns + j) != leave)
             .map(|(_, m)| m.clone())
             .collect();
-        Ok(accumulate_multisines(&acc, model, self.setup, &ms, &self.options)?.solve()?)
+        Ok(
+            accumulate_multisines_lagged(&acc, model, self.setup, &ms, &self.options, self.lag)?
+                .solve()?,
+        )
     }
 
     /// The equations of step `index`, a multisine's weighted by its whole noise about `theta`.
@@ -131,12 +146,13 @@ impl Steps<'_> {
     ) -> Result<StepEquations, DiagnoseError> {
         Ok(match index.checked_sub(self.sines.len()) {
             None => sine_blocks[index].clone(),
-            Some(j) => multisine_equations_about(
+            Some(j) => multisine_equations_about_lagged(
                 model,
                 self.setup,
                 &self.multisines[j],
                 &self.options,
                 theta,
+                self.lag,
             )?,
         })
     }
@@ -191,7 +207,7 @@ fn scales(setup: &Setup, steps: &Steps) -> Result<Scales, DiagnoseError> {
         max_velocity_mps: f64::MIN_POSITIVE,
         max_frequency_hz: 0.0,
     };
-    for an in steps.sines {
+    for an in steps.sines.iter() {
         let eh = crate::identify::element_harmonics(setup, an, false)?;
         let w = eh.omega_rad_s;
         let peak = |scale: f64| eh.displacement.get(1).map_or(0.0, |c| c.norm() * scale);
@@ -199,7 +215,7 @@ fn scales(setup: &Setup, steps: &Steps) -> Result<Scales, DiagnoseError> {
         s.max_velocity_mps = s.max_velocity_mps.max(peak(w));
         s.max_frequency_hz = s.max_frequency_hz.max(an.frequency_hz);
     }
-    for ms in steps.multisines {
+    for ms in steps.multisines.iter() {
         let Some(x) = ms.channel(Channel::RelativeDisplacementM) else {
             continue;
         };
@@ -234,9 +250,10 @@ pub fn search_blocks(
 ) -> Result<BlockSearch, DiagnoseError> {
     let steps = Steps {
         setup,
-        sines,
-        multisines,
+        sines: Cow::Borrowed(sines),
+        multisines: Cow::Borrowed(multisines),
         options: FdMultiOptions::default(),
+        lag: None,
     };
     if steps.len() < MIN_BLOCKS {
         return Err(DiagnoseError::NoSineSteps);
@@ -268,57 +285,34 @@ pub fn search_blocks(
             continue;
         }
         let options = structures(baseline, effect, &scales);
-        if options.is_empty() || !options.iter().all(is_extra_terms) {
+        if options.is_empty() {
             not_fitted.push(effect);
             continue;
         }
+        if let Some(reason) = options
+            .iter()
+            .find_map(|o| multisine_state::not_fitted_reason(o, &steps))
+        {
+            dropped.push(DroppedEffect { effect, reason });
+            continue;
+        }
+        let options = multisine_state::with_members(options, scales.max_frequency_hz, &steps);
         let mut best: Option<BlockCandidate> = None;
         let mut why_not = None;
         for structure in options {
-            let model = baseline.with_terms(
-                format!("{} + {}", baseline.name, effect.name()),
-                &structure.terms,
-            );
-            let id = match steps.identify(&model, &steps.sine_blocks(&model)?, None) {
-                Ok(id) => id,
-                Err(e) => {
-                    why_not.get_or_insert(e.to_string());
-                    continue;
+            match evaluate(&steps, baseline, effect, structure) {
+                Ok(c) => {
+                    if best.as_ref().is_none_or(|b| c.cv_percent < b.cv_percent) {
+                        best = Some(c);
+                    }
                 }
-            };
-            let mut added: Vec<(String, f64, f64)> = id.parameters
-                [baseline.terms.len()..model.terms.len()]
-                .iter()
-                .map(|p| (p.name.clone(), p.value, p.std))
-                .collect();
-            // A fit that needs the opposite sign is not that effect.
-            if !physical(&added) {
-                why_not.get_or_insert("its fit needs the opposite sign".to_string());
-                continue;
-            }
-            let cv = match cross_validated(&steps, &model) {
-                Ok((cv, _)) => cv,
                 Err(e) => {
-                    why_not.get_or_insert(format!("leaving a step out: {e}"));
-                    continue;
+                    why_not.get_or_insert(e);
                 }
-            };
-            if best.as_ref().is_none_or(|b| cv < b.cv_percent) {
-                added.extend(
-                    structure
-                        .searched
-                        .iter()
-                        .map(|(n, v)| (n.clone(), *v, f64::NAN)),
-                );
-                best = Some(BlockCandidate {
-                    effect,
-                    structure,
-                    cv_percent: cv,
-                    added_parameters: added,
-                    fit: term_fit(setup, &model, &id.theta()),
-                });
             }
         }
+        let best = best
+            .map(|b| multisine_state::refine(b, |s| evaluate(&steps, baseline, effect, s).ok()));
         match best {
             Some(b) => candidates.push(b),
             None => dropped.push(DroppedEffect {
@@ -339,6 +333,53 @@ pub fn search_blocks(
     })
 }
 
+/// `structure` on the baseline fitted on every step and cross-validated by leaving out a step;
+/// Err says why it gives no candidate.
+pub(super) fn evaluate(
+    steps: &Steps,
+    baseline: &Model,
+    effect: Effect,
+    structure: Structure,
+) -> Result<BlockCandidate, String> {
+    let steps = multisine_state::steps_for(steps, baseline, &structure)?;
+    let model = baseline.with_terms(
+        format!("{} + {}", baseline.name, effect.name()),
+        &structure.terms,
+    );
+    let sine_blocks = steps.sine_blocks(&model).map_err(|e| e.to_string())?;
+    let id = steps
+        .identify(&model, &sine_blocks, None)
+        .map_err(|e| e.to_string())?;
+    let mut added: Vec<(String, f64, f64)> = id.parameters[baseline.terms.len()..model.terms.len()]
+        .iter()
+        .map(|p| (p.name.clone(), p.value, p.std))
+        .collect();
+    // A fit that needs the opposite sign is not that effect.
+    if !physical(&added) {
+        return Err("its fit needs the opposite sign".to_string());
+    }
+    let theta = id.theta();
+    if !multisine_state::physical(&steps, &theta) {
+        return Err("its fit needs a damper of the opposite sign".to_string());
+    }
+    let (cv, _) =
+        cross_validated(&steps, &model).map_err(|e| format!("leaving a step out: {e}"))?;
+    added.extend(
+        structure
+            .searched
+            .iter()
+            .map(|(n, v)| (n.clone(), *v, f64::NAN)),
+    );
+    added.extend(multisine_state::derived(&steps, &theta));
+    Ok(BlockCandidate {
+        effect,
+        cv_percent: cv,
+        added_parameters: added,
+        fit: is_extra_terms(&structure).then(|| term_fit(steps.setup, &model, &theta)),
+        structure,
+    })
+}
+
 /// `model` with `theta` from the identification: its terms' coefficients, then the moving
 /// mass where the setup leaves it unknown.
 fn term_fit(setup: &Setup, model: &Model, theta: &[f64]) -> TermFit {
@@ -356,7 +397,8 @@ fn term_fit(setup: &Setup, model: &Model, theta: &[f64]) -> TermFit {
     }
 }
 
-/// Whether a structure only adds element terms (so the identification's equations hold it).
+/// Whether a structure only adds element terms (so the identification's equations hold it
+/// without changing the channels or lagging a term).
 pub(crate) fn is_extra_terms(s: &Structure) -> bool {
     s.hysteresis_yield_m.is_none()
         && s.series_relaxation_s.is_none()

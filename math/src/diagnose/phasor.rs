@@ -210,7 +210,7 @@ impl PhasorDiagnosis {
                 cv_percent: c.cv_percent,
                 extra_parameters: c.structure.extra_parameters,
                 added_parameters: c.added_parameters.clone(),
-                fit: Some(c.fit.clone()),
+                fit: c.fit.clone(),
             })
             .collect();
         let (findings, ranked) = conclude(

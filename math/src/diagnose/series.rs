@@ -15,7 +15,7 @@ use super::search::PhasorCandidate;
 /// The symbol of the viscous damper term that series compliance and drift act on.
 pub const DAMPER_SYMBOL: &str = "c";
 
-/// Golden-section steps of the refinement (each one fit per step for the cross-validation):
+/// Golden-section steps of a refinement (each one fit per step for the cross-validation):
 /// they narrow the grid's bracket (a factor 1.7 either side) to about 1 % in tau.
 const REFINE_STEPS: usize = 10;
 
@@ -40,17 +40,35 @@ pub fn refine<E>(
     };
     let key = |c: &PhasorCandidate| c.cv_percent.unwrap_or(c.fitted.residual_percent);
     let spacing = (SERIES_RELAXATION_MULTIPLES[1] / SERIES_RELAXATION_MULTIPLES[0]).ln();
-    let (mut a, mut b) = (tau0.ln() - spacing, tau0.ln() + spacing);
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let mut at = |u: f64| -> Result<(f64, Option<PhasorCandidate>), E> {
+    let last = golden_section_ln(tau0, spacing, |u| {
         let c = evaluate(series_structure(u.exp()))?;
         Ok((c.as_ref().map_or(f64::INFINITY, key), c))
-    };
+    })?;
+    let mut winner = best;
+    for (k, c) in last {
+        if let Some(c) = c
+            && k < key(&winner)
+        {
+            winner = c;
+        }
+    }
+    Ok(winner)
+}
+
+/// Golden-section search of a positive shape parameter on its log: from `value` a factor
+/// `exp(spacing)` either side, [`REFINE_STEPS`] narrowings; `at(ln value)` gives the error to
+/// minimise and what it was found with. Returns the two last points, (error, what).
+pub fn golden_section_ln<T, E>(
+    value: f64,
+    spacing: f64,
+    mut at: impl FnMut(f64) -> Result<(f64, T), E>,
+) -> Result<[(f64, T); 2], E> {
+    let (mut a, mut b) = (value.ln() - spacing, value.ln() + spacing);
+    let g = 0.5 * (5f64.sqrt() - 1.0);
     let mut c1 = b - g * (b - a);
     let mut c2 = a + g * (b - a);
     let mut f1 = at(c1)?;
     let mut f2 = at(c2)?;
-    let mut winner = best;
     for _ in 0..REFINE_STEPS {
         if f1.0 < f2.0 {
             b = c2;
@@ -66,14 +84,7 @@ pub fn refine<E>(
             f2 = at(c2)?;
         }
     }
-    for (k, c) in [f1, f2] {
-        if let Some(c) = c
-            && k < key(&winner)
-        {
-            winner = c;
-        }
-    }
-    Ok(winner)
+    Ok([f1, f2])
 }
 
 /// The fitted series spring and damper, e.g. "ks 3.10 kN/m, c 184.0 N s/m, relaxation

@@ -31,7 +31,8 @@ pub use cycle::{Cycle, rebuilt_cycle};
 
 pub use fd::{ElementHarmonics, element_harmonics, step_equations};
 pub use multisine::{
-    accumulate_multisines, identify_with_multisines, multisine_equations, multisine_equations_about,
+    TermLag, accumulate_multisines, accumulate_multisines_lagged, identify_with_multisines,
+    multisine_equations, multisine_equations_about, multisine_equations_about_lagged,
 };
 pub use output_error::{
     ElementOutputError, RigDrive, RigMisfit, RigOutputError, element_drive_of, refine_output_error,

@@ -38,7 +38,18 @@ pub fn multisine_equations(
     an: &MultisineAnalysis,
     options: &FdMultiOptions,
 ) -> Result<StepEquations, IdentifyError> {
-    multisine_block(model, setup, an, options, None)
+    multisine_block(model, setup, an, options, None, None)
+}
+
+/// A first-order lag on one term of the model: its force at bin `k` is the term's value on
+/// the rebuilt state through `1 / (1 + i k w0 tau)`. A viscous damper `c x'` in series with a
+/// spring `ks` is the damper term lagged by `tau = c / ks` (the diagnosis's series_compliance
+/// candidate); the equations stay linear in every coefficient.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TermLag {
+    /// Index of the lagged term in the model's terms.
+    pub term: usize,
+    pub relaxation_s: f64,
 }
 
 /// [`multisine_equations`], each equation weighted by its whole noise about `prior` (a first
@@ -52,19 +63,33 @@ pub fn multisine_equations_about(
     options: &FdMultiOptions,
     prior: &[f64],
 ) -> Result<StepEquations, IdentifyError> {
-    multisine_block(model, setup, an, options, Some(prior))
+    multisine_block(model, setup, an, options, Some(prior), None)
+}
+
+/// [`multisine_equations_about`] with one term lagged ([`TermLag`]).
+pub fn multisine_equations_about_lagged(
+    model: &Model,
+    setup: &Setup,
+    an: &MultisineAnalysis,
+    options: &FdMultiOptions,
+    prior: &[f64],
+    lag: Option<TermLag>,
+) -> Result<StepEquations, IdentifyError> {
+    multisine_block(model, setup, an, options, Some(prior), lag)
 }
 
 /// [`multisine_equations`], each equation weighted by its whole noise when `prior` (a first
 /// estimate of the parameters, the moving mass last where it is one) is given: the force's,
 /// and the displacement's and acceleration's propagated through the element linearised
 /// about the rebuilt state (errors in the regressors weigh as much as in the force at 30 dB).
+/// `lag` lags one term's column ([`TermLag`]).
 fn multisine_block(
     model: &Model,
     setup: &Setup,
     an: &MultisineAnalysis,
     options: &FdMultiOptions,
     prior: Option<&[f64]>,
+    lag: Option<TermLag>,
 ) -> Result<StepEquations, IdentifyError> {
     let step = an.step;
     let fail = |problem: String| IdentifyError::Step { step, problem };
@@ -134,6 +159,18 @@ fn multisine_block(
         let h: Vec<f64> = xs.iter().zip(&vs).map(|(x, v)| t.eval(*x, *v)).collect();
         term_rms.push(rms(&h));
         columns.push(grid_harmonics(&h, top, fft.as_ref()));
+    }
+    if let Some(lag) = lag {
+        let col = columns.get_mut(lag.term).ok_or_else(|| {
+            fail(format!(
+                "the lagged term {} is not one of the model's {} terms",
+                lag.term,
+                model.terms.len()
+            ))
+        })?;
+        for (k, c) in col.iter_mut().enumerate() {
+            *c /= Complex64::new(1.0, k as f64 * w0 * lag.relaxation_s);
+        }
     }
     let used_acc: Vec<Complex64> = (0..=kmax)
         .map(|k| {
@@ -270,10 +307,23 @@ pub fn accumulate_multisines(
     multisines: &[MultisineAnalysis],
     options: &FdMultiOptions,
 ) -> Result<EquationAccumulator, IdentifyError> {
+    accumulate_multisines_lagged(sines, model, setup, multisines, options, None)
+}
+
+/// [`accumulate_multisines`] with one term lagged on every multisine record ([`TermLag`]; the
+/// sine steps' blocks in `sines` are as given).
+pub fn accumulate_multisines_lagged(
+    sines: &EquationAccumulator,
+    model: &Model,
+    setup: &Setup,
+    multisines: &[MultisineAnalysis],
+    options: &FdMultiOptions,
+    lag: Option<TermLag>,
+) -> Result<EquationAccumulator, IdentifyError> {
     let pass = |prior: Option<&[f64]>| -> Result<EquationAccumulator, IdentifyError> {
         let mut acc = sines.clone();
         for ms in multisines {
-            acc.add(&multisine_block(model, setup, ms, options, prior)?)?;
+            acc.add(&multisine_block(model, setup, ms, options, prior, lag)?)?;
         }
         Ok(acc)
     };

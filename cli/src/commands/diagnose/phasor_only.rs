@@ -188,7 +188,7 @@ fn print_summary(
     );
     if !f.not_fitted.is_empty() {
         println!(
-            "not fitted on multisine records (not extra element terms): {}",
+            "not fitted on multisine records (nothing to fit with this baseline): {}",
             f.not_fitted
                 .iter()
                 .map(|e| e.name())

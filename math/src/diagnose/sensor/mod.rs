@@ -18,7 +18,7 @@ use num_complex::Complex64;
 use serde::Serialize;
 
 use crate::identify::{IdentifyError, element_harmonics};
-use crate::phasor::HarmonicAnalysis;
+use crate::phasor::{HarmonicAnalysis, MultisineAnalysis};
 use crate::recipe::Setup;
 use crate::record::Channel;
 use crate::sim::rig::RIG_CHANNELS;
@@ -188,6 +188,23 @@ pub fn unfiltered(an: &HarmonicAnalysis, f: &SensorFilter) -> HarmonicAnalysis {
         }
         for (n, (c, s)) in ch.phasors.iter_mut().zip(&mut ch.noise_std).enumerate() {
             let inv = f.response(n as f64 * an.frequency_hz).inv();
+            *c *= inv;
+            *s *= inv.norm();
+        }
+    }
+    out
+}
+
+/// [`unfiltered`] for a multisine record: each channel's bin `k` divided by the filter's
+/// response at `k f0` (noise scaled alike).
+pub fn unfiltered_multisine(an: &MultisineAnalysis, f: &SensorFilter) -> MultisineAnalysis {
+    let mut out = an.clone();
+    for ch in &mut out.channels {
+        if !f.applies_to(ch.channel) {
+            continue;
+        }
+        for (k, (c, s)) in ch.phasors.iter_mut().zip(&mut ch.noise_std).enumerate() {
+            let inv = f.response(k as f64 * an.base_frequency_hz).inv();
             *c *= inv;
             *s *= inv.norm();
         }
