@@ -50,6 +50,36 @@ fn check(what: &str, found: &[f64], truth: &[f64], bounds_percent: &[f64]) {
     }
 }
 
+/// `system` swept linearly and logarithmically at each SNR (None: noise-free), identified with
+/// `model`: every parameter within its bound [%] of `truth`.
+fn check_sweeps(system: &str, model: &str, truth: &[f64], cases: &[(Option<&str>, &[f64])]) {
+    let dir = tempfile::tempdir().unwrap();
+    for kind in ["linear", "log"] {
+        for (snr, bounds) in cases {
+            let csv = dir.path().join(format!("{kind}.csv"));
+            let mut args = vec![
+                "--system",
+                system,
+                "--excitation",
+                "sweep",
+                "--sweep-kind",
+                kind,
+            ];
+            if let Some(s) = snr {
+                args.extend(["--snr-db", s]);
+            }
+            simulate(&csv, &args);
+            let found = identified_values(&csv, &["--model", model]);
+            check(
+                &format!("{system} {kind} {snr:?} dB"),
+                &found,
+                truth,
+                bounds,
+            );
+        }
+    }
+}
+
 /// The rig swept 1.6-3.4 Hz in 130 s, Coulomb model. Noise-free (the state rebuilt with the
 /// windows' rates) measured: k -0.002, c +0.000, F_d +0.010 % linear; k -0.004, c +0.007,
 /// F_d -0.002 % log (before the rate terms: k +0.19, c -0.64, F_d +1.28 % linear); at 40 dB
@@ -90,34 +120,15 @@ fn a_rig_sweep_identifies_the_coulomb_rig() {
 /// the loosest: +0.47 % linear, +0.54 % log (its std is 0.2 %).
 #[test]
 fn a_shaker_sweep_identifies_the_cubic_shaker_and_its_mass() {
-    let dir = tempfile::tempdir().unwrap();
-    for kind in ["linear", "log"] {
-        for (snr, bounds) in [
-            (None, [0.05, 0.05, 0.1, 0.05]),
-            (Some("40"), [0.2, 0.2, 1.2, 0.2]),
-        ] {
-            let csv = dir.path().join(format!("{kind}.csv"));
-            let mut args = vec![
-                "--system",
-                "shaker-sdof",
-                "--excitation",
-                "sweep",
-                "--sweep-kind",
-                kind,
-            ];
-            if let Some(s) = snr {
-                args.extend(["--snr-db", s]);
-            }
-            simulate(&csv, &args);
-            let found = identified_values(&csv, &["--model", "cubic"]);
-            check(
-                &format!("shaker {kind} {snr:?} dB"),
-                &found,
-                &SHAKER_TRUTH,
-                &bounds,
-            );
-        }
-    }
+    check_sweeps(
+        "shaker-sdof",
+        "cubic",
+        &SHAKER_TRUTH,
+        &[
+            (None, &[0.05, 0.05, 0.1, 0.05]),
+            (Some("40"), &[0.2, 0.2, 1.2, 0.2]),
+        ],
+    );
 }
 
 /// The damper dyno swept 1-8 Hz at 10 mm in 48 s (displacement-driven element test with
@@ -128,34 +139,15 @@ fn a_shaker_sweep_identifies_the_cubic_shaker_and_its_mass() {
 /// 0.06 %.
 #[test]
 fn a_dyno_sweep_identifies_the_damper_and_its_fixture_mass() {
-    let dir = tempfile::tempdir().unwrap();
-    for kind in ["linear", "log"] {
-        for (snr, bounds) in [
-            (None, [0.05, 0.05, 0.05, 0.05, 0.2, 0.1]),
-            (Some("30"), [0.6, 3.5, 0.2, 0.5, 1.5, 7.0]),
-        ] {
-            let csv = dir.path().join(format!("{kind}.csv"));
-            let mut args = vec![
-                "--system",
-                "damper-dyno",
-                "--excitation",
-                "sweep",
-                "--sweep-kind",
-                kind,
-            ];
-            if let Some(s) = snr {
-                args.extend(["--snr-db", s]);
-            }
-            simulate(&csv, &args);
-            let found = identified_values(&csv, &["--model", "damper"]);
-            check(
-                &format!("dyno {kind} {snr:?} dB"),
-                &found,
-                &DYNO_TRUTH,
-                &bounds,
-            );
-        }
-    }
+    check_sweeps(
+        "damper-dyno",
+        "damper",
+        &DYNO_TRUTH,
+        &[
+            (None, &[0.05, 0.05, 0.05, 0.05, 0.2, 0.1]),
+            (Some("30"), &[0.6, 3.5, 0.2, 0.5, 1.5, 7.0]),
+        ],
+    );
 }
 
 /// The rig driven by one 130 s band-random record (1.6-3.4 Hz), identified in the time domain,

@@ -66,16 +66,21 @@ impl RunSpec {
     /// [`RunSpec::damper_dyno`] driven by one linear or logarithmic 1-8 Hz displacement sweep of
     /// 10 mm (peak speed 0.5 m/s at 8 Hz) as long as the twelve steps of the stepped program.
     pub fn damper_dyno_sweep(kind: SweepKind, snr_db: Option<f64>, seed: u64) -> RunSpec {
-        let stepped = RunSpec::damper_dyno(snr_db, seed);
+        RunSpec::damper_dyno(snr_db, seed).swept(kind, [1.0, 8.0], 0.01)
+    }
+
+    /// This run with its steps replaced by one sweep over `band_hz` at `amplitude` (in the
+    /// driven quantity's unit), as long as the steps were together.
+    fn swept(self, kind: SweepKind, band_hz: [f64; 2], amplitude: f64) -> RunSpec {
         RunSpec {
             steps: vec![StepSpec::Sweep {
                 sweep: kind,
-                start_frequency_hz: 1.0,
-                end_frequency_hz: 8.0,
-                amplitude: 0.01,
+                start_frequency_hz: band_hz[0],
+                end_frequency_hz: band_hz[1],
+                amplitude,
             }],
-            samples_per_record: stepped.samples_per_record * stepped.steps.len(),
-            ..stepped
+            samples_per_record: self.samples_per_record * self.steps.len(),
+            ..self
         }
     }
 
@@ -183,16 +188,6 @@ impl RunSpec {
     /// stepped sine's band and time: 8 to 25 Hz at 40 N in 24 s, through its 16 Hz resonance
     /// (settling time about 0.07 s, so the sweep stays settled), `kind` linear or logarithmic.
     pub fn shaker_sdof_sweep(kind: SweepKind, snr_db: Option<f64>, seed: u64) -> RunSpec {
-        let stepped = RunSpec::shaker_sdof(snr_db, seed);
-        RunSpec {
-            steps: vec![StepSpec::Sweep {
-                sweep: kind,
-                start_frequency_hz: 8.0,
-                end_frequency_hz: 25.0,
-                amplitude: 40.0,
-            }],
-            samples_per_record: stepped.samples_per_record * stepped.steps.len(),
-            ..stepped
-        }
+        RunSpec::shaker_sdof(snr_db, seed).swept(kind, [8.0, 25.0], 40.0)
     }
 }
