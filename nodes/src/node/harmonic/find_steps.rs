@@ -7,7 +7,8 @@
 //! from both sides as in a whole-run segmentation); its samples are then dropped from the
 //! buffer. The buffer is searched again when it has grown by a quarter (at least
 //! [`MIN_SEARCH_SAMPLES`]), so the work per sample stays bounded while a step is reported at
-//! most a quarter of the buffer late. At the end of a run (no sample for a while) every step left is complete.
+//! most a quarter of the buffer late. At the end of a run (no sample for a while) every step
+//! left is complete.
 //!
 //! With updates ([`StepFinder::with_updates`]), the step in progress also gives provisional
 //! phasors every `update_period_s` of its samples, from the samples known to be its own
