@@ -13,11 +13,7 @@
 
 mod common;
 
-use common::{forcemap, identified_values};
-
-fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{forcemap, identified_values, stderr};
 
 #[test]
 fn a_multisine_export_identifies_the_cubic_shaker_and_its_mass() {

@@ -11,15 +11,11 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::forcemap;
+use common::{forcemap, stderr};
 use forcemap_io::csv_export::write_csv;
 use forcemap_io::rig_bag::read_rig_bag;
 use forcemap_math::recipe::SetupKind;
 use forcemap_math::sim::{AsymmetricDamping, BoucWen, FreePlay, RunSpec, TruthElement};
-
-fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// `forcemap simulate --no-random ARGS --csv DIR/NAME.csv`; panics unless it succeeds.
 fn simulate(dir: &Path, name: &str, args: &[&str]) -> PathBuf {

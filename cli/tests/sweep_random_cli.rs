@@ -12,17 +12,13 @@ mod common;
 
 use std::path::Path;
 
-use common::{forcemap, identified_values};
+use common::{forcemap, identified_values, stderr};
 
 /// The rig's Coulomb truth (k, c, F_d) and the shaker's (k, c, s, m).
 const RIG_TRUTH: [f64; 3] = [6380.0, 184.0, 12.3];
 const SHAKER_TRUTH: [f64; 4] = [2e4, 60.0, 5e7, 2.0];
 /// The damper dyno's `damper` truth (offset, k, c, ca, F_d) and its 0.8 kg fixture (m).
 const DYNO_TRUTH: [f64; 6] = [150.0, 2000.0, 1750.0, 750.0, 40.0, 0.8];
-
-fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 fn simulate(out: &Path, args: &[&str]) {
     let mut all = vec!["simulate"];

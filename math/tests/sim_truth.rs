@@ -540,22 +540,6 @@ fn three_dof_substep_convergence() {
     assert!(worst < 1e-7);
 }
 
-/// Timing of one paper rig run (10 steps x 1300 samples); run with `--release --ignored`.
-#[test]
-#[ignore]
-fn time_paper_rig_run() {
-    let spec = RunSpec::paper_rig_sine(None, 0);
-    let t0 = std::time::Instant::now();
-    let reps = 5;
-    for _ in 0..reps {
-        spec.simulate().unwrap();
-    }
-    eprintln!(
-        "paper rig run (10 x 1300 samples, sub-step 1e-4 s): {:.1} ms",
-        t0.elapsed().as_secs_f64() * 1e3 / reps as f64
-    );
-}
-
 /// Every element term (Stribeck, asymmetric friction, cubic, x|x|, v|v|, asymmetric damping,
 /// free-play, Bouc-Wen) runs through both simulators without chattering, with exact stick.
 #[test]

@@ -12,6 +12,11 @@ pub fn forcemap(args: &[&str]) -> Output {
         .expect("forcemap runs")
 }
 
+/// A command's stderr as text (for assertion messages and error checks).
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
 /// `forcemap identify DATA ARGS... --json`: the identified parameter values, in model order.
 pub fn identified_values(data: &Path, args: &[&str]) -> Vec<f64> {
     let mut all = vec!["identify", data.to_str().unwrap(), "--json"];

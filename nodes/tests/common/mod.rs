@@ -171,3 +171,11 @@ pub fn one_run<'a>(records: impl IntoIterator<Item = &'a Record>) -> Vec<Record>
         })
         .collect()
 }
+
+/// The committed rig bag's steps as final phasors, and a core that identifies them.
+pub fn rig_core(factor: f64) -> IdentifierCore {
+    core(&rig_params(&[(
+        "forgetting_per_step",
+        ParamValue::Double(factor),
+    )]))
+}
