@@ -128,6 +128,59 @@ pub fn fit(
     fit_on_columns(baseline, s, terms, cycles, &cols, skip)
 }
 
+/// Baseline + structure on `cycles` with each unstuck cycle's design columns computed once,
+/// for the fit on every step ([`fit`] with no skip) and its cross-validation
+/// ([`cross_validated_percent`]), which the search asks for one after the other.
+pub struct Design<'a> {
+    baseline: &'a Model,
+    s: &'a Structure,
+    cycles: &'a [StepCycle],
+    terms: Vec<Arc<dyn Term>>,
+    cols: Vec<Option<Vec<Vec<f64>>>>,
+}
+
+impl<'a> Design<'a> {
+    pub fn new(baseline: &'a Model, s: &'a Structure, cycles: &'a [StepCycle]) -> Design<'a> {
+        let terms = all_terms(baseline, s);
+        let cols = cycles
+            .iter()
+            .map(|c| (!c.stuck).then(|| columns(&terms, s, c)))
+            .collect();
+        Design {
+            baseline,
+            s,
+            cycles,
+            terms,
+            cols,
+        }
+    }
+
+    /// [`fit`] on every step.
+    pub fn fit(&self) -> Result<Fitted, LstsqError> {
+        let (b, s, terms) = (self.baseline, self.s, self.terms.clone());
+        fit_on_columns(b, s, terms, self.cycles, &self.cols, None)
+    }
+
+    /// [`cross_validated_percent`].
+    pub fn cross_validated_percent(&self) -> Option<f64> {
+        let cycles = self.cycles;
+        if cycles.len() < 3 {
+            return None;
+        }
+        let (mut num, mut den) = (0.0, 0.0);
+        for (k, c) in cycles.iter().enumerate() {
+            let (b, s, terms) = (self.baseline, self.s, self.terms.clone());
+            let f = fit_on_columns(b, s, terms, cycles, &self.cols, Some(k)).ok()?;
+            // A stuck cycle keeps no point: it adds nothing to either sum.
+            let Some(ck) = &self.cols[k] else { continue };
+            let (n, d) = residual_sums_of(&f.predict_on_columns(c, ck), c);
+            num += n;
+            den += d;
+        }
+        Some(root_ratio_percent(num, den))
+    }
+}
+
 /// [`fit`] with each cycle's design columns given (`None` for a stuck cycle): the
 /// cross-validation's fits share them (computing them, a Bouc-Wen cycle among them, was most of
 /// the phasor search before).
@@ -147,29 +200,36 @@ fn fit_on_columns(
         names.push(drift::RATE_SYMBOL.into());
     }
     let p = names.len();
-    let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
+    // The kept points of each fitted cycle, then the weighted rows straight into A and b.
+    let fitted: Vec<(&StepCycle, &Vec<Vec<f64>>, Vec<bool>)> = cycles
+        .iter()
+        .zip(columns_of)
+        .enumerate()
+        .filter(|(k, (c, _))| Some(*k) != skip && !c.stuck)
+        .map(|(_, (c, cols))| (c, cols.as_ref().expect("columns of every fitted cycle"), kept(c)))
+        .collect();
+    let n_rows = fitted
+        .iter()
+        .map(|(_, _, keep)| keep.iter().filter(|k| **k).count())
+        .sum();
+    let mut a = DMatrix::zeros(n_rows, p);
+    let mut b = DVector::zeros(n_rows);
     let mut independent = 0.0;
-    for (k, (c, cols)) in cycles.iter().zip(columns_of).enumerate() {
-        if Some(k) == skip || c.stuck {
-            continue;
-        }
-        let cols = cols.as_ref().expect("columns of every fitted cycle");
+    let mut r = 0;
+    for (c, cols, keep) in &fitted {
         let wt = 1.0 / c.force_noise_n;
-        for (i, keep) in kept(c).iter().enumerate() {
-            if *keep {
-                rows.push((
-                    cols.iter().map(|col| col[i] * wt).collect(),
-                    c.force_n[i] * wt,
-                ));
+        for (i, _) in keep.iter().enumerate().filter(|(_, k)| **k) {
+            for (j, col) in cols.iter().enumerate() {
+                a[(r, j)] = col[i] * wt;
             }
+            b[r] = c.force_n[i] * wt;
+            r += 1;
         }
         independent += (2 * c.harmonics + 1) as f64;
     }
-    let a = DMatrix::from_fn(rows.len(), p, |r, i| rows[r].0[i]);
-    let b = DVector::from_fn(rows.len(), |r, _| rows[r].1);
     // Grid points are not independent equations: 2N+1 harmonics made each period.
     let scale = if independent > p as f64 {
-        ((rows.len() as f64 - p as f64) / (independent - p as f64)).max(1.0)
+        ((n_rows as f64 - p as f64) / (independent - p as f64)).max(1.0)
     } else {
         1.0
     };
@@ -314,26 +374,9 @@ pub fn cross_validated_percent(
     s: &Structure,
     cycles: &[StepCycle],
 ) -> Option<f64> {
-    if cycles.len() < 3 {
-        return None;
-    }
     // Each cycle's columns once: every fit but one uses them, and the left-out one predicts
     // its cycle with them.
-    let terms = all_terms(baseline, s);
-    let cols: Vec<Option<Vec<Vec<f64>>>> = cycles
-        .iter()
-        .map(|c| (!c.stuck).then(|| columns(&terms, s, c)))
-        .collect();
-    let (mut num, mut den) = (0.0, 0.0);
-    for (k, c) in cycles.iter().enumerate() {
-        let f = fit_on_columns(baseline, s, terms.clone(), cycles, &cols, Some(k)).ok()?;
-        // A stuck cycle keeps no point: it adds nothing to either sum.
-        let Some(ck) = &cols[k] else { continue };
-        let (n, d) = residual_sums_of(&f.predict_on_columns(c, ck), c);
-        num += n;
-        den += d;
-    }
-    Some(root_ratio_percent(num, den))
+    Design::new(baseline, s, cycles).cross_validated_percent()
 }
 
 /// 100 sqrt(num / den) [%]: a residual's size relative to the data's, from their sums of

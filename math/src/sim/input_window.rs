@@ -216,14 +216,43 @@ impl InputWindow {
 /// replay evaluates only the base acceleration between samples; the value and the velocity
 /// cost divisions it does not need).
 pub(crate) fn spline_d2(s: &CubicSpline, t: f64, t_ref: f64) -> f64 {
-    if s.y.len() < 2 {
-        return 0.0;
+    SplineInterval::of(s, t_ref).map_or(0.0, |iv| iv.d2(t))
+}
+
+/// The interval of a spline that holds at one `t_ref`, for [`spline_d2`] at several times: the
+/// RK4 stages of a sample interval's sub-steps share their `t_ref`, so a replay looks the
+/// interval up once per sample instead of at every stage.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SplineInterval {
+    knot_s: f64,
+    h: f64,
+    m0: f64,
+    m1: f64,
+}
+
+impl SplineInterval {
+    /// None for a spline of fewer than 2 samples (its second derivative is 0).
+    pub(crate) fn of(s: &CubicSpline, t_ref: f64) -> Option<SplineInterval> {
+        if s.y.len() < 2 {
+            return None;
+        }
+        let i = s.interval(t_ref);
+        let h = 1.0 / s.sample_rate_hz;
+        Some(SplineInterval {
+            knot_s: s.t0 + i as f64 * h,
+            h,
+            m0: s.m[i],
+            m1: s.m[i + 1],
+        })
     }
-    let i = s.interval(t_ref);
-    let h = 1.0 / s.sample_rate_hz;
-    let u = t - (s.t0 + i as f64 * h);
-    let w = h - u;
-    s.m[i] * w / h + s.m[i + 1] * u / h
+
+    /// The second derivative at `t` with the cubic of this interval.
+    #[inline(always)]
+    pub(crate) fn d2(&self, t: f64) -> f64 {
+        let u = t - self.knot_s;
+        let w = self.h - u;
+        self.m0 * w / self.h + self.m1 * u / self.h
+    }
 }
 
 #[cfg(test)]
