@@ -38,7 +38,7 @@ pub struct Fitted {
     pub residual_percent: f64,
 }
 
-fn columns(terms: &[Arc<dyn Term>], s: &Structure, c: &StepCycle) -> Vec<Vec<f64>> {
+pub(super) fn columns(terms: &[Arc<dyn Term>], s: &Structure, c: &StepCycle) -> Vec<Vec<f64>> {
     let mut cols: Vec<Vec<f64>> = terms
         .iter()
         .map(|t| {
@@ -128,63 +128,10 @@ pub fn fit(
     fit_on_columns(baseline, s, terms, cycles, &cols, skip)
 }
 
-/// Baseline + structure on `cycles` with each unstuck cycle's design columns computed once,
-/// for the fit on every step ([`fit`] with no skip) and its cross-validation
-/// ([`cross_validated_percent`]), which the search asks for one after the other.
-pub struct Design<'a> {
-    baseline: &'a Model,
-    s: &'a Structure,
-    cycles: &'a [StepCycle],
-    terms: Vec<Arc<dyn Term>>,
-    cols: Vec<Option<Vec<Vec<f64>>>>,
-}
-
-impl<'a> Design<'a> {
-    pub fn new(baseline: &'a Model, s: &'a Structure, cycles: &'a [StepCycle]) -> Design<'a> {
-        let terms = all_terms(baseline, s);
-        let cols = cycles
-            .iter()
-            .map(|c| (!c.stuck).then(|| columns(&terms, s, c)))
-            .collect();
-        Design {
-            baseline,
-            s,
-            cycles,
-            terms,
-            cols,
-        }
-    }
-
-    /// [`fit`] on every step.
-    pub fn fit(&self) -> Result<Fitted, LstsqError> {
-        let (b, s, terms) = (self.baseline, self.s, self.terms.clone());
-        fit_on_columns(b, s, terms, self.cycles, &self.cols, None)
-    }
-
-    /// [`cross_validated_percent`].
-    pub fn cross_validated_percent(&self) -> Option<f64> {
-        let cycles = self.cycles;
-        if cycles.len() < 3 {
-            return None;
-        }
-        let (mut num, mut den) = (0.0, 0.0);
-        for (k, c) in cycles.iter().enumerate() {
-            let (b, s, terms) = (self.baseline, self.s, self.terms.clone());
-            let f = fit_on_columns(b, s, terms, cycles, &self.cols, Some(k)).ok()?;
-            // A stuck cycle keeps no point: it adds nothing to either sum.
-            let Some(ck) = &self.cols[k] else { continue };
-            let (n, d) = residual_sums_of(&f.predict_on_columns(c, ck), c);
-            num += n;
-            den += d;
-        }
-        Some(root_ratio_percent(num, den))
-    }
-}
-
 /// [`fit`] with each cycle's design columns given (`None` for a stuck cycle): the
 /// cross-validation's fits share them (computing them, a Bouc-Wen cycle among them, was most of
 /// the phasor search before).
-fn fit_on_columns(
+pub(super) fn fit_on_columns(
     baseline: &Model,
     s: &Structure,
     terms: Vec<Arc<dyn Term>>,
@@ -201,12 +148,18 @@ fn fit_on_columns(
     }
     let p = names.len();
     // The kept points of each fitted cycle, then the weighted rows straight into A and b.
-    let fitted: Vec<(&StepCycle, &Vec<Vec<f64>>, Vec<bool>)> = cycles
+    let fitted: Vec<_> = cycles
         .iter()
         .zip(columns_of)
         .enumerate()
         .filter(|(k, (c, _))| Some(*k) != skip && !c.stuck)
-        .map(|(_, (c, cols))| (c, cols.as_ref().expect("columns of every fitted cycle"), kept(c)))
+        .map(|(_, (c, cols))| {
+            (
+                c,
+                cols.as_ref().expect("columns of every fitted cycle"),
+                kept(c),
+            )
+        })
         .collect();
     let n_rows = fitted
         .iter()
@@ -255,7 +208,7 @@ impl Fitted {
     }
 
     /// [`Fitted::predict`] with the cycle's design columns given.
-    fn predict_on_columns(&self, c: &StepCycle, cols: &[Vec<f64>]) -> Vec<f64> {
+    pub(super) fn predict_on_columns(&self, c: &StepCycle, cols: &[Vec<f64>]) -> Vec<f64> {
         (0..c.force_n.len())
             .map(|i| {
                 cols.iter()
@@ -354,7 +307,7 @@ pub fn residual_sums(fitted: &Fitted, c: &StepCycle) -> (f64, f64) {
 }
 
 /// [`residual_sums`] of the prediction `pred` of cycle `c`.
-fn residual_sums_of(pred: &[f64], c: &StepCycle) -> (f64, f64) {
+pub(super) fn residual_sums_of(pred: &[f64], c: &StepCycle) -> (f64, f64) {
     let wt2 = c.force_noise_n.powi(-2);
     let mut num = 0.0;
     let mut den = 0.0;
@@ -376,7 +329,7 @@ pub fn cross_validated_percent(
 ) -> Option<f64> {
     // Each cycle's columns once: every fit but one uses them, and the left-out one predicts
     // its cycle with them.
-    Design::new(baseline, s, cycles).cross_validated_percent()
+    super::design::Design::new(baseline, s, cycles).cross_validated_percent()
 }
 
 /// 100 sqrt(num / den) [%]: a residual's size relative to the data's, from their sums of
@@ -587,6 +540,22 @@ mod tests {
         let cv = cross_validated_percent(&baseline, &s, &cycles).unwrap();
         assert_eq!(cv.to_bits(), by_fit.to_bits(), "{cv} vs {by_fit}");
         assert!(cv > 0.0 && cv < 5.0, "{cv}");
+        // The search's fit on every step from the same shared columns is `fit`'s, to the bit.
+        let design = super::super::design::Design::new(&baseline, &s, &cycles);
+        let (shared, own) = (
+            design.fit().unwrap(),
+            fit(&baseline, &s, &cycles, None).unwrap(),
+        );
+        let bits = |f: &Fitted| {
+            let mut b: Vec<u64> = f.theta.iter().chain(&f.std).map(|v| v.to_bits()).collect();
+            b.push(f.residual_percent.to_bits());
+            b
+        };
+        assert_eq!(bits(&shared), bits(&own));
+        assert_eq!(
+            design.cross_validated_percent().map(f64::to_bits),
+            Some(cv.to_bits())
+        );
     }
 
     #[test]

@@ -6,11 +6,12 @@
 
 use super::DiagnoseError;
 use super::cycles::{STUCK_FRACTION, StepCycle, step_cycle};
+use super::design::Design;
 use super::effects::{
     Effect, Scales, Structure, Transform, baseline_has, sensor_structure, structures,
 };
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
-use super::fit::{Design, Fitted, REVERSAL_BAND, root_ratio_percent};
+use super::fit::{Fitted, REVERSAL_BAND, root_ratio_percent};
 use super::sensor::{Consistency, SubsetMember, best_subset_member, exact_for};
 use super::{free_play, series};
 use crate::model::Model;

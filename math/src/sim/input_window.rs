@@ -212,16 +212,11 @@ impl InputWindow {
     }
 }
 
-/// The second derivative of `CubicSpline::eval(t, t_ref)` alone, with the same operations (a
-/// replay evaluates only the base acceleration between samples; the value and the velocity
-/// cost divisions it does not need).
-pub(crate) fn spline_d2(s: &CubicSpline, t: f64, t_ref: f64) -> f64 {
-    SplineInterval::of(s, t_ref).map_or(0.0, |iv| iv.d2(t))
-}
-
-/// The interval of a spline that holds at one `t_ref`, for [`spline_d2`] at several times: the
-/// RK4 stages of a sample interval's sub-steps share their `t_ref`, so a replay looks the
-/// interval up once per sample instead of at every stage.
+/// The interval of a spline that holds at one `t_ref`, for the second derivative of
+/// `CubicSpline::eval(t, t_ref)` alone at several times, with the same operations (a replay
+/// evaluates only the base acceleration between samples; the value and the velocity cost
+/// divisions it does not need). The RK4 stages of a sample interval's sub-steps share their
+/// `t_ref`, so a replay looks the interval up once per sample instead of at every stage.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct SplineInterval {
     knot_s: f64,
@@ -341,7 +336,7 @@ mod tests {
     }
 
     #[test]
-    fn spline_d2_is_that_of_eval() {
+    fn spline_interval_d2_is_that_of_eval() {
         use crate::sim::excitation::SplineEnds;
         let y: Vec<f64> = (0..40).map(|i| (0.37 * i as f64).sin()).collect();
         let s = CubicSpline::new(&y, 0.5, 100.0, SplineEnds::NotAKnot);
@@ -349,7 +344,7 @@ mod tests {
             let t = 0.4 + k as f64 * 0.00083;
             let t_ref = t + 0.002;
             assert_eq!(
-                spline_d2(&s, t, t_ref).to_bits(),
+                SplineInterval::of(&s, t_ref).unwrap().d2(t).to_bits(),
                 s.eval(t, t_ref).d2.to_bits()
             );
         }

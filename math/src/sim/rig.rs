@@ -172,7 +172,8 @@ impl RigSystem<'_> {
         if order == 0 { d.value } else { d.d2 }
     }
 
-    /// `input_window::spline_d2(s, t, tr)` of piece `j`, its interval remembered for `tr`.
+    /// The second derivative of spline piece `j` at `t` ([`SplineInterval`]), its interval
+    /// remembered for `tr`.
     #[inline(always)]
     fn spline_d2(&self, j: usize, s: &CubicSpline, t: f64, tr: f64) -> f64 {
         let interval = match self.spline_interval.get() {
@@ -236,7 +237,10 @@ impl RigSystem<'_> {
         }
         let tr = t_ref - sig.shift;
         match piece {
-            Piece::Spline(s) => [self.spline_d2(j, s, tl[0], tr), self.spline_d2(j, s, tl[1], tr)],
+            Piece::Spline(s) => [
+                self.spline_d2(j, s, tl[0], tr),
+                self.spline_d2(j, s, tl[1], tr),
+            ],
             _ => [piece.eval(tl[0], tr).d2, piece.eval(tl[1], tr).d2],
         }
     }
