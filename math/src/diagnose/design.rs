@@ -1,6 +1,7 @@
 //! A structure's design columns on the step cycles computed once for the fit on every step
 //! and its leave-one-step-out cross-validation (the phasor search asks for both of every
-//! structure it tries; the columns, a Bouc-Wen cycle among them, are most of a fit's cost).
+//! structure it tries; a hysteresis structure's columns include a Bouc-Wen cycle, and each
+//! column is band-limited to the measured harmonics).
 
 use std::sync::Arc;
 
