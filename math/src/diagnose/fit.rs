@@ -38,7 +38,7 @@ pub struct Fitted {
     pub residual_percent: f64,
 }
 
-fn columns(terms: &[Arc<dyn Term>], s: &Structure, c: &StepCycle) -> Vec<Vec<f64>> {
+pub(super) fn columns(terms: &[Arc<dyn Term>], s: &Structure, c: &StepCycle) -> Vec<Vec<f64>> {
     let mut cols: Vec<Vec<f64>> = terms
         .iter()
         .map(|t| {
@@ -131,7 +131,7 @@ pub fn fit(
 /// [`fit`] with each cycle's design columns given (`None` for a stuck cycle): the
 /// cross-validation's fits share them (computing them, a Bouc-Wen cycle among them, was most of
 /// the phasor search before).
-fn fit_on_columns(
+pub(super) fn fit_on_columns(
     baseline: &Model,
     s: &Structure,
     terms: Vec<Arc<dyn Term>>,
@@ -147,29 +147,42 @@ fn fit_on_columns(
         names.push(drift::RATE_SYMBOL.into());
     }
     let p = names.len();
-    let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
+    // The kept points of each fitted cycle, then the weighted rows straight into A and b.
+    let fitted: Vec<_> = cycles
+        .iter()
+        .zip(columns_of)
+        .enumerate()
+        .filter(|(k, (c, _))| Some(*k) != skip && !c.stuck)
+        .map(|(_, (c, cols))| {
+            (
+                c,
+                cols.as_ref().expect("columns of every fitted cycle"),
+                kept(c),
+            )
+        })
+        .collect();
+    let n_rows = fitted
+        .iter()
+        .map(|(_, _, keep)| keep.iter().filter(|k| **k).count())
+        .sum();
+    let mut a = DMatrix::zeros(n_rows, p);
+    let mut b = DVector::zeros(n_rows);
     let mut independent = 0.0;
-    for (k, (c, cols)) in cycles.iter().zip(columns_of).enumerate() {
-        if Some(k) == skip || c.stuck {
-            continue;
-        }
-        let cols = cols.as_ref().expect("columns of every fitted cycle");
+    let mut r = 0;
+    for (c, cols, keep) in &fitted {
         let wt = 1.0 / c.force_noise_n;
-        for (i, keep) in kept(c).iter().enumerate() {
-            if *keep {
-                rows.push((
-                    cols.iter().map(|col| col[i] * wt).collect(),
-                    c.force_n[i] * wt,
-                ));
+        for (i, _) in keep.iter().enumerate().filter(|(_, k)| **k) {
+            for (j, col) in cols.iter().enumerate() {
+                a[(r, j)] = col[i] * wt;
             }
+            b[r] = c.force_n[i] * wt;
+            r += 1;
         }
         independent += (2 * c.harmonics + 1) as f64;
     }
-    let a = DMatrix::from_fn(rows.len(), p, |r, i| rows[r].0[i]);
-    let b = DVector::from_fn(rows.len(), |r, _| rows[r].1);
     // Grid points are not independent equations: 2N+1 harmonics made each period.
     let scale = if independent > p as f64 {
-        ((rows.len() as f64 - p as f64) / (independent - p as f64)).max(1.0)
+        ((n_rows as f64 - p as f64) / (independent - p as f64)).max(1.0)
     } else {
         1.0
     };
@@ -195,7 +208,7 @@ impl Fitted {
     }
 
     /// [`Fitted::predict`] with the cycle's design columns given.
-    fn predict_on_columns(&self, c: &StepCycle, cols: &[Vec<f64>]) -> Vec<f64> {
+    pub(super) fn predict_on_columns(&self, c: &StepCycle, cols: &[Vec<f64>]) -> Vec<f64> {
         (0..c.force_n.len())
             .map(|i| {
                 cols.iter()
@@ -294,7 +307,7 @@ pub fn residual_sums(fitted: &Fitted, c: &StepCycle) -> (f64, f64) {
 }
 
 /// [`residual_sums`] of the prediction `pred` of cycle `c`.
-fn residual_sums_of(pred: &[f64], c: &StepCycle) -> (f64, f64) {
+pub(super) fn residual_sums_of(pred: &[f64], c: &StepCycle) -> (f64, f64) {
     let wt2 = c.force_noise_n.powi(-2);
     let mut num = 0.0;
     let mut den = 0.0;
@@ -314,26 +327,9 @@ pub fn cross_validated_percent(
     s: &Structure,
     cycles: &[StepCycle],
 ) -> Option<f64> {
-    if cycles.len() < 3 {
-        return None;
-    }
     // Each cycle's columns once: every fit but one uses them, and the left-out one predicts
     // its cycle with them.
-    let terms = all_terms(baseline, s);
-    let cols: Vec<Option<Vec<Vec<f64>>>> = cycles
-        .iter()
-        .map(|c| (!c.stuck).then(|| columns(&terms, s, c)))
-        .collect();
-    let (mut num, mut den) = (0.0, 0.0);
-    for (k, c) in cycles.iter().enumerate() {
-        let f = fit_on_columns(baseline, s, terms.clone(), cycles, &cols, Some(k)).ok()?;
-        // A stuck cycle keeps no point: it adds nothing to either sum.
-        let Some(ck) = &cols[k] else { continue };
-        let (n, d) = residual_sums_of(&f.predict_on_columns(c, ck), c);
-        num += n;
-        den += d;
-    }
-    Some(root_ratio_percent(num, den))
+    super::design::Design::new(baseline, s, cycles).cross_validated_percent()
 }
 
 /// 100 sqrt(num / den) [%]: a residual's size relative to the data's, from their sums of
@@ -544,6 +540,22 @@ mod tests {
         let cv = cross_validated_percent(&baseline, &s, &cycles).unwrap();
         assert_eq!(cv.to_bits(), by_fit.to_bits(), "{cv} vs {by_fit}");
         assert!(cv > 0.0 && cv < 5.0, "{cv}");
+        // The search's fit on every step from the same shared columns is `fit`'s, to the bit.
+        let design = super::super::design::Design::new(&baseline, &s, &cycles);
+        let (shared, own) = (
+            design.fit().unwrap(),
+            fit(&baseline, &s, &cycles, None).unwrap(),
+        );
+        let bits = |f: &Fitted| {
+            let mut b: Vec<u64> = f.theta.iter().chain(&f.std).map(|v| v.to_bits()).collect();
+            b.push(f.residual_percent.to_bits());
+            b
+        };
+        assert_eq!(bits(&shared), bits(&own));
+        assert_eq!(
+            design.cross_validated_percent().map(f64::to_bits),
+            Some(cv.to_bits())
+        );
     }
 
     #[test]

@@ -41,6 +41,7 @@
 //! The phasor-only variant for a live stream of harmonic analyses is [`PhasorDiagnosis`].
 
 pub mod cycles;
+pub mod design;
 pub mod drift;
 pub mod effects;
 pub mod element_heldout;

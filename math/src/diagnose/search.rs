@@ -6,11 +6,12 @@
 
 use super::DiagnoseError;
 use super::cycles::{STUCK_FRACTION, StepCycle, step_cycle};
+use super::design::Design;
 use super::effects::{
     Effect, Scales, Structure, Transform, baseline_has, sensor_structure, structures,
 };
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
-use super::fit::{Fitted, REVERSAL_BAND, cross_validated_percent, fit, root_ratio_percent};
+use super::fit::{Fitted, REVERSAL_BAND, root_ratio_percent};
 use super::sensor::{Consistency, SubsetMember, best_subset_member, exact_for};
 use super::{free_play, series};
 use crate::model::Model;
@@ -111,8 +112,9 @@ pub fn search(
         max_frequency_hz: cycles.iter().map(|c| c.frequency_hz).fold(0.0, f64::max),
     };
     let plain = Structure::default();
-    let base_fit = fit(baseline, &plain, &cycles, None)?;
-    let base_cv = cross_validated_percent(baseline, &plain, &cycles);
+    let base_design = Design::new(baseline, &plain, &cycles);
+    let base_fit = base_design.fit()?;
+    let base_cv = base_design.cross_validated_percent();
     let ratios = kinematic_ratios(analyses).unwrap_or_default();
     let amplified_base = amplified_base(&ratios);
     let exciter_delay = estimate_exciter_delay(&ratios).filter(|_| amplified_base.is_none());
@@ -221,13 +223,15 @@ fn evaluate(
     } else {
         cycles
     };
-    let Ok(fitted) = fit(baseline, &s, cycles_s, None) else {
+    // The fit and its cross-validation share the cycles' design columns.
+    let design = Design::new(baseline, &s, cycles_s);
+    let Ok(fitted) = design.fit() else {
         return Ok(None);
     };
     if !physical(&fitted) {
         return Ok(None);
     }
-    let cv = cross_validated_percent(baseline, &s, cycles_s);
+    let cv = design.cross_validated_percent();
     Ok(Some(PhasorCandidate {
         effect,
         structure: s,

@@ -212,18 +212,42 @@ impl InputWindow {
     }
 }
 
-/// The second derivative of `CubicSpline::eval(t, t_ref)` alone, with the same operations (a
-/// replay evaluates only the base acceleration between samples; the value and the velocity
-/// cost divisions it does not need).
-pub(crate) fn spline_d2(s: &CubicSpline, t: f64, t_ref: f64) -> f64 {
-    if s.y.len() < 2 {
-        return 0.0;
+/// The interval of a spline that holds at one `t_ref`, for the second derivative of
+/// `CubicSpline::eval(t, t_ref)` alone at several times, with the same operations (a replay
+/// evaluates only the base acceleration between samples; the value and the velocity cost
+/// divisions it does not need). The RK4 stages of a sample interval's sub-steps share their
+/// `t_ref`, so a replay looks the interval up once per sample instead of at every stage.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SplineInterval {
+    knot_s: f64,
+    h: f64,
+    m0: f64,
+    m1: f64,
+}
+
+impl SplineInterval {
+    /// None for a spline of fewer than 2 samples (its second derivative is 0).
+    pub(crate) fn of(s: &CubicSpline, t_ref: f64) -> Option<SplineInterval> {
+        if s.y.len() < 2 {
+            return None;
+        }
+        let i = s.interval(t_ref);
+        let h = 1.0 / s.sample_rate_hz;
+        Some(SplineInterval {
+            knot_s: s.t0 + i as f64 * h,
+            h,
+            m0: s.m[i],
+            m1: s.m[i + 1],
+        })
     }
-    let i = s.interval(t_ref);
-    let h = 1.0 / s.sample_rate_hz;
-    let u = t - (s.t0 + i as f64 * h);
-    let w = h - u;
-    s.m[i] * w / h + s.m[i + 1] * u / h
+
+    /// The second derivative at `t` with the cubic of this interval.
+    #[inline(always)]
+    pub(crate) fn d2(&self, t: f64) -> f64 {
+        let u = t - self.knot_s;
+        let w = self.h - u;
+        self.m0 * w / self.h + self.m1 * u / self.h
+    }
 }
 
 #[cfg(test)]
@@ -312,7 +336,7 @@ mod tests {
     }
 
     #[test]
-    fn spline_d2_is_that_of_eval() {
+    fn spline_interval_d2_is_that_of_eval() {
         use crate::sim::excitation::SplineEnds;
         let y: Vec<f64> = (0..40).map(|i| (0.37 * i as f64).sin()).collect();
         let s = CubicSpline::new(&y, 0.5, 100.0, SplineEnds::NotAKnot);
@@ -320,7 +344,7 @@ mod tests {
             let t = 0.4 + k as f64 * 0.00083;
             let t_ref = t + 0.002;
             assert_eq!(
-                spline_d2(&s, t, t_ref).to_bits(),
+                SplineInterval::of(&s, t_ref).unwrap().d2(t).to_bits(),
                 s.eval(t, t_ref).d2.to_bits()
             );
         }

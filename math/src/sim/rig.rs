@@ -14,9 +14,9 @@ use std::f64::consts::PI;
 
 use serde::{Deserialize, Serialize};
 
-use super::excitation::{Derivs, Piece, PiecewiseSignal, Program};
+use super::excitation::{CubicSpline, Derivs, Piece, PiecewiseSignal, Program};
 use super::hybrid::{Hybrid, Integrator, Mode, RunStats, SolverOptions, slip_force_dir};
-use super::input_window::{InputWindow, spline_d2};
+use super::input_window::{InputWindow, SplineInterval};
 use super::linear_step::Linear2;
 use super::{SampleTrace, SimError, SimOutput, is_positive};
 use crate::element::{Element, Friction};
@@ -97,6 +97,9 @@ pub(crate) struct RigSystem<'a> {
     /// spline: an RK4 sub-step asks twice at its middle and its end is the next one's start,
     /// so half of a replay's evaluations are the one before.
     last_spline_d2: Cell<Option<(usize, f64, f64, f64)>>,
+    /// (piece, reference time in the signal's time, interval) of the last spline interval
+    /// looked up: a sample interval's sub-steps all ask for the same one.
+    spline_interval: Cell<Option<(usize, f64, Option<SplineInterval>)>>,
     /// The run's sample rate: the displacement is computed beside a pair only at a sample's
     /// time (`i / sample_rate_hz`), where the channels will ask for it.
     sample_rate_hz: f64,
@@ -132,6 +135,21 @@ impl RigSystem<'_> {
         let j = self.base_true_index(t_ref);
         let piece = &sig.pieces[j];
         let tl = t - sig.shift;
+        // A spline piece has no Taylor window, and only windows fill `last_d2` and
+        // `last_value`: straight to the spline.
+        if let Piece::Spline(s) = piece {
+            if order != 2 {
+                return piece.eval(tl, t_ref - sig.shift).value;
+            }
+            if let Some((lj, lt, lr, v)) = self.last_spline_d2.get()
+                && (lj, lt, lr) == (j, t, t_ref)
+            {
+                return v;
+            }
+            let v = self.spline_d2(j, s, tl, t_ref - sig.shift);
+            self.last_spline_d2.set(Some((j, t, t_ref, v)));
+            return v;
+        }
         let slot = usize::from(order == 0);
         let last = if order == 2 {
             &self.last_d2
@@ -150,22 +168,23 @@ impl RigSystem<'_> {
             last.set(Some((j, t, v)));
             return v;
         }
-        match piece {
-            Piece::Spline(s) if order == 2 => {
-                if let Some((lj, lt, lr, v)) = self.last_spline_d2.get()
-                    && (lj, lt, lr) == (j, t, t_ref)
-                {
-                    return v;
-                }
-                let v = spline_d2(s, tl, t_ref - sig.shift);
-                self.last_spline_d2.set(Some((j, t, t_ref, v)));
-                v
-            }
+        let d = piece.eval(tl, t_ref - sig.shift);
+        if order == 0 { d.value } else { d.d2 }
+    }
+
+    /// The second derivative of spline piece `j` at `t` ([`SplineInterval`]), its interval
+    /// remembered for `tr`.
+    #[inline(always)]
+    fn spline_d2(&self, j: usize, s: &CubicSpline, t: f64, tr: f64) -> f64 {
+        let interval = match self.spline_interval.get() {
+            Some((lj, lr, iv)) if (lj, lr) == (j, tr) => iv,
             _ => {
-                let d = piece.eval(tl, t_ref - sig.shift);
-                if order == 0 { d.value } else { d.d2 }
+                let iv = SplineInterval::of(s, tr);
+                self.spline_interval.set(Some((j, tr, iv)));
+                iv
             }
-        }
+        };
+        interval.map_or(0.0, |iv| iv.d2(t))
     }
 
     /// The true base acceleration at `t` (piece of `t_ref`).
@@ -218,7 +237,10 @@ impl RigSystem<'_> {
         }
         let tr = t_ref - sig.shift;
         match piece {
-            Piece::Spline(s) => [spline_d2(s, tl[0], tr), spline_d2(s, tl[1], tr)],
+            Piece::Spline(s) => [
+                self.spline_d2(j, s, tl[0], tr),
+                self.spline_d2(j, s, tl[1], tr),
+            ],
             _ => [piece.eval(tl[0], tr).d2, piece.eval(tl[1], tr).d2],
         }
     }
@@ -449,6 +471,7 @@ pub(crate) fn run_rig_streamed(
         last_d2: Cell::new(None),
         last_value: Cell::new(None),
         last_spline_d2: Cell::new(None),
+        spline_interval: Cell::new(None),
         sample_rate_hz,
         slip_per_kg: [0.0; 2],
     };
