@@ -202,6 +202,14 @@ pub fn forward_pair(
     Ok(Some(exchange(ctx, &mut cycles, pair, k, &member, others)?))
 }
 
+/// The forms of the element's restoring force among the candidates: neighbours, which fit the
+/// same share of the gap.
+const STIFFNESS_FORMS: [Effect; 3] = [
+    Effect::CubicStiffness,
+    Effect::QuadraticStiffness,
+    Effect::FreePlay,
+];
+
 /// Whether the best pair is one restoring force in a wider form than either candidate's, not
 /// two: cubic and quadratic stiffness fitted with opposite signs (x^3 and a negative x|x|, a
 /// spring that hardens faster than x^3, e.g. with an x^5 share: wide seed 2 cases 170 and 177,
@@ -221,7 +229,8 @@ fn widened_form(pair: &PairResult) -> bool {
 
 /// When the best pair is the top effect in a wider form ([`widened_form`]: the top effect and a
 /// neighbour of it, which fit the same share), the second effect is searched beside the two:
-/// every other candidate fitted jointly with `widened` (the pair's structure), kept as
+/// every other candidate that is no form of the restoring force ([`STIFFNESS_FORMS`]) fitted
+/// jointly with `widened` (the pair's structure), kept as
 /// [`forward_pair`] keeps a pair ([`steps_break_tie`]), and reported as the pair of the top
 /// effect with it (the neighbour in [`PairResult::form_neighbour`] and its parameters among the
 /// added ones; the figures those of the three fitted together) when it adds to the neighbour
@@ -236,7 +245,9 @@ fn beside_neighbour(
 ) -> Result<Option<PairResult>, DiagnoseError> {
     let mut tried: Vec<PairResult> = Vec::new();
     for (effect, alone, _) in others {
-        if widened.effects.contains(effect)
+        // Another form of the restoring force fits the same share again (free play's dead
+        // zone beside x^3 and -x|x|, wide seed 2 case 177, where Coulomb friction is planted).
+        if STIFFNESS_FORMS.contains(effect)
             || (*effect == Effect::ExciterDelay
                 && !ctx
                     .search
