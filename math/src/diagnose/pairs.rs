@@ -7,7 +7,9 @@
 //! the joint model scored on the held-out records like a single candidate. When the top one is
 //! itself a neighbour of a planted effect, no pair with it holds both: the exchange step
 //! ([`exchange`]) keeps the best addition and tries the top one's best-ranked rivals in its
-//! place. The best pair by that score is the one the verdict weighs
+//! place. When the best pair is the top effect with a neighbour fitting one wider form of the
+//! same spring ([`widened_form`]), the second effect is searched beside the two
+//! ([`beside_neighbour`]). The best pair by that score is the one the verdict weighs
 //! ([`super::findings::pair_explains`]); its members rank first and second when it scores
 //! better than the top one alone.
 
