@@ -183,6 +183,11 @@ pub struct PairResult {
     /// steps [%].
     pub phasor_cv_percent: Option<f64>,
     pub added_parameters: Vec<ParameterValue>,
+    /// A neighbour of the first effect fitted with the pair as part of the first effect's form
+    /// (two restoring-force forms together fit one wider form, e.g. a hardening spring with an
+    /// x^5 share), when the second effect was searched beside it ([`pairs`]); the figures and
+    /// added parameters are then those of the three fitted together.
+    pub form_neighbour: Option<Effect>,
 }
 
 /// The diagnosis.

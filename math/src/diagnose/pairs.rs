@@ -7,7 +7,9 @@
 //! the joint model scored on the held-out records like a single candidate. When the top one is
 //! itself a neighbour of a planted effect, no pair with it holds both: the exchange step
 //! ([`exchange`]) keeps the best addition and tries the top one's best-ranked rivals in its
-//! place. The best pair by that score is the one the verdict weighs
+//! place. When the best pair is the top effect with a neighbour fitting one wider form of the
+//! same spring ([`widened_form`]), the second effect is searched beside the two
+//! ([`beside_neighbour`]). The best pair by that score is the one the verdict weighs
 //! ([`super::findings::pair_explains`]); its members rank first and second when it scores
 //! better than the top one alone.
 
@@ -150,6 +152,7 @@ fn scored(
             score_percent: penalised(after, s.extra_parameters, ctx.n_eff),
             phasor_cv_percent,
             added_parameters: parameter_values(f.added_parameters()),
+            form_neighbour: None,
         },
         h,
     )))
@@ -192,7 +195,101 @@ pub fn forward_pair(
         return Ok(None);
     };
     let (pair, k, member) = tried.swap_remove(i);
+    if widened_form(&pair) {
+        let widened = top.combine(&member);
+        if let Some(p) = beside_neighbour(ctx, &mut cycles, &pair, &widened, others)? {
+            return Ok(Some(p));
+        }
+    }
     Ok(Some(exchange(ctx, &mut cycles, pair, k, &member, others)?))
+}
+
+/// The forms of the element's restoring force among the candidates: neighbours, which fit the
+/// same share of the gap.
+const STIFFNESS_FORMS: [Effect; 3] = [
+    Effect::CubicStiffness,
+    Effect::QuadraticStiffness,
+    Effect::FreePlay,
+];
+
+/// Whether the best pair is one restoring force in a wider form than either candidate's, not
+/// two: cubic and quadratic stiffness fitted with opposite signs (x^3 and a negative x|x|, a
+/// spring that hardens faster than x^3, e.g. with an x^5 share: wide seed 2 cases 170 and 177,
+/// s 1.5e8 and 4.6e8 N/m^3 with k2 -1.5e6 and -2.7e6 N/m^2), where two hardening springs would
+/// add with the same sign. The names are the basis terms' (`basis`).
+fn widened_form(pair: &PairResult) -> bool {
+    let stiffness = [Effect::CubicStiffness, Effect::QuadraticStiffness];
+    let value = |name: &str| {
+        pair.added_parameters
+            .iter()
+            .find(|p| p.name == name)
+            .map(|p| p.value)
+    };
+    pair.effects.iter().all(|e| stiffness.contains(e))
+        && matches!((value("s"), value("k2")), (Some(s), Some(k2)) if s * k2 < 0.0)
+}
+
+/// When the best pair is the top effect in a wider form ([`widened_form`]: the top effect and a
+/// neighbour of it, which fit the same share), the second effect is searched beside the two:
+/// every other candidate that is no form of the restoring force ([`STIFFNESS_FORMS`]) fitted
+/// jointly with `widened` (the pair's structure), kept as
+/// [`forward_pair`] keeps a pair ([`steps_break_tie`]), and reported as the pair of the top
+/// effect with it (the neighbour in [`PairResult::form_neighbour`] and its parameters among the
+/// added ones; the figures those of the three fitted together) when it adds to the neighbour
+/// pair as a second effect must add to the top one to rank second ([`adds_to`]). None
+/// otherwise.
+fn beside_neighbour(
+    ctx: &PairContext,
+    cycles: &mut Cycles,
+    pair: &PairResult,
+    widened: &Structure,
+    others: &[(Effect, &Structure, f64)],
+) -> Result<Option<PairResult>, DiagnoseError> {
+    let mut tried: Vec<PairResult> = Vec::new();
+    for (effect, alone, _) in others {
+        // Another form of the restoring force fits the same share again (free play's dead
+        // zone beside x^3 and -x|x|, wide seed 2 case 177, where Coulomb friction is planted).
+        if STIFFNESS_FORMS.contains(effect)
+            || (*effect == Effect::ExciterDelay
+                && !ctx
+                    .search
+                    .exciter_delay
+                    .is_some_and(|(d, sd)| delay_shown(d, sd)))
+        {
+            continue;
+        }
+        let Some((s, _, cv)) = joint_structure(ctx, cycles, widened, *effect, alone)? else {
+            continue;
+        };
+        let Some((p, _)) = scored(ctx, cycles, &s, cv)? else {
+            continue;
+        };
+        tried.push(p);
+    }
+    let refs: Vec<&PairResult> = tried.iter().collect();
+    let Some(i) = steps_break_tie(&refs, ctx.floor) else {
+        return Ok(None);
+    };
+    let mut best = tried.swap_remove(i);
+    if !adds_to(pair, &best, ctx.floor) {
+        return Ok(None);
+    }
+    best.form_neighbour = Some(pair.effects[1]);
+    Ok(Some(best))
+}
+
+/// Whether `with` (the pair `pair` and one effect more) adds to it as a second effect must add
+/// to the top one to rank second ([`super`]'s ranking of the best pair): a better penalised
+/// held-out score, or a score tied with the pair's ([`held_out_tie`]) and a cross-validated
+/// force error on the sine steps below [`STEP_TIE_CV_RATIO`] times the pair's (the steps show
+/// it, [`super::ranking`]'s `second_shown_by_steps`).
+fn adds_to(pair: &PairResult, with: &PairResult, floor: f64) -> bool {
+    with.score_percent < pair.score_percent
+        || (with.score_percent <= pair.score_percent + held_out_tie(pair.gap_after_percent, floor)
+            && matches!(
+                (with.phasor_cv_percent, pair.phasor_cv_percent),
+                (Some(w), Some(p)) if w < STEP_TIE_CV_RATIO * p
+            ))
 }
 
 /// The pair to keep among `pairs` (the top candidate with each other one): the best by

@@ -242,11 +242,16 @@ fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
     }
     if let Some(p) = &d.best_pair {
         println!(
-            "best pair: {} + {}: held-out NMSE {:.3} % ({})",
+            "best pair: {} + {}: held-out NMSE {:.3} % ({}){}",
             p.effects[0].name(),
             p.effects[1].name(),
             p.gap_after_percent,
-            parameters_text(&p.added_parameters)
+            parameters_text(&p.added_parameters),
+            p.form_neighbour.map_or(String::new(), |n| format!(
+                "; {}'s form widened by {} (fitted with them)",
+                p.effects[0].name(),
+                n.name()
+            ))
         );
     }
     println!("verdict: {}", d.findings.headline());
