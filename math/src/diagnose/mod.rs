@@ -53,6 +53,7 @@ pub mod locate;
 pub mod multisine;
 mod multisine_state;
 pub mod output_error;
+pub mod pair_partners;
 pub mod pairs;
 pub mod phasor;
 mod ranking;
@@ -156,6 +157,11 @@ pub struct RankedEffect {
     /// The family member found and its fitted shape, for a family (sensor_lowpass: "channel
     /// mass_acceleration, 2nd order, 6.1 Hz, damping 0.70, delay 2.0 ms").
     pub member: Option<String>,
+    /// Set when the effect's fit alone was not physical or could not be simulated and it is
+    /// ranked as the best pair's second member: its figures are then the pair's, fitted with
+    /// this (the top) effect ([`pair_partners::joint_only_entry`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fitted_with: Option<Effect>,
     /// Held-out NMSE with the effect added [%].
     pub gap_after_percent: f64,
     /// `gap_before - gap_after` [%-points].
@@ -384,6 +390,7 @@ pub fn diagnose(
         ranked.push(RankedEffect {
             effect: c.effect,
             member: member_of(&c.fitted, dissipation.as_ref()),
+            fitted_with: None,
             gap_after_percent: after,
             shrink_percent: gap_before - after,
             score_percent: score,
@@ -441,8 +448,15 @@ pub fn diagnose(
             let c = &search.candidates[cand_idx[i]];
             (c.effect, &c.structure, ranked[i].score_percent)
         };
-        let others: Vec<(Effect, &effects::Structure, f64)> =
-            order.iter().skip(1).map(|&i| structure(i)).collect();
+        let ranked_effects: Vec<Effect> = ranked.iter().map(|r| r.effect).collect();
+        let unranked =
+            pair_partners::unranked_partners(baseline, &search, &effects, &ranked_effects);
+        let others: Vec<(Effect, &effects::Structure, f64)> = order
+            .iter()
+            .skip(1)
+            .map(|&i| structure(i))
+            .chain(unranked.iter().map(|(e, s)| (*e, s, f64::INFINITY)))
+            .collect();
         pairs::forward_pair(&ctx, structure(order[0]).1, &others)?
     } else {
         None
@@ -460,6 +474,20 @@ pub fn diagnose(
         } else {
             0..0
         };
+        // A second member no ranked candidate stands for (its fit alone not physical or not
+        // simulable) ranks second with the pair's figures; only beside a ranked first member,
+        // so it never leads and `fits` needs no entry for it.
+        if slots.contains(&1)
+            && !ranked.iter().any(|r| r.effect == p.effects[1])
+            && let Some(first) = ranked.iter().position(|r| r.effect == p.effects[0])
+        {
+            ranked.push(pair_partners::joint_only_entry(
+                p,
+                &ranked[first],
+                gap_before,
+            ));
+            order.push(ranked.len() - 1);
+        }
         for slot in slots {
             if let Some(k) = order
                 .iter()

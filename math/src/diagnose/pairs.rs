@@ -46,7 +46,7 @@ pub struct PairContext<'a> {
 /// value that fits alone may be the one that mimics the top effect's share too. (The sensor
 /// member, the exciter delay and the mass factor keep their single search: each costs a new
 /// rebuild of the cycles per value.)
-const RESEARCHED: [Effect; 3] = [
+pub(super) const RESEARCHED: [Effect; 3] = [
     Effect::StribeckFriction,
     Effect::FreePlay,
     Effect::Hysteresis,

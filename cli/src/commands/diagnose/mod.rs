@@ -405,8 +405,15 @@ fn write_report(
 /// A candidate's added parameters, after its family member when it has one
 /// ("[channel mass_acceleration, 2nd order, 6.1 Hz, damping 0.70] cutoff_hz = ...").
 fn candidate_text(r: &forcemap_math::diagnose::RankedEffect) -> String {
-    match &r.member {
+    let text = match &r.member {
         Some(m) => format!("[{m}] {}", parameters_text(&r.added_parameters)),
         None => parameters_text(&r.added_parameters),
+    };
+    match r.fitted_with {
+        Some(top) => format!(
+            "{text} [fitted only with {}: alone not physical or not simulable; the pair's figures]",
+            top.name()
+        ),
+        None => text,
     }
 }
