@@ -14,9 +14,10 @@
 //! better than the top one alone.
 
 use super::cycles::StepCycle;
+use super::design::Design;
 use super::effects::{Effect, Structure, Transform, structures};
 use super::exciter::delay_shown;
-use super::fit::{cross_validated_percent, fit};
+use super::fit::fit;
 use super::free_play;
 use super::score::{HeldOut, penalised};
 use super::search::{PhasorSearch, cycles_for, physical};
@@ -94,13 +95,18 @@ fn joint_structure(
     let mut joint = |o: Structure| -> Result<Option<Joint>, DiagnoseError> {
         let s = fixed.combine(&o);
         let cycles = cycles.under(&s.transform)?;
-        let Ok(f) = fit(ctx.baseline, &s, cycles, None) else {
-            return Ok(None);
+        // The fit and its cross-validation share the cycles' design columns.
+        let (f, cv) = {
+            let design = Design::new(ctx.baseline, &s, cycles);
+            let Ok(f) = design.fit() else {
+                return Ok(None);
+            };
+            if !physical(&f) {
+                return Ok(None);
+            }
+            let cv = design.cross_validated_percent();
+            (f, cv)
         };
-        if !physical(&f) {
-            return Ok(None);
-        }
-        let cv = cross_validated_percent(ctx.baseline, &s, cycles);
         Ok(Some((cv.unwrap_or(f.residual_percent), s, o, cv)))
     };
     let mut best: Option<Joint> = None;
