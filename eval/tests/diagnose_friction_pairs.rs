@@ -12,25 +12,7 @@
 mod common;
 
 use forcemap_eval::diagnose_eval::world::{Term, WorldEffect, WorldKind};
-use forcemap_math::diagnose::{Diagnosis, Effect};
-
-/// `x^3` and `x^5` coefficients [N/m^3, N/m^5] of a hardening spring.
-fn hardening(cubic: f64, quintic: f64) -> WorldEffect {
-    let odd = |coef, exponent| Term::OddPower {
-        coef,
-        exponent,
-        on_velocity: false,
-    };
-    WorldEffect::of_terms(
-        "cubic_stiffness",
-        WorldKind::Library,
-        [Some(odd(cubic, 3.0)), Some(odd(quintic, 5.0))],
-    )
-}
-
-fn top_two(d: &Diagnosis) -> Vec<Effect> {
-    d.ranked_effects.iter().take(2).map(|r| r.effect).collect()
-}
+use forcemap_math::diagnose::Effect;
 
 /// Wide seed 2 case 177: Coulomb friction of 2.54 N, 15 % weaker in one direction, beside a
 /// spring of 2.86e7 x^3 + 1.81e11 x^5. Before: cubic and quadratic stiffness the top two
@@ -53,13 +35,13 @@ fn coulomb_friction_beside_a_spring_wider_than_cubic_ranks_second() {
         "seed 2 case 177",
         &[
             coulomb,
-            hardening(28_607_694.002_725_817, 181_055_659_838.061_77),
+            common::hardening_spring(28_607_694.002_725_817, 181_055_659_838.061_77),
         ],
         30.0,
         6_599_098_283_223_045_207,
     );
     assert_eq!(
-        top_two(&d),
+        common::top_two(&d),
         [Effect::CubicStiffness, Effect::CoulombFriction]
     );
     let pair = d.best_pair.unwrap();
@@ -91,13 +73,13 @@ fn asymmetric_damping_the_steps_show_beside_a_wide_spring_ranks_second() {
         "seed 2 case 170",
         &[
             asymmetric,
-            hardening(113_146_154.701_168_9, 1_291_242_169_241.294_4),
+            common::hardening_spring(113_146_154.701_168_9, 1_291_242_169_241.294_4),
         ],
         30.0,
         6_559_879_887_392_483_630,
     );
     assert_eq!(
-        top_two(&d),
+        common::top_two(&d),
         [Effect::CubicStiffness, Effect::AsymmetricDamping]
     );
     assert_eq!(

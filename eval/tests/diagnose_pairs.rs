@@ -10,7 +10,7 @@
 mod common;
 
 use forcemap_eval::diagnose_eval::world::{Term, WorldEffect, WorldKind};
-use forcemap_math::diagnose::{Diagnosis, Verdict};
+use forcemap_math::diagnose::{Diagnosis, Effect, Verdict};
 
 /// Coulomb friction of `level_n`, 20 % stronger in one direction than the other (wider than
 /// the candidate's symmetric form).
@@ -31,19 +31,7 @@ fn coulomb(level_n: f64) -> WorldEffect {
 /// A hardening spring of `force_n` at 6 mm, 95 % x^3 and 5 % x^5 (the candidate is x^3).
 fn cubic(force_n: f64) -> WorldEffect {
     let x = 0.006f64;
-    let odd = |coef, exponent| Term::OddPower {
-        coef,
-        exponent,
-        on_velocity: false,
-    };
-    WorldEffect::of_terms(
-        "cubic_stiffness",
-        WorldKind::Library,
-        [
-            Some(odd(0.95 * force_n / x.powi(3), 3.0)),
-            Some(odd(0.05 * force_n / x.powi(5), 5.0)),
-        ],
-    )
+    common::hardening_spring(0.95 * force_n / x.powi(3), 0.05 * force_n / x.powi(5))
 }
 
 fn diagnosed(effects: &[WorldEffect], snr_db: f64, seed: u64) -> Diagnosis {
@@ -51,20 +39,12 @@ fn diagnosed(effects: &[WorldEffect], snr_db: f64, seed: u64) -> Diagnosis {
     common::diagnose_world(&names.join(" + "), effects, snr_db, seed).0
 }
 
-fn top_two(d: &Diagnosis) -> Vec<&'static str> {
-    d.ranked_effects
-        .iter()
-        .take(2)
-        .map(|r| r.effect.name())
-        .collect()
-}
-
 #[test]
 fn coulomb_friction_with_cubic_stiffness_is_named_as_the_pair() {
     let d = diagnosed(&[coulomb(10.0), cubic(3.0)], 30.0, 7);
-    let top = top_two(&d);
+    let top = common::top_two(&d);
     assert!(
-        top.contains(&"coulomb_friction") && top.contains(&"cubic_stiffness"),
+        top.contains(&Effect::CoulombFriction) && top.contains(&Effect::CubicStiffness),
         "{top:?}"
     );
     assert_eq!(d.findings.verdict, Verdict::Explained);
@@ -107,7 +87,10 @@ fn the_exchange_step_replaces_a_neighbour_on_top_by_the_planted_effect() {
         30.0,
         14_425_615_679_580_274_233,
     );
-    assert_eq!(top_two(&d), ["quadratic_stiffness", "quadratic_damping"]);
+    assert_eq!(
+        common::top_two(&d),
+        [Effect::QuadraticStiffness, Effect::QuadraticDamping]
+    );
     assert_eq!(
         d.findings.headline().split(':').next(),
         Some("explained by quadratic_stiffness together with quadratic_damping")

@@ -1,8 +1,10 @@
 //! What the wide-forms diagnosis tests share: a world simulated and diagnosed, with its ranking
 //! printed so that a failing assertion shows why.
 
-use forcemap_eval::diagnose_eval::world::{World, WorldEffect, WorldRun, simulate};
-use forcemap_math::diagnose::{DiagnoseOptions, Diagnosis, diagnose};
+use forcemap_eval::diagnose_eval::world::{
+    Term, World, WorldEffect, WorldKind, WorldRun, simulate,
+};
+use forcemap_math::diagnose::{DiagnoseOptions, Diagnosis, Effect, diagnose};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::recipe::Setup;
 use forcemap_math::sim::rig::PAPER_RIG_MASS_KG;
@@ -60,4 +62,32 @@ pub fn diagnose_world(
         );
     }
     (d, run)
+}
+
+/// A hardening spring of `cubic_n_per_m3` x^3 + `quintic_n_per_m5` x^5, planted as
+/// cubic_stiffness (the candidate is x^3 alone).
+#[allow(dead_code, reason = "not every test file plants a spring")]
+pub fn hardening_spring(cubic_n_per_m3: f64, quintic_n_per_m5: f64) -> WorldEffect {
+    let odd = |coef, exponent| Term::OddPower {
+        coef,
+        exponent,
+        on_velocity: false,
+    };
+    WorldEffect::of_terms(
+        "cubic_stiffness",
+        WorldKind::Library,
+        [
+            Some(odd(cubic_n_per_m3, 3.0)),
+            Some(odd(quintic_n_per_m5, 5.0)),
+        ],
+    )
+}
+
+/// The first two effects of the ranking.
+#[allow(
+    dead_code,
+    reason = "not every test file looks at the ranking's top two"
+)]
+pub fn top_two(d: &Diagnosis) -> Vec<Effect> {
+    d.ranked_effects.iter().take(2).map(|r| r.effect).collect()
 }
