@@ -8,7 +8,7 @@
 
 use super::effects::{Effect, Structure, baseline_has, structures};
 use super::pairs::RESEARCHED;
-use super::search::{PhasorCandidate, PhasorSearch};
+use super::search::PhasorSearch;
 use super::{PairResult, ParameterValue, RankedEffect};
 use crate::model::Model;
 
@@ -32,11 +32,7 @@ pub fn unranked_partners(
                 .candidates
                 .iter()
                 .filter(|c| c.effect == e)
-                .min_by(|a, b| {
-                    let key =
-                        |c: &PhasorCandidate| c.cv_percent.unwrap_or(c.fitted.residual_percent);
-                    key(a).total_cmp(&key(b))
-                })
+                .min_by(|a, b| a.step_error_percent().total_cmp(&b.step_error_percent()))
                 .map(|c| c.structure.clone());
             candidate
                 .or_else(|| {

@@ -166,7 +166,7 @@ impl PhasorDiagnosis {
             .filter(|c| c.effect != Effect::ExciterDelay)
             .map(|c| Scored {
                 effect: c.effect,
-                cv_percent: c.cv_percent.unwrap_or(c.fitted.residual_percent),
+                cv_percent: c.step_error_percent(),
                 extra_parameters: c.structure.extra_parameters,
                 added_parameters: c.fitted.added_parameters(),
                 fit: self.term_fit(&c.fitted),

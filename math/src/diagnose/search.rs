@@ -29,6 +29,15 @@ pub struct PhasorCandidate {
     pub cv_percent: Option<f64>,
 }
 
+impl PhasorCandidate {
+    /// The force error that chooses among members and candidates on the sine steps: the
+    /// cross-validated one, or without cross-validation (fewer than 3 steps) the in-sample
+    /// residual [%].
+    pub fn step_error_percent(&self) -> f64 {
+        self.cv_percent.unwrap_or(self.fitted.residual_percent)
+    }
+}
+
 /// Result of [`search`].
 #[derive(Debug, Clone)]
 pub struct PhasorSearch {
@@ -149,9 +158,10 @@ pub fn search(
             let Some(c) = evaluate(setup, baseline, analyses, &cycles, effect, s)? else {
                 continue;
             };
-            // Without cross-validation (fewer than 3 steps) the in-sample residual decides.
-            let key = |c: &PhasorCandidate| c.cv_percent.unwrap_or(c.fitted.residual_percent);
-            if best.as_ref().is_none_or(|b| key(&c) < key(b)) {
+            if best
+                .as_ref()
+                .is_none_or(|b| c.step_error_percent() < b.step_error_percent())
+            {
                 best = Some(c);
             }
         }
@@ -165,7 +175,7 @@ pub fn search(
                     scales.max_displacement_m,
                     |c| &c.structure,
                     |s| evaluate(setup, baseline, analyses, &cycles, effect, s),
-                    |c| c.cv_percent.unwrap_or(c.fitted.residual_percent),
+                    PhasorCandidate::step_error_percent,
                 )?,
                 _ => b,
             };

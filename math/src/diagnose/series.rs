@@ -38,7 +38,7 @@ pub fn refine<E>(
     let Some(tau0) = best.structure.series_relaxation_s else {
         return Ok(best);
     };
-    let key = |c: &PhasorCandidate| c.cv_percent.unwrap_or(c.fitted.residual_percent);
+    let key = PhasorCandidate::step_error_percent;
     let spacing = (SERIES_RELAXATION_MULTIPLES[1] / SERIES_RELAXATION_MULTIPLES[0]).ln();
     let last = golden_section_ln(tau0, spacing, |u| {
         let c = evaluate(series_structure(u.exp()))?;
