@@ -438,6 +438,7 @@ fn eval_forms_exact_is_the_default_and_wide_plants_world_effects() {
     }
     for k in [
         "pairs_both_top_two",
+        "pairs_qualifying_both_top_two",
         "shrink_within_20_percent",
         "confusion",
     ] {

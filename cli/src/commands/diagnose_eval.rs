@@ -206,6 +206,10 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
                     pct(&s.pairs_both_top_two)
                 );
                 println!(
+                    "  the same over the pairs whose members each cause >= 2 % held-out NMSE alone: {}",
+                    pct(&s.pairs_qualifying_both_top_two)
+                );
+                println!(
                     "both named by the verdict (explained by A together with B): {}",
                     pct(&s.pairs_both_named)
                 );
@@ -215,8 +219,11 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
                         Some(second) => format!("{} + {second}", r.named),
                         None => r.named.clone(),
                     };
+                    let alone = r.member_gap_percent.map_or(String::new(), |g| {
+                        format!("  (alone {:.1} %, {:.1} %)", g[0], g[1])
+                    });
                     println!(
-                        "  {:<40} -> {:<42} ranked {}",
+                        "  {:<40} -> {:<42} ranked {}{alone}",
                         r.label,
                         named,
                         top.join(", ")

@@ -134,6 +134,10 @@ pub struct CaseResult {
     pub truth_nmse_percent: f64,
     /// The held-out NMSE the planted effect causes alone: `gap_before - truth_nmse` [%].
     pub effect_gap_percent: f64,
+    /// A wide pair's members each planted alone on the pair's rig (same seed and SNR): the
+    /// held-out NMSE each causes alone, as `effect_gap_percent` [%]. What a pair member too
+    /// small to detect alone would be asked for is scored apart ([`summarise`]).
+    pub member_gap_percent: Option<[f64; 2]>,
     pub noise_floor_percent: f64,
     /// Cross-validated force error of the baseline on the sine steps [%].
     pub baseline_cv_percent: Option<f64>,
@@ -156,7 +160,17 @@ pub fn run_case(case: &CaseSpec) -> Result<CaseResult, DiagnoseError> {
     if !effects.is_empty() {
         let w = world::World::of(&effects);
         let run = world::simulate(&w, case.snr_db, case.seed).map_err(sim_error)?;
-        return diagnose_case(case, &run.records, w.baseline, run.truth_nmse_percent);
+        let mut result = diagnose_case(case, &run.records, w.baseline, run.truth_nmse_percent)?;
+        if let Planted::WidePair { effects } = &case.planted {
+            let mut gaps = [0.0; 2];
+            for (kept, gap) in gaps.iter_mut().enumerate() {
+                let alone = world::World::with_only(effects, kept);
+                let run = world::simulate(&alone, case.snr_db, case.seed).map_err(sim_error)?;
+                *gap = baseline_gap_percent(&run.records, alone.baseline)? - run.truth_nmse_percent;
+            }
+            result.member_gap_percent = Some(gaps);
+        }
+        return Ok(result);
     }
     let (truth, records) = simulate_case(case).map_err(sim_error)?;
     let element = truth_element(&truth);
@@ -183,6 +197,22 @@ pub fn run_case(case: &CaseSpec) -> Result<CaseResult, DiagnoseError> {
     }
     truth_nmse /= random.len().max(1) as f64;
     diagnose_case(case, &records, truth.baseline, truth_nmse)
+}
+
+/// The baseline's held-out NMSE on `records` [%]: the diagnosis with no candidate to try.
+fn baseline_gap_percent(records: &[Record], baseline: &str) -> Result<f64, DiagnoseError> {
+    let baseline = Model::by_name(baseline, &ModelOptions::default())
+        .expect("eval baselines are known models");
+    let setup = Setup::BaseExcited {
+        mass_kg: PAPER_RIG_MASS_KG,
+    };
+    let options = DiagnoseOptions {
+        effects: Vec::new(),
+        pairs: false,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&setup, &baseline, records, &[], &options)?.diagnosis;
+    Ok(d.findings.gap_before_percent)
 }
 
 /// The diagnosis of a case's records against `baseline`, with the true model's held-out NMSE.
@@ -214,6 +244,7 @@ fn diagnose_case(
         gap_after_percent: f.gap_after_percent,
         truth_nmse_percent: truth_nmse,
         effect_gap_percent: f.gap_before_percent - truth_nmse,
+        member_gap_percent: None,
         noise_floor_percent: f.floor_percent,
         baseline_cv_percent: d.baseline_phasor_cv_percent,
         second: d.ranked_effects.get(1).map(|r| r.effect.name().to_string()),

@@ -83,6 +83,10 @@ pub struct EvalSummary {
     /// Two-effect cases whose top two are the two effects: the pair the verdict names, or else
     /// the two best-ranked candidates alone.
     pub pairs_both_top_two: Rate,
+    /// The same over the wide pairs whose members each cause at least 2 % alone
+    /// ([`CaseResult::member_gap_percent`]): a member too small to be found alone is not asked
+    /// for, as a single effect below 2 % is not.
+    pub pairs_qualifying_both_top_two: Rate,
     /// Two-effect cases whose verdict names both ("explained by A together with B").
     pub pairs_both_named: Rate,
     /// Single-effect cases (library or new name) whose verdict names a pair: a second effect
@@ -147,6 +151,14 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
     let pairs: Vec<&&CaseResult> = ok
         .iter()
         .filter(|r| r.case.planted.pair_names().is_some())
+        .collect();
+    let qualifying_pairs: Vec<&&CaseResult> = pairs
+        .iter()
+        .copied()
+        .filter(|r| {
+            r.member_gap_percent
+                .is_some_and(|g| g.iter().all(|&x| x >= QUALIFYING_GAP_PERCENT))
+        })
         .collect();
     let explained: Vec<&&&CaseResult> = qualifying
         .iter()
@@ -249,21 +261,15 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
             pairs.len(),
         ),
         pairs_both_top_two: rate(
-            pairs
-                .iter()
-                .filter(|r| {
-                    // The two the verdict names, or else the two best-ranked alone.
-                    let top: Vec<&str> = match &r.second_named {
-                        Some(second) => vec![r.named.as_str(), second.as_str()],
-                        None => r.ranked.iter().take(2).map(|x| x.0.as_str()).collect(),
-                    };
-                    r.case
-                        .planted
-                        .pair_names()
-                        .is_some_and(|n| n.iter().all(|e| top.contains(e)))
-                })
-                .count(),
+            pairs.iter().filter(|r| both_in_top_two(r)).count(),
             pairs.len(),
+        ),
+        pairs_qualifying_both_top_two: rate(
+            qualifying_pairs
+                .iter()
+                .filter(|r| both_in_top_two(r))
+                .count(),
+            qualifying_pairs.len(),
         ),
         pairs_both_named: rate(
             pairs
@@ -314,4 +320,17 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
             .collect(),
         lower_snr_db,
     }
+}
+
+/// Whether a pair case's top two are its two planted effects: the two the verdict names, or
+/// else the two best-ranked alone.
+fn both_in_top_two(r: &CaseResult) -> bool {
+    let top: Vec<&str> = match &r.second_named {
+        Some(second) => vec![r.named.as_str(), second.as_str()],
+        None => r.ranked.iter().take(2).map(|x| x.0.as_str()).collect(),
+    };
+    r.case
+        .planted
+        .pair_names()
+        .is_some_and(|n| n.iter().all(|e| top.contains(e)))
 }

@@ -97,6 +97,25 @@ impl World {
     }
 }
 
+impl World {
+    /// The world of `effects` with only `effects[kept]` planted: the same rig and baseline as
+    /// [`World::of`] gives the whole set (a member of a pair with Coulomb friction stays on the
+    /// linear rig), so what the member causes alone is measured on the pair's own rig.
+    pub fn with_only(effects: &[WorldEffect], kept: usize) -> World {
+        let all = World::of(effects);
+        let member = World::of(&effects[kept..=kept]);
+        World {
+            element: WorldElement {
+                base: all.element.base,
+                terms: member.element.terms,
+            },
+            sensors: member.sensors,
+            exciter: member.exciter,
+            baseline: all.baseline,
+        }
+    }
+}
+
 /// A simulated world case: the noisy records the diagnosis sees and the true model's held-out
 /// NMSE on them.
 #[derive(Debug, Clone)]
