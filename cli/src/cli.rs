@@ -441,9 +441,10 @@ pub struct DiagnoseEvalArgs {
     /// Number of generated cases.
     #[arg(long, default_value_t = 40)]
     pub cases: usize,
-    /// Seed of the case generator.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    /// Seeds of the case generator: `--seed 1,2,3` runs `--cases` of each and reports every
+    /// figure pooled over them, with each seed's own beside it.
+    #[arg(long, value_delimiter = ',', default_value = "1")]
+    pub seed: Vec<u64>,
     /// The lower measurement SNR [dB]; half of the cases are 10 dB cleaner.
     #[arg(long, default_value_t = 30.0)]
     pub snr_db: f64,

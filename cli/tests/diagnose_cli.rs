@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::forcemap;
+use common::{forcemap, stderr};
 
 fn json(args: &[&str]) -> serde_json::Value {
     let o = forcemap(args);
@@ -427,11 +427,11 @@ fn eval_forms_exact_is_the_default_and_wide_plants_world_effects() {
         "--cases",
         "2",
         "--seed",
-        "3",
+        "3,4",
         "--json",
     ]);
     let cases = v["cases"].as_array().unwrap();
-    assert_eq!(cases.len(), 2);
+    assert_eq!(cases.len(), 4);
     for c in cases {
         let kind = c["case"]["planted"]["kind"].as_str().unwrap();
         assert!(["none", "wide", "wide_pair"].contains(&kind), "{kind}");
@@ -444,4 +444,41 @@ fn eval_forms_exact_is_the_default_and_wide_plants_world_effects() {
     ] {
         assert!(!v["summary"][k].is_null(), "missing {k}");
     }
+    // Two seeds: each seed's cases are its own run's (indices 0 and 1, generated from it), and
+    // the pooled summary counts what the seeds' own summaries count together.
+    for seed in [3, 4] {
+        let of_seed: Vec<u64> = cases
+            .iter()
+            .filter(|c| c["case"]["generator_seed"] == seed)
+            .map(|c| c["case"]["index"].as_u64().unwrap())
+            .collect();
+        assert_eq!(of_seed, [0, 1], "seed {seed}");
+    }
+    let per_seed = v["per_seed"].as_array().unwrap();
+    assert_eq!(v["seeds"], serde_json::json!([3, 4]));
+    assert_eq!(per_seed.len(), 2);
+    let sum = |rate: &str, count: &str| -> u64 {
+        per_seed
+            .iter()
+            .map(|p| p["summary"][rate][count].as_u64().unwrap())
+            .sum()
+    };
+    for rate in ["top1_all_snr", "below_threshold_adequate", "false_alarms"] {
+        for count in ["hits", "of"] {
+            assert_eq!(
+                Some(sum(rate, count)),
+                v["summary"][rate][count].as_u64(),
+                "{rate}.{count}"
+            );
+        }
+    }
+    assert_eq!(v["summary"]["cases"], 4);
+    // A seed given twice would count its cases twice.
+    let o = forcemap(&["diagnose-eval", "--cases", "2", "--seed", "2,2"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("--seed 2 is given twice"),
+        "{}",
+        stderr(&o)
+    );
 }

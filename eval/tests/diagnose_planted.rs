@@ -16,6 +16,8 @@ use forcemap_math::record::Excitation;
 
 fn case(planted: Planted, seed: u64) -> CaseSpec {
     CaseSpec {
+        // Built here, not drawn by a generator.
+        generator_seed: 0,
         index: 0,
         seed,
         planted,

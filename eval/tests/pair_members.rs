@@ -52,6 +52,7 @@ fn pair_case(index: usize, ranked: [&str; 2], member_gap_percent: [f64; 2]) -> C
     ];
     CaseResult {
         case: CaseSpec {
+            generator_seed: 1,
             index,
             seed: 1,
             planted: Planted::WidePair { effects },

@@ -2,7 +2,7 @@
 //! effect it is not told (library: `forcemap_eval::diagnose_eval`).
 
 use forcemap_eval::diagnose_eval::{
-    self as eval, CaseResult, DIVERGED_BASELINE_PERCENT, EvalSummary,
+    self as eval, CaseResult, CaseSpec, DIVERGED_BASELINE_PERCENT, EvalSummary,
 };
 
 use crate::cli::{DiagnoseEvalArgs, EvalForms};
@@ -15,10 +15,22 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
     if !args.snr_db.is_finite() {
         anyhow::bail!("--snr-db = {}: not a finite number", args.snr_db);
     }
-    let mut cases = match args.forms {
-        EvalForms::Exact => eval::generate_cases(args.cases, args.seed, args.snr_db),
-        EvalForms::Wide => eval::generate_wide_cases(args.cases, args.seed),
-    };
+    if let Some(s) = args
+        .seed
+        .iter()
+        .enumerate()
+        .find_map(|(i, s)| args.seed[..i].contains(s).then_some(s))
+    {
+        anyhow::bail!("--seed {s} is given twice: each seed's cases would count twice");
+    }
+    let mut cases: Vec<CaseSpec> = args
+        .seed
+        .iter()
+        .flat_map(|&seed| match args.forms {
+            EvalForms::Exact => eval::generate_cases(args.cases, seed, args.snr_db),
+            EvalForms::Wide => eval::generate_wide_cases(args.cases, seed),
+        })
+        .collect();
     if let Some(i) = args.only.iter().find(|i| **i >= args.cases) {
         anyhow::bail!(
             "--only {i}: there are only {} cases (indices 0..{}); raise --cases",
@@ -44,10 +56,18 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
     pb.finish_and_clear();
     let summary = eval::summarise(&results, args.snr_db);
     if args.json {
+        let per_seed: Vec<_> = args
+            .seed
+            .iter()
+            .map(|&seed| {
+                let of_seed = of_seed(&cases, &results, seed);
+                serde_json::json!({"seed": seed, "summary": eval::summarise(&of_seed, args.snr_db)})
+            })
+            .collect();
         let cases: Vec<_> = results.iter().filter_map(|r| r.as_ref().ok()).collect();
         println!(
             "{}",
-            serde_json::json!({"summary": summary, "cases": cases})
+            serde_json::json!({"seeds": args.seed, "summary": summary, "per_seed": per_seed, "cases": cases})
         );
     } else if !args.only.is_empty() {
         for r in &results {
@@ -60,20 +80,97 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
         print_wide(args, &results);
     } else {
         print_summary(args, &summary, &results);
+        if args.seed.len() > 1 {
+            print_per_seed(args, &results);
+        }
     }
     Ok(())
+}
+
+/// The seeds as given: `1,2,3`.
+fn seeds_text(args: &DiagnoseEvalArgs) -> String {
+    args.seed
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// The results of the cases generated from `seed` (`results[i]` is `cases[i]`'s).
+fn of_seed(
+    cases: &[CaseSpec],
+    results: &[Result<CaseResult, String>],
+    seed: u64,
+) -> Vec<Result<CaseResult, String>> {
+    cases
+        .iter()
+        .zip(results)
+        .filter(|(c, _)| c.generator_seed == seed)
+        .map(|(_, r)| r.clone())
+        .collect()
+}
+
+fn pct(r: &eval::Rate) -> String {
+    format!("{:.1} % ({}/{})", r.percent, r.hits, r.of)
+}
+
+/// One rate of each seed's own summary of `results` (failed cases left out): "seed 1: 20/20,
+/// seed 2: 25/27".
+fn per_seed_rate(
+    args: &DiagnoseEvalArgs,
+    results: &[Result<CaseResult, String>],
+    snr_db: f64,
+    rate: impl Fn(&EvalSummary) -> &eval::Rate,
+) -> String {
+    args.seed
+        .iter()
+        .map(|&seed| {
+            let of_seed: Vec<Result<CaseResult, String>> = results
+                .iter()
+                .filter(|r| r.as_ref().is_ok_and(|r| r.case.generator_seed == seed))
+                .cloned()
+                .collect();
+            let s = eval::summarise(&of_seed, snr_db);
+            let r = rate(&s);
+            format!("seed {seed}: {}/{}", r.hits, r.of)
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// One rate picked out of a summary.
+type RateOf = fn(&EvalSummary) -> &eval::Rate;
+
+/// The exact forms' headline rates seed by seed, after the pooled report.
+fn print_per_seed(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
+    println!("per seed:");
+    let rates: [(&str, RateOf); 4] = [
+        ("top-1 at the lower SNR", |s| &s.top1),
+        ("false alarms", |s| &s.false_alarms),
+        ("two-effect cases naming one of the two", |s| {
+            &s.pairs_one_named
+        }),
+        ("both of a pair among the top two", |s| {
+            &s.pairs_both_top_two
+        }),
+    ];
+    for (name, rate) in rates {
+        println!(
+            "  {name}: {}",
+            per_seed_rate(args, results, args.snr_db, rate)
+        );
+    }
 }
 
 fn print_summary(args: &DiagnoseEvalArgs, s: &EvalSummary, results: &[Result<CaseResult, String>]) {
     println!(
         "forcemap diagnose-eval --cases {} --seed {} --snr-db {}: {} cases ({} failed)",
         args.cases,
-        args.seed,
+        seeds_text(args),
         args.snr_db,
         s.cases,
         s.failed.len()
     );
-    let pct = |r: &eval::Rate| format!("{:.1} % ({}/{})", r.percent, r.hits, r.of);
     println!(
         "top-1 hit rate, single effects causing >= 2 % held-out NMSE alone, at {} dB: {}  (target >= 95 %)",
         args.snr_db,
@@ -175,11 +272,11 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
     println!(
         "forcemap diagnose-eval --forms wide --cases {} --seed {}: {} cases ({} failed)",
         args.cases,
-        args.seed,
+        seeds_text(args),
         results.len(),
         results.iter().filter(|r| r.is_err()).count()
     );
-    let pct = |r: &eval::Rate| format!("{:.1} % ({}/{})", r.percent, r.hits, r.of);
+    let several = args.seed.len() > 1;
     let mut groups: Vec<String> = eval::WIDE_SNRS_DB
         .iter()
         .map(|snr| format!("single effects at {snr} dB"))
@@ -196,18 +293,27 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
             .and_then(|r| r.as_ref().ok())
             .map_or(eval::WIDE_SNRS_DB[1], |r| r.case.snr_db);
         let s = eval::summarise(&subset, snr);
+        let by_seed = |rate: RateOf| {
+            if several {
+                format!("\n  {}", per_seed_rate(args, &subset, snr, rate))
+            } else {
+                String::new()
+            }
+        };
         println!();
         println!("== {g}: {} cases", subset.len());
         match g.as_str() {
             "pairs" => {
                 println!("top effect one of the two: {}", pct(&s.pairs_one_named));
                 println!(
-                    "both among the top two (the pair the verdict names, else the two best-ranked): {}  (target >= 80 %)",
-                    pct(&s.pairs_both_top_two)
+                    "both among the top two (the pair the verdict names, else the two best-ranked): {}  (target >= 80 %){}",
+                    pct(&s.pairs_both_top_two),
+                    by_seed(|s| &s.pairs_both_top_two)
                 );
                 println!(
-                    "  the same over the pairs whose members each cause >= 2 % held-out NMSE alone: {}",
-                    pct(&s.pairs_qualifying_both_top_two)
+                    "the same over the pairs whose members each cause >= 2 % held-out NMSE alone: {}{}",
+                    pct(&s.pairs_qualifying_both_top_two),
+                    by_seed(|s| &s.pairs_qualifying_both_top_two)
                 );
                 println!(
                     "both named by the verdict (explained by A together with B): {}",
@@ -220,10 +326,11 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
                         None => r.named.clone(),
                     };
                     let alone = r.member_gap_percent.map_or(String::new(), |g| {
-                        format!("  (alone {:.1} %, {:.1} %)", g[0], g[1])
+                        format!("  (alone {}, {})", percent_text(g[0]), percent_text(g[1]))
                     });
                     println!(
-                        "  {:<40} -> {:<42} ranked {}{alone}",
+                        "  {:<8} {:<40} -> {:<42} ranked {}{alone}",
+                        format!("{}/{}", r.case.generator_seed, r.case.index),
                         r.label,
                         named,
                         top.join(", ")
@@ -232,19 +339,25 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
                 continue;
             }
             "out of library" => println!(
-                "given a library name: {}  (target <= 10 %)",
-                pct(&s.out_of_library_named)
+                "given a library name: {}  (target <= 10 %){}",
+                pct(&s.out_of_library_named),
+                by_seed(|s| &s.out_of_library_named)
             ),
-            "no effect" => println!("false alarms: {}  (target <= 5 %)", pct(&s.false_alarms)),
+            "no effect" => println!(
+                "false alarms: {}  (target <= 5 %){}",
+                pct(&s.false_alarms),
+                by_seed(|s| &s.false_alarms)
+            ),
             _ => {
                 println!(
-                    "top-1, effects causing >= 2 % held-out NMSE alone: {}{}",
+                    "top-1, effects causing >= 2 % held-out NMSE alone: {}{}{}",
                     pct(&s.top1),
                     if g.ends_with("30 dB") {
                         "  (target >= 95 %)"
                     } else {
                         ""
-                    }
+                    },
+                    by_seed(|s| &s.top1)
                 );
                 println!(
                     "below 2 %: named right {}, adequate {}, other answer {}",
@@ -276,8 +389,9 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
 /// One case in full: what was planted, what was named, and every candidate's figures.
 fn print_case(r: &CaseResult) {
     println!(
-        "case {} (seed {}, {} dB): planted {} -> {}; gap {} -> {}, true model {}, noise floor {}; baseline step CV {}",
+        "case {} of seed {} (case seed {}, {} dB): planted {} -> {}; gap {} -> {}, true model {}, noise floor {}; baseline step CV {}",
         r.case.index,
+        r.case.generator_seed,
         r.case.seed,
         r.case.snr_db,
         r.label,

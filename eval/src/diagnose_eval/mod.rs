@@ -114,7 +114,10 @@ impl Planted {
 /// One generated case.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CaseSpec {
+    /// The generator's seed (`diagnose-eval --seed`) and the case's place in its sequence.
+    pub generator_seed: u64,
     pub index: usize,
+    /// The case's own seed (its draws and noise), drawn by the generator.
     pub seed: u64,
     pub planted: Planted,
     pub snr_db: f64,
@@ -303,6 +306,7 @@ pub fn generate_cases(n: usize, seed: u64, snr_db: f64) -> Vec<CaseSpec> {
                 }
             };
             CaseSpec {
+                generator_seed: seed,
                 index,
                 seed: rng.random(),
                 planted,
@@ -362,6 +366,7 @@ pub fn generate_wide_cases(n: usize, seed: u64) -> Vec<CaseSpec> {
                 }
             };
             CaseSpec {
+                generator_seed: seed,
                 index,
                 seed: rng.random(),
                 planted,
@@ -402,7 +407,9 @@ pub fn run_cases(
                     if i >= cases.len() {
                         break;
                     }
-                    let r = run_case(&cases[i]).map_err(|e| format!("case {i}: {e}"));
+                    let c = &cases[i];
+                    let r = run_case(c)
+                        .map_err(|e| format!("case {} of seed {}: {e}", c.index, c.generator_seed));
                     if let Ok(ok) = &r {
                         progress(ok);
                     }
