@@ -78,11 +78,11 @@ pub fn predict_record(
     let mut rel: &[f64] = measured_rel;
     if let Some(f) = &sensor {
         if f.applies_to(Channel::BaseDisplacementM) {
-            input = undo_samples(&input, fs, f);
+            input = undo_samples(&input, fs, f, VALIDATION_BASE_LOWPASS_HZ);
         }
         // The relative displacement only gives the initial state.
         if f.applies_to(Channel::RelativeDisplacementM) {
-            undone_rel = undo_samples(measured_rel, fs, f);
+            undone_rel = undo_samples(measured_rel, fs, f, VALIDATION_BASE_LOWPASS_HZ);
             rel = &undone_rel;
         }
     }
