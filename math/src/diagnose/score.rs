@@ -80,9 +80,13 @@ pub fn predict_record(
         if f.applies_to(Channel::BaseDisplacementM) {
             input = undo_samples(&input, fs, f);
         }
-        // The relative displacement only gives the initial state.
+        // The relative displacement only gives the initial state, one sample of the undo: low-
+        // passed as the base first, else the noise through the undo's derivatives at the
+        // record's edge starts the model far off (a second-order undo near 3 Hz multiplies
+        // the one-sided second difference's noise by some 200 at 100 Hz).
         if f.applies_to(Channel::RelativeDisplacementM) {
-            undone_rel = undo_samples(measured_rel, fs, f);
+            let smooth = zero_phase_lowpass(measured_rel, fs, VALIDATION_BASE_LOWPASS_HZ);
+            undone_rel = undo_samples(&smooth, fs, f);
             rel = &undone_rel;
         }
     }

@@ -12,7 +12,9 @@ use super::effects::{
 };
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
 use super::fit::{Fitted, REVERSAL_BAND, root_ratio_percent};
-use super::sensor::{Consistency, SubsetMember, best_subset_member, exact_for};
+use super::sensor::{
+    Consistency, SubsetMember, best_subset_member, exact_for, refine_on_every_channel,
+};
 use super::{free_play, series};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
@@ -177,6 +179,11 @@ pub fn search(
                     |s| evaluate(setup, baseline, analyses, &cycles, effect, s),
                     PhasorCandidate::step_error_percent,
                 )?,
+                Effect::SensorLowpass => {
+                    refine_on_every_channel(b, scales.max_frequency_hz, |s| {
+                        evaluate(setup, baseline, analyses, &cycles, effect, s)
+                    })?
+                }
                 _ => b,
             };
             candidates.push(b);

@@ -35,6 +35,49 @@ pub fn central_difference_at_rate(x: &[f64], sample_rate_hz: f64) -> Vec<f64> {
         .collect()
 }
 
+/// First and second derivatives by sixth-order central stencils, multiplying by the rate
+/// (fourth and second order one and two samples from the ends, one-sided second order at the
+/// first and last sample). On a sine the stencils fall short by about (w h)^6 / 140 and
+/// (w h)^6 / 560 (h the sample step): 0.04 % and 0.01 % at 10 Hz sampled at 100 Hz, where two
+/// central differences in a row fall 12.5 % short. Local, unlike the frequency domain's
+/// derivative, which wraps the record. The rig diagnosis's held-out sensor undo
+/// (`diagnose::sensor::undo_samples`).
+pub fn sixth_order_derivatives(x: &[f64], sample_rate_hz: f64) -> (Vec<f64>, Vec<f64>) {
+    let n = x.len();
+    let (fs, fs2) = (sample_rate_hz, sample_rate_hz * sample_rate_hz);
+    if n < 4 {
+        let d1 = central_difference_at_rate(x, fs);
+        let d2 = central_difference_at_rate(&d1, fs);
+        return (d1, d2);
+    }
+    // The k-th sample inward from sample i's nearer end (i itself at k = 0).
+    let inward = |i: usize, k: usize| if i == 0 { x[k] } else { x[n - 1 - k] };
+    let d1 = |i: usize| {
+        let a = |k: usize| x[i + k] - x[i - k];
+        match i.min(n - 1 - i) {
+            0 => {
+                let sign = if i == 0 { 1.0 } else { -1.0 };
+                sign * (-3.0 * inward(i, 0) + 4.0 * inward(i, 1) - inward(i, 2)) * fs / 2.0
+            }
+            1 => a(1) * fs / 2.0,
+            2 => (8.0 * a(1) - a(2)) * fs / 12.0,
+            _ => (45.0 * a(1) - 9.0 * a(2) + a(3)) * fs / 60.0,
+        }
+    };
+    let d2 = |i: usize| {
+        let s = |k: usize| x[i + k] + x[i - k] - 2.0 * x[i];
+        match i.min(n - 1 - i) {
+            0 => {
+                (2.0 * inward(i, 0) - 5.0 * inward(i, 1) + 4.0 * inward(i, 2) - inward(i, 3)) * fs2
+            }
+            1 => s(1) * fs2,
+            2 => (16.0 * s(1) - s(2)) * fs2 / 12.0,
+            _ => (270.0 * s(1) - 27.0 * s(2) + 2.0 * s(3)) * fs2 / 180.0,
+        }
+    };
+    ((0..n).map(d1).collect(), (0..n).map(d2).collect())
+}
+
 /// `order`-th derivative of `y` (sampled at `fs`) in the frequency domain, bins above
 /// `cutoff_hz` dropped; the straight line through the end points is taken out first (and its
 /// slope given back to the first derivative) so the record wraps without a jump.
@@ -83,6 +126,59 @@ mod tests {
         }
         assert_eq!(central_difference(&[1.0], 0.1), vec![0.0]);
         assert_eq!(central_difference_at_rate(&[1.0], 10.0), vec![0.0]);
+    }
+
+    #[test]
+    fn the_sixth_order_derivatives_of_a_sine_are_its_derivatives_times_the_stencils_gains() {
+        // 10 Hz at 100 Hz (wh = w h = 0.63): inside, the derivatives times the stencils' gains
+        // in closed form, each within 0.05 % of 1; a cubic's second derivative exact everywhere,
+        // its first two samples or more from the ends (nearer, the stencils are second order).
+        let (fs, f) = (100.0, 10.0);
+        let w = std::f64::consts::TAU * f;
+        let wh = w / fs;
+        let g1 = (45.0 * wh.sin() - 9.0 * (2.0 * wh).sin() + (3.0 * wh).sin()) / (30.0 * wh);
+        let g2 = -(270.0 * (2.0 * wh.cos() - 2.0) - 27.0 * (2.0 * (2.0 * wh).cos() - 2.0)
+            + 2.0 * (2.0 * (3.0 * wh).cos() - 2.0))
+            / (180.0 * wh * wh);
+        assert!(
+            (1.0 - g1).abs() < 5e-4 && (1.0 - g2).abs() < 5e-4,
+            "{g1} {g2}"
+        );
+        let x: Vec<f64> = (0..200).map(|i| (w * i as f64 / fs + 0.3).sin()).collect();
+        let (v, a) = sixth_order_derivatives(&x, fs);
+        for i in 3..197 {
+            let t = i as f64 / fs;
+            let want = g1 * w * (w * t + 0.3).cos();
+            assert!((v[i] - want).abs() < 1e-9 * w, "{i}: {} vs {want}", v[i]);
+            let want = -g2 * w * w * (w * t + 0.3).sin();
+            assert!(
+                (a[i] - want).abs() < 1e-9 * w * w,
+                "{i}: {} vs {want}",
+                a[i]
+            );
+        }
+        let p: Vec<f64> = (0..8)
+            .map(|i| {
+                let t = i as f64 / 2.0;
+                1.0 + 2.0 * t - 0.5 * t * t + 0.1 * t * t * t
+            })
+            .collect();
+        let (v, a) = sixth_order_derivatives(&p, 2.0);
+        for i in 0..8 {
+            let t = i as f64 / 2.0;
+            let (dv, da) = (2.0 - t + 0.3 * t * t, -1.0 + 0.6 * t);
+            if (2..6).contains(&i) {
+                assert!((v[i] - dv).abs() < 1e-12, "{i}: {} vs {dv}", v[i]);
+            }
+            assert!((a[i] - da).abs() < 1e-12, "{i}: {} vs {da}", a[i]);
+        }
+        // The ends' one-sided first derivative is exact on a parabola.
+        let q: Vec<f64> = (0..6).map(|i| (i * i) as f64).collect();
+        let (v, _) = sixth_order_derivatives(&q, 1.0);
+        assert!(
+            (v[0] - 0.0).abs() < 1e-12 && (v[5] - 10.0).abs() < 1e-12,
+            "{v:?}"
+        );
     }
 
     #[test]

@@ -119,8 +119,8 @@ pub const SUBSET_CUTOFF_MULTIPLES: [f64; 9] = [0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.
 pub const SUBSET_DAMPING_RATIOS: [f64; 3] = [0.5, 0.7, 1.0];
 /// Bounds of the refined shape: cutoff relative to the highest excitation frequency, damping
 /// ratio, delay [s].
-const CUTOFF_BOUNDS: [f64; 2] = [0.3, 60.0];
-const DAMPING_BOUNDS: [f64; 2] = [0.2, 2.0];
+pub(super) const CUTOFF_BOUNDS: [f64; 2] = [0.3, 60.0];
+pub(super) const DAMPING_BOUNDS: [f64; 2] = [0.2, 2.0];
 const DELAY_BOUNDS_S: [f64; 2] = [0.0, 0.02];
 
 /// A member of one channel subset and its chi-square.
@@ -254,8 +254,8 @@ fn refine(
 }
 
 /// Minimises `f` from `x0` with initial simplex steps `step` (at most `evaluations` calls).
-fn nelder_mead(
-    f: impl Fn(&[f64]) -> f64,
+pub(super) fn nelder_mead(
+    mut f: impl FnMut(&[f64]) -> f64,
     x0: &[f64],
     step: &[f64],
     evaluations: usize,

@@ -10,7 +10,8 @@
 //! order, cutoff, damping ratio and delay are chosen there, a coarse grid refined by a simplex
 //! search ([`best_subset_member`]). A filter on every channel alike leaves the identities intact
 //! (a common delay is then invisible altogether); that member is searched by the element fit's
-//! cross-validated error as before (`search`).
+//! cross-validated error on a grid (`search`) and refined there continuously
+//! ([`refine_on_every_channel`]).
 
 use std::f64::consts::TAU;
 
@@ -23,9 +24,11 @@ use crate::recipe::Setup;
 use crate::record::Channel;
 use crate::sim::rig::RIG_CHANNELS;
 
+mod every_channel;
 mod identities;
 mod samples;
 
+pub use every_channel::{EVERY_CHANNEL_REFINE_EVALUATIONS, refine_on_every_channel};
 pub use identities::{
     Consistency, IDENTITIES_LEFT_SHARE, SUBSET_CUTOFF_MULTIPLES, SUBSET_DAMPING_RATIOS,
     SubsetMember, best_subset_member,
