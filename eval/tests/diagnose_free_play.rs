@@ -9,6 +9,7 @@
 
 mod common;
 
+use common::searched;
 use forcemap_eval::diagnose_eval::world::{Term, WorldEffect, WorldKind};
 use forcemap_math::diagnose::{Diagnosis, Effect, RankedEffect, Verdict};
 
@@ -29,13 +30,6 @@ fn free_play(gap_neg_m: f64, gap_pos_m: f64, stiffness_n_per_m: f64) -> WorldEff
 
 fn top(d: &Diagnosis) -> &RankedEffect {
     &d.ranked_effects[0]
-}
-
-fn searched(r: &RankedEffect, name: &str) -> Option<f64> {
-    r.added_parameters
-        .iter()
-        .find(|p| p.name == name)
-        .map(|p| p.value)
 }
 
 /// Contact at +4.0 mm and -1.2 mm, a 5 kN/m stop, 30 dB: named free_play with the contact

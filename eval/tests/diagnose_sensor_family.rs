@@ -8,7 +8,8 @@
 
 mod common;
 
-use forcemap_eval::diagnose_eval::world::{SensorDynamics, WorldEffect, WorldKind};
+use common::{searched, sensor_effect};
+use forcemap_eval::diagnose_eval::world::{SensorDynamics, WorldEffect};
 use forcemap_math::diagnose::{Diagnosis, Effect, Verdict};
 use forcemap_math::sim::rig::RIG_CHANNELS;
 
@@ -24,22 +25,8 @@ fn mask(name: &str) -> u8 {
 /// The diagnosis of the world with `sensor` (none: the paper's rig alone) at `snr_db`, against
 /// the Coulomb baseline.
 fn diagnosed(sensor: Option<SensorDynamics>, snr_db: f64, seed: u64) -> Diagnosis {
-    let effects: Vec<WorldEffect> = sensor
-        .map(|s| WorldEffect {
-            sensor: Some(s),
-            ..WorldEffect::of_terms("sensor_lowpass", WorldKind::Library, [None, None])
-        })
-        .into_iter()
-        .collect();
+    let effects: Vec<WorldEffect> = sensor.map(sensor_effect).into_iter().collect();
     common::diagnose_world(&format!("{sensor:?}"), &effects, snr_db, seed).0
-}
-
-fn searched(d: &Diagnosis, name: &str) -> f64 {
-    d.ranked_effects[0]
-        .added_parameters
-        .iter()
-        .find(|p| p.name == name)
-        .map_or(0.0, |p| p.value)
 }
 
 #[test]
@@ -64,9 +51,9 @@ fn a_second_order_lowpass_on_the_mass_accelerometer_is_named_with_its_channel_an
     );
     assert!(d.findings.headline().ends_with(&format!("({member})")));
     // Cutoff and damping within 10 % and 0.1 of the truth.
-    let fc = searched(&d, "cutoff_hz");
+    let fc = searched(&d.ranked_effects[0], "cutoff_hz").unwrap_or(0.0);
     assert!((fc / 6.0 - 1.0).abs() < 0.1, "cutoff {fc}");
-    let zeta = searched(&d, "damping_ratio");
+    let zeta = searched(&d.ranked_effects[0], "damping_ratio").unwrap_or(0.0);
     assert!((zeta - 0.7).abs() < 0.1, "damping {zeta}");
 }
 
@@ -91,7 +78,7 @@ fn a_first_order_lowpass_with_a_delay_on_the_force_channel_is_named_with_its_del
         member.starts_with("channel mass_acceleration, 1st order"),
         "{member}"
     );
-    let delay = searched(&d, "sensor_delay_s");
+    let delay = searched(&d.ranked_effects[0], "sensor_delay_s").unwrap_or(0.0);
     assert!((delay - 0.003).abs() < 0.001, "delay {delay} s");
 }
 

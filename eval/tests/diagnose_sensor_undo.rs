@@ -11,26 +11,15 @@
 
 mod common;
 
-use forcemap_eval::diagnose_eval::world::{SensorDynamics, WorldEffect, WorldKind};
+use common::{searched, sensor_effect};
+use forcemap_eval::diagnose_eval::world::SensorDynamics;
 use forcemap_math::diagnose::sensor::ALL_CHANNELS;
 use forcemap_math::diagnose::{Diagnosis, Effect, Verdict};
 
 /// The diagnosis of the world with `sensor` on every channel at 30 dB from `seed`.
 fn diagnosed(label: &str, sensor: SensorDynamics, seed: u64) -> (Diagnosis, f64) {
-    let effect = WorldEffect {
-        sensor: Some(sensor),
-        ..WorldEffect::of_terms("sensor_lowpass", WorldKind::Library, [None, None])
-    };
-    let (d, run) = common::diagnose_world(label, &[effect], 30.0, seed);
+    let (d, run) = common::diagnose_world(label, &[sensor_effect(sensor)], 30.0, seed);
     (d, run.truth_nmse_percent)
-}
-
-fn searched(d: &Diagnosis, name: &str) -> f64 {
-    d.ranked_effects[0]
-        .added_parameters
-        .iter()
-        .find(|p| p.name == name)
-        .map_or(0.0, |p| p.value)
 }
 
 #[test]
@@ -78,7 +67,7 @@ fn a_second_order_filter_on_every_channel_near_the_top_frequency_is_named_with_i
         // harmonics see it): case 159's is refined to 3.21 Hz, damping 0.77, against 3.44 Hz,
         // 0.65, so only its naming is asserted.
         if label == "seed 2 case 47" {
-            let fc = searched(&d, "cutoff_hz");
+            let fc = searched(&d.ranked_effects[0], "cutoff_hz").unwrap_or(0.0);
             assert!((fc / cutoff_hz - 1.0).abs() < 0.05, "{label}: cutoff {fc}");
         }
         // The held-out error left within 1 % of the world's own (0.25 and 0.15 %).

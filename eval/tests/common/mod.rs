@@ -2,9 +2,9 @@
 //! printed so that a failing assertion shows why.
 
 use forcemap_eval::diagnose_eval::world::{
-    Term, World, WorldEffect, WorldKind, WorldRun, simulate,
+    SensorDynamics, Term, World, WorldEffect, WorldKind, WorldRun, simulate,
 };
-use forcemap_math::diagnose::{DiagnoseOptions, Diagnosis, Effect, diagnose};
+use forcemap_math::diagnose::{DiagnoseOptions, Diagnosis, Effect, RankedEffect, diagnose};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::recipe::Setup;
 use forcemap_math::sim::rig::PAPER_RIG_MASS_KG;
@@ -90,4 +90,22 @@ pub fn hardening_spring(cubic_n_per_m3: f64, quintic_n_per_m5: f64) -> WorldEffe
 )]
 pub fn top_two(d: &Diagnosis) -> Vec<Effect> {
     d.ranked_effects.iter().take(2).map(|r| r.effect).collect()
+}
+
+/// Sensor dynamics planted as the sensor_lowpass family (no element term).
+#[allow(dead_code, reason = "not every test file plants a sensor filter")]
+pub fn sensor_effect(sensor: SensorDynamics) -> WorldEffect {
+    WorldEffect {
+        sensor: Some(sensor),
+        ..WorldEffect::of_terms("sensor_lowpass", WorldKind::Library, [None, None])
+    }
+}
+
+/// The value of a ranked candidate's added or searched parameter `name`, if it has one.
+#[allow(dead_code, reason = "not every test file reads a searched parameter")]
+pub fn searched(r: &RankedEffect, name: &str) -> Option<f64> {
+    r.added_parameters
+        .iter()
+        .find(|p| p.name == name)
+        .map(|p| p.value)
 }

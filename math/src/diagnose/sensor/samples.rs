@@ -104,10 +104,7 @@ mod tests {
         let (fs, fr) = (100.0, 8.0);
         let w = TAU * fr;
         for f in [
-            SensorFilter {
-                damping_ratio: 0.56,
-                ..SensorFilter::on(Channel::BaseDisplacementM, 2, 3.06, 0.56)
-            },
+            SensorFilter::on(Channel::BaseDisplacementM, 2, 3.06, 0.56),
             SensorFilter::on(Channel::BaseDisplacementM, 1, 2.0, 1.0),
         ] {
             let h = f.response(fr);
