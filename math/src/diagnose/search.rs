@@ -2,13 +2,15 @@
 //! leave-one-step-out cross-validation; for each effect the searched parameter with the best
 //! cross-validated error is kept. The sensor family may add a second sensor_lowpass candidate,
 //! its single-channel member chosen on the channel identities ([`super::sensor`]); the held-out
-//! ranking keeps the better of the two.
+//! ranking keeps the better of the two. The hysteresis family searches its Bouc-Wen shape at
+//! the best yields ([`refine_hysteresis_shape`]).
 
 use super::DiagnoseError;
 use super::cycles::{STUCK_FRACTION, StepCycle, step_cycle};
 use super::design::Design;
 use super::effects::{
-    Effect, Scales, Structure, Transform, baseline_has, sensor_structure, structures,
+    BOUC_WEN_SHAPES, Effect, HYSTERESIS_YIELD_FRACTIONS, Scales, Structure, Transform,
+    baseline_has, hysteresis_structure, sensor_structure, structures,
 };
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
 use super::fit::{Fitted, REVERSAL_BAND, root_ratio_percent};
@@ -19,6 +21,7 @@ use super::{free_play, series};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
+use crate::signal::bouc_wen::HysteresisLaw;
 
 /// One effect's best structure on the step cycles.
 #[derive(Debug, Clone)]
@@ -179,6 +182,13 @@ pub fn search(
                     |s| evaluate(setup, baseline, analyses, &cycles, effect, s),
                     PhasorCandidate::step_error_percent,
                 )?,
+                Effect::Hysteresis => refine_hysteresis_shape(
+                    b,
+                    scales.max_displacement_m,
+                    |c| &c.structure,
+                    |s| evaluate(setup, baseline, analyses, &cycles, effect, s),
+                    PhasorCandidate::step_error_percent,
+                )?,
                 Effect::SensorLowpass => {
                     refine_on_every_channel(b, scales.max_frequency_hz, |s| {
                         evaluate(setup, baseline, analyses, &cycles, effect, s)
@@ -270,4 +280,64 @@ pub fn physical(f: &Fitted) -> bool {
         // A series spring needs a positive damper to be one.
         && (f.structure.series_relaxation_s.is_none()
             || series::damping(f).is_some_and(|c| c > 0.0))
+}
+
+/// The Bouc-Wen shape search: the hysteresis family's yield displacement is searched first with
+/// the one-parameter law (n = 1, r = 1/2, [`HYSTERESIS_YIELD_FRACTIONS`]); then every shape of
+/// [`BOUC_WEN_SHAPES`] at the best yield and its two grid neighbours (a sharper or softer knee
+/// moves the yield that fits best by about a grid step), best by the same error. The member
+/// found carries n and r as searched parameters whatever shape won, so the penalised score
+/// counts the search (four parameters: alpha, zy, n, r).
+///
+/// The best member of the family from `start`, the best yield of the one-parameter law (its
+/// structure `member(&start)`), searched as the module doc says; `evaluate` fits and
+/// cross-validates one member (None when it fails or is not physical), `key` is the error it
+/// is chosen by. `start` is returned when it holds no hysteresis or is not the one-parameter
+/// law (its shape already chosen).
+pub fn refine_hysteresis_shape<T, E>(
+    start: T,
+    max_displacement_m: f64,
+    member: impl Fn(&T) -> &Structure,
+    mut evaluate: impl FnMut(Structure) -> Result<Option<T>, E>,
+    key: impl Fn(&T) -> f64,
+) -> Result<T, E> {
+    let Some(law) = member(&start).hysteresis else {
+        return Ok(start);
+    };
+    if law.one_parameter_yield_m().is_none() {
+        return Ok(start);
+    }
+    let yields: Vec<f64> = HYSTERESIS_YIELD_FRACTIONS
+        .iter()
+        .map(|f| f * max_displacement_m)
+        .collect();
+    let i = (0..yields.len())
+        .min_by(|&a, &b| {
+            (yields[a] / law.yield_m)
+                .ln()
+                .abs()
+                .total_cmp(&(yields[b] / law.yield_m).ln().abs())
+        })
+        .unwrap_or(0);
+    // The start again as a member of the searched family (its score counts n and r).
+    let Some(mut best) = evaluate(hysteresis_structure(law, true))? else {
+        return Ok(start);
+    };
+    let mut best_key = key(&best);
+    for &yield_m in &yields[i.saturating_sub(1)..(i + 2).min(yields.len())] {
+        for &(n, r) in &BOUC_WEN_SHAPES {
+            let l = HysteresisLaw { yield_m, n, r };
+            // The one-parameter members were compared by the yield search already.
+            if l.one_parameter_yield_m().is_some() {
+                continue;
+            }
+            if let Some(c) = evaluate(hysteresis_structure(l, true))?
+                && key(&c) < best_key
+            {
+                best_key = key(&c);
+                best = c;
+            }
+        }
+    }
+    Ok(best)
 }
