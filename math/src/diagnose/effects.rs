@@ -11,8 +11,8 @@ use crate::basis::{
     SquareDisplacement, StribeckVelocity, Term,
 };
 use crate::model::Model;
-use crate::signal::bouc_wen::HysteresisLaw;
 use crate::recipe::SetupKind;
+use crate::signal::bouc_wen::HysteresisLaw;
 
 /// A candidate unmodelled effect, named as the issue names them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]

@@ -9,8 +9,8 @@ use super::DiagnoseError;
 use super::cycles::{STUCK_FRACTION, StepCycle, step_cycle};
 use super::design::Design;
 use super::effects::{
-    BOUC_WEN_SHAPES, Effect, HYSTERESIS_YIELD_FRACTIONS, Scales, Structure, Transform,
-    baseline_has, hysteresis_structure, sensor_structure, structures,
+    BOUC_WEN_SHAPES, Effect, Scales, Structure, Transform, baseline_has, hysteresis_structure,
+    sensor_structure, structures,
 };
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
 use super::fit::{Fitted, REVERSAL_BAND, root_ratio_percent};
@@ -184,7 +184,6 @@ pub fn search(
                 )?,
                 Effect::Hysteresis => refine_hysteresis_shape(
                     b,
-                    scales.max_displacement_m,
                     |c| &c.structure,
                     |s| evaluate(setup, baseline, analyses, &cycles, effect, s),
                     PhasorCandidate::step_error_percent,
@@ -283,20 +282,20 @@ pub fn physical(f: &Fitted) -> bool {
 }
 
 /// The Bouc-Wen shape search: the hysteresis family's yield displacement is searched first with
-/// the one-parameter law (n = 1, r = 1/2, [`HYSTERESIS_YIELD_FRACTIONS`]); then every shape of
-/// [`BOUC_WEN_SHAPES`] at the best yield and its two grid neighbours (a sharper or softer knee
-/// moves the yield that fits best by about a grid step), best by the same error. The member
-/// found carries n and r as searched parameters whatever shape won, so the penalised score
-/// counts the search (four parameters: alpha, zy, n, r).
+/// the one-parameter law (n = 1, r = 1/2, [`HYSTERESIS_YIELD_FRACTIONS`]); then each shape of
+/// [`BOUC_WEN_SHAPES`] from that yield, its yield walked by [`YIELD_STEP`] each way while the
+/// error falls (at most [`YIELD_STEPS`] steps: the yield and the knee trade off, a sharper knee
+/// fitting a later yield, and the error is sharp in the yield, so the grid's steps of 2-2.5 are
+/// too coarse to compare shapes on), best by the same error. The member found carries n and r
+/// as searched parameters whatever shape won, so the penalised score counts the search (four
+/// parameters: alpha, zy, n, r).
 ///
 /// The best member of the family from `start`, the best yield of the one-parameter law (its
-/// structure `member(&start)`), searched as the module doc says; `evaluate` fits and
-/// cross-validates one member (None when it fails or is not physical), `key` is the error it
-/// is chosen by. `start` is returned when it holds no hysteresis or is not the one-parameter
-/// law (its shape already chosen).
+/// structure `member(&start)`); `evaluate` fits and cross-validates one member (None when it
+/// fails or is not physical), `key` is the error it is chosen by. `start` is returned when it
+/// holds no hysteresis or is not the one-parameter law (its shape already chosen).
 pub fn refine_hysteresis_shape<T, E>(
     start: T,
-    max_displacement_m: f64,
     member: impl Fn(&T) -> &Structure,
     mut evaluate: impl FnMut(Structure) -> Result<Option<T>, E>,
     key: impl Fn(&T) -> f64,
@@ -307,37 +306,50 @@ pub fn refine_hysteresis_shape<T, E>(
     if law.one_parameter_yield_m().is_none() {
         return Ok(start);
     }
-    let yields: Vec<f64> = HYSTERESIS_YIELD_FRACTIONS
-        .iter()
-        .map(|f| f * max_displacement_m)
-        .collect();
-    let i = (0..yields.len())
-        .min_by(|&a, &b| {
-            (yields[a] / law.yield_m)
-                .ln()
-                .abs()
-                .total_cmp(&(yields[b] / law.yield_m).ln().abs())
-        })
-        .unwrap_or(0);
     // The start again as a member of the searched family (its score counts n and r).
-    let Some(mut best) = evaluate(hysteresis_structure(law, true))? else {
+    let Some(start) = evaluate(hysteresis_structure(law, true))? else {
         return Ok(start);
     };
-    let mut best_key = key(&best);
-    for &yield_m in &yields[i.saturating_sub(1)..(i + 2).min(yields.len())] {
-        for &(n, r) in &BOUC_WEN_SHAPES {
-            let l = HysteresisLaw { yield_m, n, r };
-            // The one-parameter members were compared by the yield search already.
-            if l.one_parameter_yield_m().is_some() {
-                continue;
+    let mut best = (key(&start), start);
+    for &(n, r) in &BOUC_WEN_SHAPES {
+        let at = |yield_m: f64| HysteresisLaw { yield_m, n, r };
+        // The shape's best so far: (key, yield).
+        let mut shape_best = if at(law.yield_m) == law {
+            (best.0, law.yield_m)
+        } else {
+            match evaluate(hysteresis_structure(at(law.yield_m), true))? {
+                Some(c) => {
+                    let k = key(&c);
+                    if k < best.0 {
+                        best = (k, c);
+                    }
+                    (k, law.yield_m)
+                }
+                None => (f64::INFINITY, law.yield_m),
             }
-            if let Some(c) = evaluate(hysteresis_structure(l, true))?
-                && key(&c) < best_key
-            {
-                best_key = key(&c);
-                best = c;
+        };
+        for factor in [1.0 / YIELD_STEP, YIELD_STEP] {
+            let mut yield_m = shape_best.1;
+            for _ in 0..YIELD_STEPS {
+                yield_m *= factor;
+                let Some(c) = evaluate(hysteresis_structure(at(yield_m), true))? else {
+                    break;
+                };
+                let k = key(&c);
+                if k >= shape_best.0 {
+                    break;
+                }
+                shape_best = (k, yield_m);
+                if k < best.0 {
+                    best = (k, c);
+                }
             }
         }
     }
-    Ok(best)
+    Ok(best.1)
 }
+
+/// The factor the shape search walks the yield by (a quarter of a doubling) and the most
+/// steps it walks each way (a doubling or a halving).
+const YIELD_STEP: f64 = 1.189_207_115_002_721;
+const YIELD_STEPS: usize = 4;

@@ -228,7 +228,10 @@ mod tests {
             let bw = law.bouc_wen(1.0);
             for (z, v) in [(0.001, 0.3), (-0.0025, 0.3), (0.0005, -1.2), (-0.002, -0.7)] {
                 let (a, b) = (law.rate(z, v), bw.rate(z, v));
-                assert!((a - b).abs() <= 1e-12 * v.abs(), "{n} {r} {z} {v}: {a} vs {b}");
+                assert!(
+                    (a - b).abs() <= 1e-12 * v.abs(),
+                    "{n} {r} {z} {v}: {a} vs {b}"
+                );
             }
             // Rising past the yield the rate vanishes at z = zy (closed form of the family).
             assert!(law.rate(zy, 0.5).abs() < 1e-12, "{n} {r}");
@@ -240,7 +243,10 @@ mod tests {
                 .collect();
             let z = steady_cycle(&v, period, &law);
             let zmax = z.iter().fold(0.0f64, |m, z| m.max(z.abs()));
-            assert!(zmax < zy * (1.0 + 1e-6) && zmax > 0.95 * zy, "{n} {r}: {zmax}");
+            assert!(
+                zmax < zy * (1.0 + 1e-6) && zmax > 0.95 * zy,
+                "{n} {r}: {zmax}"
+            );
         }
     }
 }
