@@ -101,7 +101,7 @@ impl Effect {
                 "kfp (x - clamp(x, -neg, pos)): contact at +pos and -neg, the gap searched centred, then each contact point searched and refined (an uneven gap counts one more parameter)"
             }
             Effect::Hysteresis => {
-                "alpha z, Bouc-Wen z' = x' - |x'| z / (2 zy) - x' |z| / (2 zy), yield zy searched"
+                "alpha z, Bouc-Wen z' = x' - (r |x'| sgn(z) + (1 - r) x') |z|^n / zy^n: yield zy searched with n = 1, r = 1/2, then the shape (n, r) with the yield walked per shape"
             }
             Effect::ExciterDelay => {
                 "the element sees the measured base motion delayed by d (fitted from the kinematic identity x_o - x = x_i)"
