@@ -73,7 +73,7 @@ pub use findings::{
 pub use locate::Located;
 pub use phasor::{PhasorDiagnosis, PhasorFindings};
 pub use ranking::{DECISIVE_STEP_CV_RATIO, STEP_TIE_CV_RATIO, held_out_tie};
-use ranking::{keep_best_member, second_shown_by_steps, step_tie_break};
+use ranking::{keep_best_member, pair_shown_by_steps, step_tie_break};
 
 use crate::identify::IdentifyError;
 use crate::lstsq::LstsqError;
@@ -457,7 +457,12 @@ pub fn diagnose(
             .map(|&i| structure(i))
             .chain(unranked.iter().map(|(e, s)| (*e, s, f64::INFINITY)))
             .collect();
-        pairs::forward_pair(&ctx, structure(order[0]).1, &others)?
+        pairs::forward_pair(
+            &ctx,
+            structure(order[0]).1,
+            ranked[order[0]].phasor_cv_percent,
+            &others,
+        )?
     } else {
         None
     };
@@ -465,11 +470,14 @@ pub fn diagnose(
     // second: the best addition to the top candidate ahead of the alternatives to it, and after
     // an exchange ([`pairs::forward_pair`]) the pair's better-ranked member on top. When the
     // held-out records cannot tell the pair from the top one alone but the sine steps show the
-    // second effect ([`second_shown_by_steps`]), it ranks second, the top one staying first.
+    // second effect ([`pair_shown_by_steps`]), it ranks second, the top one staying first; a
+    // pair without the top one that the steps show so ranks first and second.
     if let (Some(p), Some(&top)) = (&best_pair, order.first()) {
-        let slots = if p.score_percent < ranked[top].score_percent {
+        let shown = pair_shown_by_steps(&ranked[top], p, floor);
+        let holds_top = p.effects[0] == ranked[top].effect;
+        let slots = if p.score_percent < ranked[top].score_percent || (shown && !holds_top) {
             0..2
-        } else if second_shown_by_steps(&ranked[top], p, floor) {
+        } else if shown {
             1..2
         } else {
             0..0

@@ -66,15 +66,15 @@ pub(super) fn step_tie_break(
     (cv < STEP_TIE_CV_RATIO * best_cv).then_some(k)
 }
 
-/// Whether the pair's second effect is shown by the sine steps next to the top candidate
-/// `top`, though not by the held-out records: the pair holds the top one, its penalised score is
-/// tied with the top one's alone ([`held_out_tie`]: the top one already leaves about what its
-/// prediction's bias and the noise leave, so a second effect buys nothing measurable there) and
-/// the joint fit's cross-validated force error on the steps is below [`STEP_TIE_CV_RATIO`] times
-/// the top one's alone.
-pub(super) fn second_shown_by_steps(top: &RankedEffect, pair: &PairResult, floor: f64) -> bool {
-    pair.effects[0] == top.effect
-        && pair.score_percent <= top.score_percent + held_out_tie(top.gap_after_percent, floor)
+/// Whether the sine steps show the pair better than the top candidate `top` alone, though the
+/// held-out records do not: the pair's penalised score is tied with the top one's alone
+/// ([`held_out_tie`]: the top one already leaves about what its prediction's bias and the noise
+/// leave, so a pair buys nothing measurable there) and the joint fit's cross-validated force
+/// error on the steps is below [`STEP_TIE_CV_RATIO`] times the top one's alone. When the pair
+/// holds the top one, its second effect is shown; when it does not (the top one a neighbour
+/// of both planted effects: [`super::pairs`]'s rival pairs), the pair is.
+pub(super) fn pair_shown_by_steps(top: &RankedEffect, pair: &PairResult, floor: f64) -> bool {
+    pair.score_percent <= top.score_percent + held_out_tie(top.gap_after_percent, floor)
         && matches!(
             (pair.phasor_cv_percent, top.phasor_cv_percent),
             (Some(p), Some(t)) if p < STEP_TIE_CV_RATIO * t
