@@ -10,23 +10,7 @@
 mod common;
 
 use common::searched;
-use forcemap_eval::diagnose_eval::world::{Term, WorldEffect, WorldKind};
 use forcemap_math::diagnose::{Diagnosis, Effect, RankedEffect, Verdict};
-
-fn free_play(gap_neg_m: f64, gap_pos_m: f64, stiffness_n_per_m: f64) -> WorldEffect {
-    WorldEffect::of_terms(
-        "free_play",
-        WorldKind::Library,
-        [
-            Some(Term::FreePlay {
-                gap_neg_m,
-                gap_pos_m,
-                stiffness_n_per_m,
-            }),
-            None,
-        ],
-    )
-}
 
 fn top(d: &Diagnosis) -> &RankedEffect {
     &d.ranked_effects[0]
@@ -40,7 +24,7 @@ fn top(d: &Diagnosis) -> &RankedEffect {
 fn unequal_gaps_are_found_with_their_contact_points() {
     let (d, _) = common::diagnose_world(
         "free play +4.0 / -1.2 mm",
-        &[free_play(0.0012, 0.0040, 5000.0)],
+        &[common::free_play_effect(0.0012, 0.0040, 5000.0)],
         30.0,
         3,
     );
@@ -67,7 +51,7 @@ fn unequal_gaps_are_found_with_their_contact_points() {
 fn a_centred_gap_is_still_found_centred() {
     let (d, _) = common::diagnose_world(
         "free play +/-2.0 mm",
-        &[free_play(0.0020, 0.0020, 5000.0)],
+        &[common::free_play_effect(0.0020, 0.0020, 5000.0)],
         30.0,
         3,
     );

@@ -116,22 +116,6 @@ fn one_effect_alone_is_not_named_as_a_pair() {
     }
 }
 
-/// A free play with unequal gaps and its own stiffness (the wide forms' draw).
-fn off_centre_free_play(gap_neg_m: f64, gap_pos_m: f64, stiffness_n_per_m: f64) -> WorldEffect {
-    WorldEffect::of_terms(
-        "free_play",
-        WorldKind::Library,
-        [
-            Some(Term::FreePlay {
-                gap_neg_m,
-                gap_pos_m,
-                stiffness_n_per_m,
-            }),
-            None,
-        ],
-    )
-}
-
 /// `diagnose-eval --forms wide --seed 3` case 225: a free play (1.7 and 2.1 mm) beside a
 /// spring growing as x^2.23. The forward pair with quadratic stiffness on top found free play
 /// (cross-validated step error 1.36 %); the exchange then put free play with x^3 in its place
@@ -142,7 +126,7 @@ fn off_centre_free_play(gap_neg_m: f64, gap_pos_m: f64, stiffness_n_per_m: f64) 
 fn the_exchange_does_not_replace_a_pair_the_steps_prefer_for_a_hair_on_the_held_out_records() {
     let d = diagnosed(
         &[
-            off_centre_free_play(0.001_681_942, 0.002_106_957, 7_934.995),
+            common::free_play_effect(0.001_681_942, 0.002_106_957, 7_934.995),
             power("quadratic_stiffness", 2.000_577e6, 2.231_481_456, false),
         ],
         30.0,
@@ -168,7 +152,7 @@ fn the_rivals_paired_among_themselves_find_a_pair_the_top_one_stands_in_for() {
     let d = diagnosed(
         &[
             common::hardening_spring(2.148_015_4e7, 1.676_929_6e11),
-            off_centre_free_play(0.002_669_726, 0.001_204_442, 9_343.256),
+            common::free_play_effect(0.002_669_726, 0.001_204_442, 9_343.256),
         ],
         30.0,
         6_451_800_529_643_717_429,

@@ -83,6 +83,24 @@ pub fn hardening_spring(cubic_n_per_m3: f64, quintic_n_per_m5: f64) -> WorldEffe
     )
 }
 
+/// A free play with contact at `gap_pos_m` and -`gap_neg_m` and a stop of `stiffness_n_per_m`,
+/// planted as free_play (the wide forms' form: unequal gaps, its own stiffness).
+#[allow(dead_code, reason = "not every test file plants a free play")]
+pub fn free_play_effect(gap_neg_m: f64, gap_pos_m: f64, stiffness_n_per_m: f64) -> WorldEffect {
+    WorldEffect::of_terms(
+        "free_play",
+        WorldKind::Library,
+        [
+            Some(Term::FreePlay {
+                gap_neg_m,
+                gap_pos_m,
+                stiffness_n_per_m,
+            }),
+            None,
+        ],
+    )
+}
+
 /// The first two effects of the ranking.
 #[allow(
     dead_code,

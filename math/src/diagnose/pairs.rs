@@ -20,7 +20,7 @@ use super::effects::{Effect, Structure, Transform, structures};
 use super::exciter::delay_shown;
 use super::fit::fit;
 use super::free_play;
-use super::score::{HeldOut, penalised};
+use super::score::penalised;
 use super::search::{PhasorSearch, cycles_for, physical};
 use super::{
     DiagnoseError, PairResult, STEP_TIE_CV_RATIO, held_out_tie, heldout_all, mean_nmse,
@@ -140,7 +140,7 @@ fn scored(
     cycles: &mut Cycles,
     s: &Structure,
     phasor_cv_percent: Option<f64>,
-) -> Result<Option<(PairResult, Vec<HeldOut>)>, DiagnoseError> {
+) -> Result<Option<PairResult>, DiagnoseError> {
     let Ok(f) = fit(ctx.baseline, s, cycles.under(&s.transform)?, None) else {
         return Ok(None);
     };
@@ -152,17 +152,35 @@ fn scored(
     };
     let after = mean_nmse(&h);
     let [first, second] = [s.effects[0], s.effects[s.effects.len() - 1]];
-    Ok(Some((
-        PairResult {
-            effects: [first, second],
-            gap_after_percent: after,
-            score_percent: penalised(after, s.extra_parameters, ctx.n_eff),
-            phasor_cv_percent,
-            added_parameters: parameter_values(f.added_parameters()),
-            form_neighbour: None,
-        },
-        h,
-    )))
+    Ok(Some(PairResult {
+        effects: [first, second],
+        gap_after_percent: after,
+        score_percent: penalised(after, s.extra_parameters, ctx.n_eff),
+        phasor_cv_percent,
+        added_parameters: parameter_values(f.added_parameters()),
+        form_neighbour: None,
+    }))
+}
+
+/// `fixed` fitted jointly with `partner`'s family ([`joint_structure`]) and scored
+/// ([`scored`]): the pair and the partner's member in it. None when no joint fit is physical,
+/// the joint model cannot be scored, or `steps_allow` refuses the joint fit's cross-validated
+/// force error on the sine steps (asked before the held-out replay, which it spares).
+fn joint_scored(
+    ctx: &PairContext,
+    cycles: &mut Cycles,
+    fixed: &Structure,
+    partner: Effect,
+    alone: &Structure,
+    steps_allow: impl Fn(Option<f64>) -> bool,
+) -> Result<Option<(PairResult, Structure)>, DiagnoseError> {
+    let Some((s, member, cv)) = joint_structure(ctx, cycles, fixed, partner, alone)? else {
+        return Ok(None);
+    };
+    if !steps_allow(cv) {
+        return Ok(None);
+    }
+    Ok(scored(ctx, cycles, &s, cv)?.map(|p| (p, member)))
 }
 
 /// The best pair with the top candidate: `top` (its structure) fitted jointly with each effect
@@ -197,7 +215,7 @@ pub fn forward_pair(
         let Some((s, member, cv)) = joint else {
             continue;
         };
-        let Some((p, _)) = scored(ctx, &mut cycles, &s, cv)? else {
+        let Some(p) = scored(ctx, &mut cycles, &s, cv)? else {
             continue;
         };
         tried.push((p, k, member));
@@ -297,16 +315,10 @@ fn rivals_paired(
         .collect();
     for (i, (_, first_alone, first_score)) in rivals.iter().enumerate() {
         for (second, second_alone, second_score) in &rivals[i + 1..] {
-            let Some((s, _, cv)) =
-                joint_structure(ctx, cycles, first_alone, *second, second_alone)?
+            let below_top = |cv: Option<f64>| !matches!((cv, top_cv_percent), (Some(pair_cv), Some(top_cv)) if pair_cv >= top_cv);
+            let Some((p, _)) =
+                joint_scored(ctx, cycles, first_alone, *second, second_alone, below_top)?
             else {
-                continue;
-            };
-            // The steps' verdict first: it needs no simulation of the held-out records.
-            if matches!((cv, top_cv_percent), (Some(pair_cv), Some(top_cv)) if pair_cv >= top_cv) {
-                continue;
-            }
-            let Some((p, _)) = scored(ctx, cycles, &s, cv)? else {
                 continue;
             };
             if p.score_percent < first_score.min(*second_score) && replaces(&best, &p, ctx.floor) {
@@ -365,10 +377,7 @@ fn beside_neighbour(
         if STIFFNESS_FORMS.contains(effect) || delay_unshown(ctx, *effect) {
             continue;
         }
-        let Some((s, _, cv)) = joint_structure(ctx, cycles, widened, *effect, alone)? else {
-            continue;
-        };
-        let Some((p, _)) = scored(ctx, cycles, &s, cv)? else {
+        let Some((p, _)) = joint_scored(ctx, cycles, widened, *effect, alone, |_| true)? else {
             continue;
         };
         tried.push(p);
@@ -457,10 +466,7 @@ fn exchange(
         .filter(|(k, (e, _, _))| *k != second && *e != kept)
         .take(EXCHANGE_RIVALS);
     for (k, (effect, alone, alone_score)) in rivals {
-        let Some((s, _, cv)) = joint_structure(ctx, cycles, member, *effect, alone)? else {
-            continue;
-        };
-        let Some((mut p, _)) = scored(ctx, cycles, &s, cv)? else {
+        let Some((mut p, _)) = joint_scored(ctx, cycles, member, *effect, alone, |_| true)? else {
             continue;
         };
         if p.score_percent < *alone_score && replaces(&best, &p, ctx.floor) {
