@@ -3,7 +3,7 @@
 //! cross-validated error is kept. The sensor family may add a second sensor_lowpass candidate,
 //! its single-channel member chosen on the channel identities ([`super::sensor`]); the held-out
 //! ranking keeps the better of the two. The hysteresis family searches its Bouc-Wen shape at
-//! the best yields ([`refine_hysteresis_shape`]).
+//! the best yields ([`refine_hysteresis_shape`]) when the steps rank it near the top.
 
 use super::DiagnoseError;
 use super::cycles::{STUCK_FRACTION, StepCycle, step_cycle};
@@ -182,12 +182,6 @@ pub fn search(
                     |s| evaluate(setup, baseline, analyses, &cycles, effect, s),
                     PhasorCandidate::step_error_percent,
                 )?,
-                Effect::Hysteresis => refine_hysteresis_shape(
-                    b,
-                    |c| &c.structure,
-                    |s| evaluate(setup, baseline, analyses, &cycles, effect, s),
-                    PhasorCandidate::step_error_percent,
-                )?,
                 Effect::SensorLowpass => {
                     refine_on_every_channel(b, scales.max_frequency_hz, |s| {
                         evaluate(setup, baseline, analyses, &cycles, effect, s)
@@ -213,6 +207,23 @@ pub fn search(
         {
             candidates.push(c);
         }
+    }
+    // The Bouc-Wen shapes are searched only for a hysteresis candidate that the steps rank near
+    // the top: a shape moves the one-parameter law's error by a fraction of it, and the search
+    // (some fifty fits on rebuilt cycles) was 13 % of the wide evaluation's CPU when run for
+    // every case.
+    if let Some(i) = candidates
+        .iter()
+        .position(|c| c.effect == Effect::Hysteresis)
+        && step_rank(&candidates, i) < SHAPE_SEARCH_RANK
+    {
+        let c = candidates[i].clone();
+        candidates[i] = refine_hysteresis_shape(
+            c,
+            |c| &c.structure,
+            |s| evaluate(setup, baseline, analyses, &cycles, Effect::Hysteresis, s),
+            PhasorCandidate::step_error_percent,
+        )?;
     }
     Ok(PhasorSearch {
         noise_cv_percent: noise_cv_percent(&cycles),
@@ -347,6 +358,19 @@ pub fn refine_hysteresis_shape<T, E>(
         }
     }
     Ok(best.1)
+}
+
+/// The hysteresis candidate's Bouc-Wen shape is searched when it ranks among this many first
+/// by step error (fewer than this many candidates have a lower one).
+const SHAPE_SEARCH_RANK: usize = 3;
+
+/// How many of `candidates` have a lower step error than candidate `i`.
+fn step_rank(candidates: &[PhasorCandidate], i: usize) -> usize {
+    let e = candidates[i].step_error_percent();
+    candidates
+        .iter()
+        .filter(|c| c.step_error_percent() < e)
+        .count()
 }
 
 /// The factor the shape search walks the yield by (a quarter of a doubling) and the most
