@@ -297,7 +297,7 @@ impl Term for StribeckVelocity {
         "fs".into()
     }
     fn formula(&self) -> String {
-        if self.exponent == crate::element::GAUSSIAN_STRIBECK_EXPONENT {
+        if crate::element::is_gaussian_stribeck(self.exponent) {
             format!("sgn(x') exp(-(x'/{})^2)", self.velocity_mps)
         } else {
             format!("sgn(x') exp(-|x'/{}|^{})", self.velocity_mps, self.exponent)

@@ -14,11 +14,21 @@ pub const GAUSSIAN_STRIBECK_EXPONENT: f64 = 2.0;
 /// (bit for bit the law before the exponent was a parameter).
 pub fn stribeck_decay(v: f64, velocity_mps: f64, exponent: f64) -> f64 {
     let u = v / velocity_mps;
-    if exponent == GAUSSIAN_STRIBECK_EXPONENT {
+    if is_gaussian_stribeck(exponent) {
         (-u.powi(2)).exp()
     } else {
         (-u.abs().powf(exponent)).exp()
     }
+}
+
+/// Whether a Stribeck shape exponent is the Gaussian law's, exactly: only then is the decay
+/// squared (and written, and stored, as before the exponent was a parameter).
+#[allow(
+    clippy::float_cmp_const,
+    reason = "the Gaussian law is the exponent 2 exactly; any other value is another law"
+)]
+pub fn is_gaussian_stribeck(exponent: f64) -> bool {
+    exponent == GAUSSIAN_STRIBECK_EXPONENT
 }
 
 /// Coulomb-type friction law with a stick phase.

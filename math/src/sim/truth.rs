@@ -26,7 +26,7 @@ fn gaussian_stribeck_exponent() -> f64 {
 }
 
 fn is_gaussian_stribeck_exponent(e: &f64) -> bool {
-    *e == crate::element::GAUSSIAN_STRIBECK_EXPONENT
+    crate::element::is_gaussian_stribeck(*e)
 }
 
 mod opt_friction {
