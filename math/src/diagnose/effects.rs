@@ -467,6 +467,14 @@ pub fn stribeck_structure(
     s
 }
 
+/// The searched shape exponent of a stribeck_friction structure (None when it is not searched).
+pub fn stribeck_exponent(s: &Structure) -> Option<f64> {
+    s.searched
+        .iter()
+        .find(|(n, _)| n == STRIBECK_EXPONENT_NAME)
+        .map(|(_, e)| *e)
+}
+
 /// Whether the baseline has the viscous damper `c x'` that series compliance and drift act on.
 pub fn has_damper(baseline: &Model) -> bool {
     baseline

@@ -22,7 +22,9 @@
 
 use std::sync::Arc;
 
-use super::effects::{Effect, STRIBECK_EXPONENT_NAME, STRIBECK_EXPONENTS, Structure};
+use super::effects::{
+    Effect, STRIBECK_EXPONENT_NAME, STRIBECK_EXPONENTS, Structure, stribeck_exponent,
+};
 use super::findings::{explains, significant};
 use super::fit::Fitted;
 use super::score::{HeldOut, penalised};
@@ -105,13 +107,7 @@ pub fn refit_shape(
     fitted: &Fitted,
 ) -> Result<(Fitted, RigMisfit), IdentifyError> {
     let chosen = refit(steps, baseline, fitted);
-    let searched = fitted
-        .structure
-        .searched
-        .iter()
-        .find(|(n, _)| n == STRIBECK_EXPONENT_NAME)
-        .map(|(_, e)| *e);
-    let Some(chosen_exponent) = searched else {
+    let Some(chosen_exponent) = stribeck_exponent(&fitted.structure) else {
         return chosen;
     };
     let mut best = chosen.ok().filter(|(f, _)| search::physical(f));
