@@ -39,6 +39,7 @@ fn stribeck_with_exponent_two_is_the_gaussian_form() {
             breakaway_n: 12.3 + excess,
             kinetic_n: 12.3,
             stribeck_velocity_mps: vs,
+            stribeck_exponent: 2.0,
             asymmetry: 0.0,
         }),
         ..TruthElement::rig_coulomb()

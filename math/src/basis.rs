@@ -33,9 +33,9 @@ pub trait Term: Debug + Send + Sync {
     fn linear_coefficients(&self) -> Option<(f64, f64)> {
         None
     }
-    /// `Some(vs)` for the Stribeck excess `sgn(x') exp(-(x'/vs)^2)` (so that a simulator can
-    /// give it the friction law's exact stick phase, with breakaway above the kinetic level).
-    fn stribeck_velocity_mps(&self) -> Option<f64> {
+    /// `Some(law)` for the Stribeck excess `sgn(x') exp(-|x'/vs|^delta)` (so that a simulator
+    /// can give it the friction law's exact stick phase, with breakaway above the kinetic level).
+    fn stribeck(&self) -> Option<StribeckVelocity> {
         None
     }
 }
@@ -100,11 +100,24 @@ impl DeadZone {
         }
     }
 }
-/// sgn(x') exp(-(x'/vs)^2): the Stribeck excess of static over kinetic friction, decaying with
-/// speed (the law of `element::Friction`), coefficient fs [N] = breakaway - kinetic level.
-#[derive(Debug, Clone, Copy)]
+/// sgn(x') exp(-|x'/vs|^delta): the Stribeck excess of static over kinetic friction, decaying
+/// with speed (the law of `element::Friction`), coefficient fs [N] = breakaway - kinetic level.
+/// The shape exponent delta is 2 in the Gaussian law ([`StribeckVelocity::gaussian`]); smaller
+/// exponents fall faster near zero speed and leave a longer tail.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StribeckVelocity {
     pub velocity_mps: f64,
+    pub exponent: f64,
+}
+
+impl StribeckVelocity {
+    /// The Gaussian law exp(-(x'/vs)^2).
+    pub fn gaussian(velocity_mps: f64) -> StribeckVelocity {
+        StribeckVelocity {
+            velocity_mps,
+            exponent: crate::element::GAUSSIAN_STRIBECK_EXPONENT,
+        }
+    }
 }
 
 impl Term for Displacement {
@@ -284,26 +297,64 @@ impl Term for StribeckVelocity {
         "fs".into()
     }
     fn formula(&self) -> String {
-        format!("sgn(x') exp(-(x'/{})^2)", self.velocity_mps)
+        if crate::element::is_gaussian_stribeck(self.exponent) {
+            format!("sgn(x') exp(-(x'/{})^2)", self.velocity_mps)
+        } else {
+            format!("sgn(x') exp(-|x'/{}|^{})", self.velocity_mps, self.exponent)
+        }
     }
     fn eval(&self, _x: f64, v: f64) -> f64 {
         if v == 0.0 {
             0.0
         } else {
-            v.signum() * (-(v / self.velocity_mps).powi(2)).exp()
+            v.signum() * crate::element::stribeck_decay(v, self.velocity_mps, self.exponent)
         }
     }
     fn jumps_at_zero_velocity(&self) -> bool {
         true
     }
-    fn stribeck_velocity_mps(&self) -> Option<f64> {
-        Some(self.velocity_mps)
+    fn stribeck(&self) -> Option<StribeckVelocity> {
+        Some(*self)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stribeck_term_decays_with_its_shape_exponent() {
+        // sgn(v) exp(-|v/vs|^delta): e^-1 at |v| = vs whatever delta, exp(-2^delta) at 2 vs,
+        // exp(-0.5^delta) at vs/2; odd in v, zero at v = 0.
+        let vs = 0.02;
+        for delta in [0.5, 0.7, 1.0, 2.0] {
+            let t = StribeckVelocity {
+                velocity_mps: vs,
+                exponent: delta,
+            };
+            let e1 = (-1.0f64).exp();
+            assert!((t.eval(0.0, vs) - e1).abs() < 1e-15, "{delta}");
+            assert!((t.eval(0.0, -vs) + e1).abs() < 1e-15, "{delta}");
+            let at2 = (-(2.0f64.powf(delta))).exp();
+            assert!((t.eval(0.0, 2.0 * vs) - at2).abs() < 1e-15, "{delta}");
+            let half = (-(0.5f64.powf(delta))).exp();
+            assert!((t.eval(0.0, -0.5 * vs) + half).abs() < 1e-15, "{delta}");
+            assert_eq!(t.eval(0.0, 0.0), 0.0);
+            assert_eq!(t.stribeck(), Some(t));
+        }
+        // The Gaussian law is the exponent 2, written as before.
+        let g = StribeckVelocity::gaussian(vs);
+        assert_eq!(g.exponent, 2.0);
+        assert_eq!(g.formula(), "sgn(x') exp(-(x'/0.02)^2)");
+        let sharp = StribeckVelocity {
+            velocity_mps: vs,
+            exponent: 0.5,
+        };
+        assert_eq!(sharp.formula(), "sgn(x') exp(-|x'/0.02|^0.5)");
+        // A sharper shape keeps more of the excess above vs and less below.
+        assert!(sharp.eval(0.0, 3.0 * vs) > g.eval(0.0, 3.0 * vs));
+        assert!(sharp.eval(0.0, 0.3 * vs) < g.eval(0.0, 0.3 * vs));
+    }
 
     #[test]
     fn atan_tends_to_sgn_for_steep_slope() {

@@ -6,6 +6,31 @@
 //! `sgn(v) * slip_force_n(|v|)`. Simulators treat the stick phase exactly, with no
 //! regularisation.
 
+/// The exponent of the Gaussian Stribeck law exp(-(v/vs)^2).
+pub const GAUSSIAN_STRIBECK_EXPONENT: f64 = 2.0;
+
+/// How a Stribeck excess has decayed at speed `v`: exp(-|v / velocity_mps|^exponent), 1 at
+/// v = 0 and e^-1 at |v| = velocity_mps whatever the exponent. The Gaussian exponent squares
+/// (bit for bit the law before the exponent was a parameter).
+pub fn stribeck_decay(v: f64, velocity_mps: f64, exponent: f64) -> f64 {
+    let u = v / velocity_mps;
+    if is_gaussian_stribeck(exponent) {
+        (-u.powi(2)).exp()
+    } else {
+        (-u.abs().powf(exponent)).exp()
+    }
+}
+
+/// Whether a Stribeck shape exponent is the Gaussian law's, exactly: only then is the decay
+/// squared (and written, and stored, as before the exponent was a parameter).
+#[allow(
+    clippy::float_cmp_const,
+    reason = "the Gaussian law is the exponent 2 exactly; any other value is another law"
+)]
+pub fn is_gaussian_stribeck(exponent: f64) -> bool {
+    exponent == GAUSSIAN_STRIBECK_EXPONENT
+}
+
 /// Coulomb-type friction law with a stick phase.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Friction {
@@ -13,9 +38,12 @@ pub struct Friction {
     pub breakaway_n: f64,
     /// Kinetic (Coulomb) level at high speed [N].
     pub kinetic_n: f64,
-    /// Stribeck: extra force at low speed decays as exp(-(|v|/stribeck_velocity)^2); with
+    /// Stribeck: extra force at low speed decays as
+    /// exp(-(|v|/stribeck_velocity)^stribeck_exponent) ([`stribeck_decay`]); with
     /// `breakaway_n == kinetic_n` this is plain Coulomb friction.
     pub stribeck_velocity_mps: f64,
+    /// The Stribeck curve's shape exponent ([`GAUSSIAN_STRIBECK_EXPONENT`] for the Gaussian law).
+    pub stribeck_exponent: f64,
     /// Asymmetry: the kinetic level for v > 0 is `kinetic_n * (1 + asymmetry)`, for v < 0
     /// `kinetic_n * (1 - asymmetry)`.
     pub asymmetry: f64,
@@ -27,6 +55,7 @@ impl Friction {
             breakaway_n: level_n,
             kinetic_n: level_n,
             stribeck_velocity_mps: 1.0,
+            stribeck_exponent: GAUSSIAN_STRIBECK_EXPONENT,
             asymmetry: 0.0,
         }
     }
@@ -36,7 +65,8 @@ impl Friction {
         let s = v.signum();
         let level = self.kinetic_n * (1.0 + s * self.asymmetry);
         let stribeck = if self.breakaway_n > self.kinetic_n {
-            (self.breakaway_n - self.kinetic_n) * (-(v / self.stribeck_velocity_mps).powi(2)).exp()
+            (self.breakaway_n - self.kinetic_n)
+                * stribeck_decay(v, self.stribeck_velocity_mps, self.stribeck_exponent)
         } else {
             0.0
         };

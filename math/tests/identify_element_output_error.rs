@@ -125,6 +125,7 @@ fn stick_slip_under_a_force_drive_is_recovered_noise_free() {
             breakaway_n: 6.0,
             kinetic_n: 4.0,
             stribeck_velocity_mps: vs,
+            stribeck_exponent: 2.0,
             asymmetry: 0.0,
         }),
         ..RunSpec::shaker_sdof(None, 0).element
@@ -137,7 +138,7 @@ fn stick_slip_under_a_force_drive_is_recovered_noise_free() {
         "cubic-stribeck",
         &[
             Arc::new(forcemap_math::basis::SignVelocity) as Arc<dyn Term>,
-            Arc::new(StribeckVelocity { velocity_mps: vs }) as Arc<dyn Term>,
+            Arc::new(StribeckVelocity::gaussian(vs)) as Arc<dyn Term>,
         ],
     );
     let oe = identify(&m, &sdof_setup(), Method::OutputError, &rec).unwrap();
@@ -151,7 +152,7 @@ fn stick_slip_under_a_force_drive_is_recovered_noise_free() {
     assert!(max_abs(&relative_errors(&oe, &want)) < 1e-6);
 }
 
-/// The friction law of the simulators has one Stribeck velocity: a model with excesses at two
+/// The friction law of the simulators has one Stribeck curve: a model with excesses at two velocities
 /// is refused, with the reason, not simulated with one of them.
 #[test]
 fn a_model_the_simulator_cannot_run_is_refused_with_the_reason() {
@@ -159,14 +160,14 @@ fn a_model_the_simulator_cannot_run_is_refused_with_the_reason() {
     let two = model("damper").with_terms(
         "damper-two-stribeck",
         &[
-            Arc::new(StribeckVelocity { velocity_mps: 0.01 }) as Arc<dyn Term>,
-            Arc::new(StribeckVelocity { velocity_mps: 0.05 }) as Arc<dyn Term>,
+            Arc::new(StribeckVelocity::gaussian(0.01)) as Arc<dyn Term>,
+            Arc::new(StribeckVelocity::gaussian(0.05)) as Arc<dyn Term>,
         ],
     );
     let e = identify(&two, &dyno_setup(), Method::OutputError, &rec)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("one Stribeck velocity"), "{e}");
+    assert!(e.contains("one Stribeck curve"), "{e}");
     assert!(e.contains("0.01") && e.contains("0.05"), "{e}");
 }
 
@@ -456,6 +457,7 @@ fn stribeck_friction_on_the_dyno_is_recovered_noise_free() {
             breakaway_n: 60.0,
             kinetic_n: 40.0,
             stribeck_velocity_mps: vs,
+            stribeck_exponent: 2.0,
             asymmetry: 0.0,
         }),
         ..base.element.clone()
@@ -463,7 +465,7 @@ fn stribeck_friction_on_the_dyno_is_recovered_noise_free() {
     let rec = base.with_element(truth).simulate().unwrap();
     let m = model("damper").with_terms(
         "damper-stribeck",
-        &[Arc::new(StribeckVelocity { velocity_mps: vs }) as Arc<dyn Term>],
+        &[Arc::new(StribeckVelocity::gaussian(vs)) as Arc<dyn Term>],
     );
     let mut want = dyno_truth();
     want.push(20.0);

@@ -285,6 +285,7 @@ fn stribeck_friction_on_the_rig_is_recovered_noise_free() {
             breakaway_n: 18.0,
             kinetic_n: 12.3,
             stribeck_velocity_mps: vs,
+            stribeck_exponent: 2.0,
             asymmetry: 0.0,
         }),
         ..TruthElement::rig_coulomb()
@@ -295,7 +296,7 @@ fn stribeck_friction_on_the_rig_is_recovered_noise_free() {
         .unwrap();
     let model = coulomb().with_terms(
         "coulomb-stribeck",
-        &[Arc::new(StribeckVelocity { velocity_mps: vs }) as Arc<dyn Term>],
+        &[Arc::new(StribeckVelocity::gaussian(vs)) as Arc<dyn Term>],
     );
     let run = |method| {
         identify_records(

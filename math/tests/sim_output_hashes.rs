@@ -131,6 +131,7 @@ fn the_10khz_rig_runs_are_unchanged() {
         friction: Some(Friction {
             breakaway_n: 18.0,
             stribeck_velocity_mps: 0.01,
+            stribeck_exponent: 2.0,
             ..Friction::coulomb(12.3)
         }),
         ..TruthElement::rig_coulomb()

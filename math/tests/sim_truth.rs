@@ -549,6 +549,7 @@ fn all_element_terms_run() {
         breakaway_n: 15.0,
         kinetic_n: 10.0,
         stribeck_velocity_mps: 0.01,
+        stribeck_exponent: 2.0,
         asymmetry: 0.2,
     };
     let el = TruthElement {

@@ -10,6 +10,7 @@ use crate::basis::{
     AbsVelocity, Constant, Cubic, SignVelocity, SignedSquareDisplacement, SignedSquareVelocity,
     SquareDisplacement, StribeckVelocity, Term,
 };
+use crate::element::GAUSSIAN_STRIBECK_EXPONENT;
 use crate::model::Model;
 use crate::recipe::SetupKind;
 use crate::signal::bouc_wen::HysteresisLaw;
@@ -91,7 +92,7 @@ impl Effect {
         match self {
             Effect::CoulombFriction => "fd sgn(x')",
             Effect::StribeckFriction => {
-                "fs sgn(x') exp(-(x'/vs)^2), vs searched (plus fd sgn(x') if the baseline has no friction)"
+                "fs sgn(x') exp(-|x'/vs|^delta), vs and the shape exponent delta searched (plus fd sgn(x') if the baseline has no friction)"
             }
             Effect::QuadraticDamping => "c2 x'|x'|",
             Effect::CubicStiffness => "s x^3",
@@ -244,6 +245,10 @@ pub const FREE_PLAY_GAP_FRACTIONS: [f64; 7] = [0.1, 0.2, 0.3, 0.4, 0.6, 0.8, 1.0
 pub const HYSTERESIS_YIELD_FRACTIONS: [f64; 6] = [0.02, 0.05, 0.1, 0.2, 0.4, 0.8];
 /// Stribeck velocities searched, relative to the largest velocity amplitude.
 pub const STRIBECK_VELOCITY_FRACTIONS: [f64; 6] = [0.01, 0.02, 0.05, 0.1, 0.2, 0.4];
+/// Stribeck shape exponents searched (with every velocity): the Gaussian law (2) and the
+/// sharper drops of measured friction curves (1, 0.5), which fall faster just above zero speed
+/// and leave a longer tail.
+pub const STRIBECK_EXPONENTS: [f64; 3] = [0.5, 1.0, GAUSSIAN_STRIBECK_EXPONENT];
 /// Sensor low-pass cutoffs searched, as multiples of the highest excitation frequency (the
 /// member on every channel; first order).
 pub const LOWPASS_CUTOFF_MULTIPLES: [f64; 9] = [0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 9.0, 15.0];
@@ -267,6 +272,9 @@ pub const MASS_FACTORS: [f64; 6] = [0.8, 0.9, 0.95, 1.05, 1.1, 1.25];
 #[derive(Debug, Clone, Copy)]
 pub struct SearchGrid {
     pub stribeck_velocity_fractions: &'static [f64],
+    /// Searched with every Stribeck velocity; a single exponent is fixed, not searched (it is
+    /// then neither counted as a parameter nor listed as searched).
+    pub stribeck_exponents: &'static [f64],
     pub hysteresis_yield_fractions: &'static [f64],
     pub free_play_gap_fractions: &'static [f64],
     pub lowpass_cutoff_multiples: &'static [f64],
@@ -278,6 +286,7 @@ pub struct SearchGrid {
 impl SearchGrid {
     pub const RIG: SearchGrid = SearchGrid {
         stribeck_velocity_fractions: &STRIBECK_VELOCITY_FRACTIONS,
+        stribeck_exponents: &STRIBECK_EXPONENTS,
         hysteresis_yield_fractions: &HYSTERESIS_YIELD_FRACTIONS,
         free_play_gap_fractions: &FREE_PLAY_GAP_FRACTIONS,
         lowpass_cutoff_multiples: &LOWPASS_CUTOFF_MULTIPLES,
@@ -338,22 +347,21 @@ pub fn structures_on(
     let has_friction = baseline.has_friction();
     match effect {
         Effect::CoulombFriction => vec![one(effect, vec![Arc::new(SignVelocity)])],
-        Effect::StribeckFriction => grid
-            .stribeck_velocity_fractions
-            .iter()
-            .map(|f| {
-                let vs = f * scales.max_velocity_mps;
-                let mut terms: Vec<Arc<dyn Term>> =
-                    vec![Arc::new(StribeckVelocity { velocity_mps: vs })];
-                if !has_friction {
-                    terms.insert(0, Arc::new(SignVelocity));
-                }
-                let mut s = one(effect, terms);
-                s.extra_parameters += 1;
-                s.searched.push(("stribeck_velocity_mps".into(), vs));
-                s
-            })
-            .collect(),
+        Effect::StribeckFriction => {
+            let exponent_searched = grid.stribeck_exponents.len() > 1;
+            grid.stribeck_exponents
+                .iter()
+                .flat_map(|&exponent| {
+                    grid.stribeck_velocity_fractions.iter().map(move |f| {
+                        let law = StribeckVelocity {
+                            velocity_mps: f * scales.max_velocity_mps,
+                            exponent,
+                        };
+                        stribeck_structure(law, has_friction, exponent_searched)
+                    })
+                })
+                .collect()
+        }
         Effect::QuadraticDamping => vec![one(effect, vec![Arc::new(SignedSquareVelocity)])],
         Effect::CubicStiffness => vec![one(effect, vec![Arc::new(Cubic)])],
         Effect::QuadraticStiffness => vec![one(
@@ -455,6 +463,41 @@ pub fn hysteresis_structure(law: HysteresisLaw, shape_searched: bool) -> Structu
         extra_parameters: if shape_searched { 4 } else { 2 },
         ..Structure::default()
     }
+}
+
+/// The name of the Stribeck shape exponent among a structure's searched parameters.
+pub const STRIBECK_EXPONENT_NAME: &str = "stribeck_exponent";
+
+/// The stribeck_friction structure of one law: the excess fs (with fd sgn(x') too when the
+/// baseline has no friction), its velocity searched and, when `exponent_searched`, its shape
+/// exponent (one more searched parameter).
+pub fn stribeck_structure(
+    law: StribeckVelocity,
+    baseline_has_friction: bool,
+    exponent_searched: bool,
+) -> Structure {
+    let mut terms: Vec<Arc<dyn Term>> = vec![Arc::new(law)];
+    if !baseline_has_friction {
+        terms.insert(0, Arc::new(SignVelocity));
+    }
+    let mut s = one(Effect::StribeckFriction, terms);
+    s.extra_parameters += 1;
+    s.searched
+        .push(("stribeck_velocity_mps".into(), law.velocity_mps));
+    if exponent_searched {
+        s.extra_parameters += 1;
+        s.searched
+            .push((STRIBECK_EXPONENT_NAME.into(), law.exponent));
+    }
+    s
+}
+
+/// The searched shape exponent of a stribeck_friction structure (None when it is not searched).
+pub fn stribeck_exponent(s: &Structure) -> Option<f64> {
+    s.searched
+        .iter()
+        .find(|(n, _)| n == STRIBECK_EXPONENT_NAME)
+        .map(|(_, e)| *e)
 }
 
 /// Whether the baseline has the viscous damper `c x'` that series compliance and drift act on.

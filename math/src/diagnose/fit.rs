@@ -11,7 +11,7 @@ use num_complex::Complex64;
 use super::cycles::{StepCycle, harmonics_of, synthesize};
 use super::effects::{Structure, Transform};
 use super::{drift, series};
-use crate::basis::Term;
+use crate::basis::{StribeckVelocity, Term};
 use crate::element::{Element, Friction};
 use crate::lstsq::{self, LstsqError};
 use crate::model::Model;
@@ -387,17 +387,18 @@ impl Element for FittedElement {
     fn friction(&self) -> Option<Friction> {
         let mut kinetic = 0.0;
         let mut excess = 0.0;
-        let mut vs = 1.0;
+        // The Stribeck term's own law (velocity and shape exponent): the replay runs the law
+        // that was fitted.
+        let mut law = StribeckVelocity::gaussian(1.0);
         let mut any = false;
         for (t, th) in self.terms.iter().zip(&self.theta) {
             if !t.jumps_at_zero_velocity() {
                 continue;
             }
             any = true;
-            if t.symbol() == "fs" {
+            if let Some(l) = t.stribeck() {
                 excess += th;
-                // sgn(v) exp(-(v/vs)^2) at v = vs is e^-1 sgn(v): recover vs from the term.
-                vs = stribeck_velocity(t.as_ref());
+                law = l;
             } else {
                 kinetic += th;
             }
@@ -407,7 +408,8 @@ impl Element for FittedElement {
             Friction {
                 breakaway_n: kinetic + excess.max(0.0),
                 kinetic_n: kinetic,
-                stribeck_velocity_mps: vs,
+                stribeck_velocity_mps: law.velocity_mps,
+                stribeck_exponent: law.exponent,
                 asymmetry: 0.0,
             }
         })
@@ -432,24 +434,9 @@ impl Element for FittedElement {
     }
 }
 
-/// The Stribeck velocity of a sgn(v) exp(-(v/vs)^2) term, found from its value at one point.
-fn stribeck_velocity(t: &dyn Term) -> f64 {
-    // h(v) = exp(-(v/vs)^2) for v > 0: vs = v / sqrt(-ln h), probed where h is well inside (0, 1).
-    let mut v = 1e-7;
-    while v < 1e3 {
-        let h = t.eval(0.0, v);
-        if h > 0.0 && h < 0.9 {
-            return v / (-h.ln()).sqrt();
-        }
-        v *= 2.0;
-    }
-    1.0
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::basis::StribeckVelocity;
 
     #[test]
     fn as_measured_applies_the_response_per_harmonic() {
@@ -572,10 +559,34 @@ mod tests {
     }
 
     #[test]
-    fn stribeck_velocity_is_recovered_from_the_term() {
-        let t = StribeckVelocity {
-            velocity_mps: 0.004,
+    fn the_fitted_friction_law_is_the_stribeck_term_with_its_exponent() {
+        // Slipping, the friction law of the fitted element is fd + fs exp(-|v/vs|^delta): the
+        // term's own curve, not the Gaussian one (e^-1 of the excess left at v = vs, and
+        // exp(-2^0.7) at 2 vs, where the Gaussian law leaves exp(-4)).
+        let (fd, fs, vs, delta) = (10.0, 4.0, 0.02, 0.7);
+        let terms: Vec<Arc<dyn Term>> = vec![
+            Arc::new(crate::basis::SignVelocity),
+            Arc::new(StribeckVelocity {
+                velocity_mps: vs,
+                exponent: delta,
+            }),
+        ];
+        let e = FittedElement {
+            terms,
+            theta: vec![fd, fs],
+            hysteresis: None,
+            series: None,
+            drift: None,
+            smooth_terms: Vec::new(),
         };
-        assert!((stribeck_velocity(&t) - 0.004).abs() < 1e-12);
+        let f = e.friction().unwrap();
+        assert_eq!((f.kinetic_n, f.breakaway_n), (fd, fd + fs));
+        assert_eq!((f.stribeck_velocity_mps, f.stribeck_exponent), (vs, delta));
+        let at_vs = fd + fs * (-1.0f64).exp();
+        assert!((f.slip_force_n(vs) - at_vs).abs() < 1e-12);
+        assert!((f.slip_force_n(-vs) + at_vs).abs() < 1e-12);
+        let at_2vs = fd + fs * (-(2.0f64.powf(0.7))).exp();
+        assert!((f.slip_force_n(2.0 * vs) - at_2vs).abs() < 1e-12);
+        assert!((at_2vs - (fd + fs * (-4.0f64).exp())).abs() > 0.5);
     }
 }

@@ -54,7 +54,8 @@ pub(crate) enum Mode {
 pub(crate) fn slip_force_dir(fr: &Friction, v: f64, dir: f64) -> f64 {
     let level = fr.kinetic_n * (1.0 + dir * fr.asymmetry);
     let stribeck = if fr.breakaway_n > fr.kinetic_n {
-        (fr.breakaway_n - fr.kinetic_n) * (-(v / fr.stribeck_velocity_mps).powi(2)).exp()
+        (fr.breakaway_n - fr.kinetic_n)
+            * crate::element::stribeck_decay(v, fr.stribeck_velocity_mps, fr.stribeck_exponent)
     } else {
         0.0
     };

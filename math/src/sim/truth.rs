@@ -12,7 +12,21 @@ struct FrictionDef {
     breakaway_n: f64,
     kinetic_n: f64,
     stribeck_velocity_mps: f64,
+    #[serde(
+        default = "gaussian_stribeck_exponent",
+        skip_serializing_if = "is_gaussian_stribeck_exponent"
+    )]
+    stribeck_exponent: f64,
     asymmetry: f64,
+}
+
+/// Truth files written before the exponent was a parameter hold the Gaussian law.
+fn gaussian_stribeck_exponent() -> f64 {
+    crate::element::GAUSSIAN_STRIBECK_EXPONENT
+}
+
+fn is_gaussian_stribeck_exponent(e: &f64) -> bool {
+    crate::element::is_gaussian_stribeck(*e)
 }
 
 mod opt_friction {

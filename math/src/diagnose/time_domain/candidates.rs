@@ -67,6 +67,9 @@ pub fn shrink_t_statistic(measured: &[f64], before: &[f64], after: &[f64], block
 /// displacements relative to the position range (the rig's grid is relative to amplitudes).
 pub(super) const AXIS_GRID: SearchGrid = SearchGrid {
     stribeck_velocity_fractions: &[0.01, 0.02, 0.05, 0.1, 0.2],
+    // The Gaussian law only: the axis path's Stribeck candidate is as before the exponent was
+    // searched on the rig (EMPS's diagnosis kept as it was).
+    stribeck_exponents: &[crate::element::GAUSSIAN_STRIBECK_EXPONENT],
     hysteresis_yield_fractions: &[0.001, 0.003, 0.01, 0.03, 0.1],
     ..SearchGrid::RIG
 };

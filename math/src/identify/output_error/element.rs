@@ -2,6 +2,7 @@
 //! it is and the friction terms (sgn, and the Stribeck excess) as the simulators' set-valued
 //! friction law, so that the stick phase is exact.
 
+use crate::basis::StribeckVelocity;
 use crate::element::{Element, Friction};
 use crate::identify::IdentifyError;
 use crate::model::{IdentifiedModel, Model};
@@ -20,22 +21,22 @@ pub(crate) struct ModelElement {
 /// Checks that the simulators can run `model` exactly: every term that jumps where x' changes
 /// sign must be sgn(x') (the Coulomb level) or the Stribeck excess.
 pub(crate) fn check_model(model: &Model) -> Result<(), IdentifyError> {
-    // The friction law has one Stribeck velocity: excesses at two cannot be simulated.
-    let mut velocities = model.terms.iter().filter_map(|t| t.stribeck_velocity_mps());
-    if let Some(first) = velocities.next()
-        && let Some(other) = velocities.find(|v| *v != first)
+    // The friction law has one Stribeck curve: excesses of two shapes cannot be simulated.
+    let mut laws = model.terms.iter().filter_map(|t| t.stribeck());
+    if let Some(first) = laws.next()
+        && let Some(other) = laws.find(|l| *l != first)
     {
         return Err(IdentifyError::Step {
             step: 0,
             problem: format!(
-                "output error simulates the friction exactly, with one Stribeck velocity; model {} has Stribeck excesses at {first} and {other} m/s",
-                model.name
+                "output error simulates the friction exactly, with one Stribeck curve; model {} has Stribeck excesses at {} m/s (exponent {}) and {} m/s (exponent {})",
+                model.name, first.velocity_mps, first.exponent, other.velocity_mps, other.exponent
             ),
         });
     }
     for t in model.terms.iter().filter(|t| t.jumps_at_zero_velocity()) {
         let sgn = t.formula() == "sgn(x')";
-        if !sgn && t.stribeck_velocity_mps().is_none() {
+        if !sgn && t.stribeck().is_none() {
             return Err(IdentifyError::Step {
                 step: 0,
                 problem: format!(
@@ -55,15 +56,15 @@ impl ModelElement {
     pub(crate) fn new(model: &Model, theta: &[f64]) -> ModelElement {
         let mut kinetic = 0.0;
         let mut excess = 0.0;
-        let mut stribeck_velocity_mps = 1.0;
+        let mut law = StribeckVelocity::gaussian(1.0);
         for (t, th) in model.terms.iter().zip(theta) {
             if !t.jumps_at_zero_velocity() {
                 continue;
             }
-            match t.stribeck_velocity_mps() {
-                Some(vs) => {
+            match t.stribeck() {
+                Some(l) => {
                     excess += th;
-                    stribeck_velocity_mps = vs;
+                    law = l;
                 }
                 None => kinetic += th,
             }
@@ -75,7 +76,8 @@ impl ModelElement {
             Friction {
                 breakaway_n: kinetic_n + f64::max(excess, 0.0),
                 kinetic_n,
-                stribeck_velocity_mps,
+                stribeck_velocity_mps: law.velocity_mps,
+                stribeck_exponent: law.exponent,
                 asymmetry: 0.0,
             }
         });
@@ -120,7 +122,7 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
-    use crate::basis::{AtanVelocity, SignVelocity, StribeckVelocity, Term};
+    use crate::basis::{AtanVelocity, SignVelocity, Term};
     use crate::model::ModelOptions;
 
     #[test]
@@ -129,7 +131,7 @@ mod tests {
             .unwrap()
             .with_terms(
                 "stribeck",
-                &[Arc::new(StribeckVelocity { velocity_mps: 0.02 }) as Arc<dyn Term>],
+                &[Arc::new(StribeckVelocity::gaussian(0.02)) as Arc<dyn Term>],
             );
         check_model(&m).unwrap();
         let e = ModelElement::new(&m, &[6000.0, 150.0, 10.0, 4.0]);
