@@ -12,6 +12,7 @@ use crate::basis::{
 };
 use crate::model::Model;
 use crate::recipe::SetupKind;
+use crate::signal::bouc_wen::HysteresisLaw;
 
 /// A candidate unmodelled effect, named as the issue names them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -100,7 +101,7 @@ impl Effect {
                 "kfp (x - clamp(x, -neg, pos)): contact at +pos and -neg, the gap searched centred, then each contact point searched and refined (an uneven gap counts one more parameter)"
             }
             Effect::Hysteresis => {
-                "alpha z, Bouc-Wen z' = x' - |x'| z / (2 zy) - x' |z| / (2 zy), yield zy searched"
+                "alpha z, Bouc-Wen z' = x' - (r |x'| sgn(z) + (1 - r) x') |z|^n / zy^n: yield zy searched with n = 1, r = 1/2, then the shape (n, r) with the yield walked per shape"
             }
             Effect::ExciterDelay => {
                 "the element sees the measured base motion delayed by d (fitted from the kinematic identity x_o - x = x_i)"
@@ -175,8 +176,8 @@ pub struct Structure {
     pub effects: Vec<Effect>,
     /// Extra basis terms of the element force.
     pub terms: Vec<Arc<dyn Term>>,
-    /// Bouc-Wen hysteresis with this yield displacement zy [m] (force alpha z, alpha fitted).
-    pub hysteresis_yield_m: Option<f64>,
+    /// Bouc-Wen hysteresis of this member of the family (force alpha z, alpha fitted).
+    pub hysteresis: Option<HysteresisLaw>,
     pub transform: Transform,
     /// The searched (nonlinear) parameter, name and value, e.g. ("gap_m", 0.004).
     pub searched: Vec<(String, f64)>,
@@ -222,7 +223,7 @@ impl Structure {
         Structure {
             effects,
             terms,
-            hysteresis_yield_m: self.hysteresis_yield_m.or(other.hysteresis_yield_m),
+            hysteresis: self.hysteresis.or(other.hysteresis),
             transform: Transform {
                 delay_s: self.transform.delay_s + other.transform.delay_s,
                 sensor: self.transform.sensor.or(other.transform.sensor),
@@ -378,13 +379,7 @@ pub fn structures_on(
             .iter()
             .map(|f| {
                 let zy = f * scales.max_displacement_m;
-                Structure {
-                    effects: vec![effect],
-                    hysteresis_yield_m: Some(zy),
-                    searched: vec![("yield_m".into(), zy)],
-                    extra_parameters: 2,
-                    ..Structure::default()
-                }
+                hysteresis_structure(HysteresisLaw::yield_law(zy), false)
             })
             .collect(),
         // The member on every channel; the single-channel members are chosen by the channel
@@ -429,6 +424,36 @@ pub fn structures_on(
             ..Structure::default()
         }],
         Effect::SeriesCompliance | Effect::Drift | Effect::ExciterDelay => Vec::new(),
+    }
+}
+
+/// Bouc-Wen shapes (n, r) searched at the best yield displacements of the one-parameter law
+/// (n = 1, r = 1/2) ([`super::search`]): softer and sharper knees, symmetric and
+/// loading-dominated loops; the wide forms' world plants n in 0.7-2.5 and r in 0.5-0.9.
+pub const BOUC_WEN_SHAPES: [(f64, f64); 6] = [
+    (1.0, 0.5),
+    (0.75, 0.5),
+    (2.0, 0.5),
+    (1.0, 0.85),
+    (0.75, 0.85),
+    (2.0, 0.85),
+];
+
+/// The hysteresis structure of `law`: alpha and the yield are its parameters, and with
+/// `shape_searched` (the member was chosen among [`BOUC_WEN_SHAPES`]) n and r too, reported as
+/// searched values whatever member was chosen.
+pub fn hysteresis_structure(law: HysteresisLaw, shape_searched: bool) -> Structure {
+    let mut searched = vec![("yield_m".to_string(), law.yield_m)];
+    if shape_searched {
+        searched.push(("bouc_wen_n".into(), law.n));
+        searched.push(("bouc_wen_r".into(), law.r));
+    }
+    Structure {
+        effects: vec![Effect::Hysteresis],
+        hysteresis: Some(law),
+        searched,
+        extra_parameters: if shape_searched { 4 } else { 2 },
+        ..Structure::default()
     }
 }
 

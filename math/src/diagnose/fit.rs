@@ -15,7 +15,7 @@ use crate::basis::Term;
 use crate::element::{Element, Friction};
 use crate::lstsq::{self, LstsqError};
 use crate::model::Model;
-use crate::signal::bouc_wen;
+use crate::signal::bouc_wen::{self, HysteresisLaw};
 
 /// Grid points with |x'| below this fraction of the step's peak |x'| are left out of fits and
 /// scores, for every model alike: near a reversal a friction force is set-valued (stick) and
@@ -59,11 +59,11 @@ pub(super) fn columns(terms: &[Arc<dyn Term>], s: &Structure, c: &StepCycle) -> 
         (true, Some(i)) => Some(cols[i].iter().map(|v| v * c.time_s).collect()),
         _ => None,
     };
-    if let Some(zy) = s.hysteresis_yield_m {
+    if let Some(law) = &s.hysteresis {
         cols.push(bouc_wen::steady_cycle(
             &c.velocity_mps,
             1.0 / c.frequency_hz,
-            zy,
+            law,
         ));
     }
     cols.extend(drift_col);
@@ -140,7 +140,7 @@ pub(super) fn fit_on_columns(
     skip: Option<usize>,
 ) -> Result<Fitted, LstsqError> {
     let mut names: Vec<String> = terms.iter().map(|t| t.symbol()).collect();
-    if s.hysteresis_yield_m.is_some() {
+    if s.hysteresis.is_some() {
         names.push("alpha".into());
     }
     if s.drift && damper_index(&terms).is_some() {
@@ -254,10 +254,7 @@ impl Fitted {
                 .collect(),
             terms: self.terms.clone(),
             theta: self.theta[..n].to_vec(),
-            hysteresis: self
-                .structure
-                .hysteresis_yield_m
-                .map(|zy| (self.theta[n], zy)),
+            hysteresis: self.structure.hysteresis.map(|law| (self.theta[n], law)),
             series,
             drift: match (self.structure.drift, damper) {
                 (true, Some(i)) => self.theta.last().map(|rate| (i, *rate, start_time_s)),
@@ -345,8 +342,8 @@ pub(crate) fn root_ratio_percent(num: f64, den: f64) -> f64 {
 pub struct FittedElement {
     pub terms: Vec<Arc<dyn Term>>,
     pub theta: Vec<f64>,
-    /// (alpha [N/m], yield displacement [m]).
-    pub hysteresis: Option<(f64, f64)>,
+    /// (alpha [N/m], the member of the Bouc-Wen family).
+    pub hysteresis: Option<(f64, HysteresisLaw)>,
     /// (index of the damper term, relaxation time c / ks [s]): that term's force is the
     /// series spring's, an internal state with `f' = (c x' - f) / tau`.
     pub series: Option<(usize, f64)>,
@@ -422,8 +419,8 @@ impl Element for FittedElement {
     }
 
     fn internal_rates(&self, x: f64, v: f64, z: &[f64], dz: &mut [f64]) {
-        if let (Some((_, zy)), Some(&zz), Some(d)) = (self.hysteresis, z.first(), dz.first_mut()) {
-            *d = v - (v.abs() * zz + v * zz.abs()) / (2.0 * zy);
+        if let (Some((_, law)), Some(&zz), Some(d)) = (self.hysteresis, z.first(), dz.first_mut()) {
+            *d = law.rate(zz, v);
         }
         let (is, it) = self.state_offsets();
         if let Some((i, tau)) = self.series {
@@ -493,7 +490,7 @@ mod tests {
                 let ph = |i: usize| std::f64::consts::TAU * i as f64 / l as f64;
                 let x: Vec<f64> = (0..l).map(|i| amp * ph(i).cos()).collect();
                 let v: Vec<f64> = (0..l).map(|i| -amp * w * ph(i).sin()).collect();
-                let z = bouc_wen::steady_cycle(&v, 1.0 / f_hz, 0.002);
+                let z = bouc_wen::steady_cycle(&v, 1.0 / f_hz, &HysteresisLaw::yield_law(0.002));
                 let force: Vec<f64> = (0..l)
                     .map(|i| {
                         6000.0 * x[i]
@@ -525,7 +522,7 @@ mod tests {
     fn cross_validation_with_shared_columns_is_the_leave_one_out_of_fit() {
         let baseline = Model::by_name("coulomb", &Default::default()).unwrap();
         let s = Structure {
-            hysteresis_yield_m: Some(0.002),
+            hysteresis: Some(HysteresisLaw::yield_law(0.002)),
             ..Structure::default()
         };
         let cycles = hysteretic_cycles();
@@ -562,7 +559,7 @@ mod tests {
     fn the_fitted_element_force_leaves_out_the_friction_term() {
         let baseline = Model::by_name("coulomb", &Default::default()).unwrap();
         let s = Structure {
-            hysteresis_yield_m: Some(0.002),
+            hysteresis: Some(HysteresisLaw::yield_law(0.002)),
             ..Structure::default()
         };
         let f = fit(&baseline, &s, &hysteretic_cycles(), None).unwrap();

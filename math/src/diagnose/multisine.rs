@@ -400,7 +400,7 @@ fn term_fit(setup: &Setup, model: &Model, theta: &[f64]) -> TermFit {
 /// Whether a structure only adds element terms (so the identification's equations hold it
 /// without changing the channels or lagging a term).
 pub(crate) fn is_extra_terms(s: &Structure) -> bool {
-    s.hysteresis_yield_m.is_none()
+    s.hysteresis.is_none()
         && s.series_relaxation_s.is_none()
         && !s.drift
         && s.transform == Default::default()

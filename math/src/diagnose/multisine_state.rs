@@ -37,7 +37,7 @@ const SINGLE_CHANNELS: [Channel; 2] = [
 
 /// Why `s` is not fitted on these steps' equations; None when it is.
 pub(super) fn not_fitted_reason(s: &Structure, steps: &Steps) -> Option<String> {
-    if s.hysteresis_yield_m.is_some() {
+    if s.hysteresis.is_some() {
         return Some(
             "the Bouc-Wen state is not written into the per-line equations (its column needs the steady periodic state over the multisine's period); fitted on sine steps alone".into(),
         );

@@ -77,7 +77,7 @@ pub fn refit(
     fitted: &Fitted,
 ) -> Result<(Fitted, RigMisfit), IdentifyError> {
     let s = &fitted.structure;
-    if s.hysteresis_yield_m.is_some() || s.transform != Default::default() {
+    if s.hysteresis.is_some() || s.transform != Default::default() {
         return Err(IdentifyError::Step {
             step: 0,
             problem: "output error runs element terms only".into(),

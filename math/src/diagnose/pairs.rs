@@ -195,12 +195,27 @@ pub fn forward_pair(
 ) -> Result<Option<PairResult>, DiagnoseError> {
     let mut tried: Vec<(PairResult, usize, Structure)> = Vec::new();
     let mut cycles = Cycles { ctx, rebuilt: None };
+    let top_variants = top_members(ctx, top);
     for (k, (effect, alone, _)) in others.iter().enumerate() {
         if delay_unshown(ctx, *effect) {
             continue;
         }
-        let Some((p, member)) = joint_scored(ctx, &mut cycles, top, *effect, alone, |_| true)?
-        else {
+        let mut joint = None;
+        for t in &top_variants {
+            if let Some(j) = joint_structure(ctx, &mut cycles, t, *effect, alone)?
+                && joint
+                    .as_ref()
+                    .is_none_or(|b: &(Structure, Structure, Option<f64>)| {
+                        j.2.unwrap_or(f64::INFINITY) < b.2.unwrap_or(f64::INFINITY)
+                    })
+            {
+                joint = Some(j);
+            }
+        }
+        let Some((s, member, cv)) = joint else {
+            continue;
+        };
+        let Some(p) = scored(ctx, &mut cycles, &s, cv)? else {
             continue;
         };
         tried.push((p, k, member));
@@ -225,6 +240,26 @@ pub fn forward_pair(
         top_cv_percent,
         others,
     )?))
+}
+
+/// The top candidate's structure and, for a hysteresis whose shape was searched alone, its
+/// family again beside the partner: the one-parameter law (n = 1, r = 1/2) at each grid yield,
+/// still counted as shape-searched (the shape the member alone chose may absorb part of the
+/// partner's force).
+fn top_members(ctx: &PairContext, top: &Structure) -> Vec<Structure> {
+    let mut v = vec![top.clone()];
+    if top.effects == [Effect::Hysteresis]
+        && let Some(law) = top.hysteresis
+    {
+        for o in structures(ctx.baseline, Effect::Hysteresis, &ctx.search.scales) {
+            if let Some(l) = o.hysteresis
+                && l != law
+            {
+                v.push(super::effects::hysteresis_structure(l, true));
+            }
+        }
+    }
+    v
 }
 
 /// Whether `effect` is an exciter delay that the kinematic identity does not show: not a

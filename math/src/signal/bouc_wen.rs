@@ -4,8 +4,9 @@
 //! Three users: the truth simulator (`sim::truth`: the general law, z integrated as an ODE
 //! state together with the mechanics by the simulator's own RK4 and events, so it uses the rate
 //! only), the rig diagnosis (`diagnose::fit`: the one-parameter law over one period of steady
-//! motion, [`steady_cycle`]) and the time-domain diagnosis (`diagnose::time_domain`: the
-//! one-parameter law over a measured record, [`integrate_record`]).
+//! motion, [`steady_cycle`], of a member of the family [`HysteresisLaw`]) and the time-domain
+//! diagnosis (`diagnose::time_domain`: the one-parameter law over a measured record,
+//! [`integrate_record`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -43,7 +44,69 @@ pub fn yield_rate(z: f64, v: f64, yield_m: f64) -> f64 {
     v - (v.abs() * z + v * z.abs()) / (2.0 * yield_m)
 }
 
-/// [`yield_rate`]'s state over one period of steady motion with velocity `velocity_mps` on a
+/// A member of the Bouc-Wen family the diagnoses fit: a = 1, yield displacement zy
+/// (`yield_m`), exponent n and r = beta / (beta + gamma), with beta = r / zy^n and
+/// gamma = (1 - r) / zy^n so that z saturates at +/- zy whatever the shape. The one-parameter
+/// law ([`yield_rate`]) is the member n = 1, r = 1/2 ([`HysteresisLaw::yield_law`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HysteresisLaw {
+    pub yield_m: f64,
+    pub n: f64,
+    pub r: f64,
+}
+
+impl HysteresisLaw {
+    /// The shape (n, r) of the one-parameter law.
+    pub const YIELD_LAW_SHAPE: (f64, f64) = (1.0, 0.5);
+
+    /// The one-parameter law with yield displacement `yield_m`.
+    pub fn yield_law(yield_m: f64) -> Self {
+        let (n, r) = Self::YIELD_LAW_SHAPE;
+        HysteresisLaw { yield_m, n, r }
+    }
+
+    /// The yield displacement when this is the one-parameter law; None for any other shape.
+    /// The paths that integrate only that law ([`integrate_record`]) take their yield from
+    /// here, so a shape is never silently dropped.
+    pub fn one_parameter_yield_m(&self) -> Option<f64> {
+        ((self.n, self.r) == Self::YIELD_LAW_SHAPE).then_some(self.yield_m)
+    }
+
+    /// The general law's parameters with force coefficient `alpha_n_per_m`.
+    pub fn bouc_wen(&self, alpha_n_per_m: f64) -> BoucWen {
+        let scale = self.yield_m.powf(-self.n);
+        BoucWen {
+            alpha_n_per_m,
+            a: 1.0,
+            beta: self.r * scale,
+            gamma: (1.0 - self.r) * scale,
+            n: self.n,
+        }
+    }
+
+    /// The rate z' at state `z` and velocity `v`: [`yield_rate`] for the one-parameter law
+    /// (the diagnoses' results were computed with its rounding), else the general law.
+    pub fn rate(&self, z: f64, v: f64) -> f64 {
+        match self.one_parameter_yield_m() {
+            Some(zy) => yield_rate(z, v, zy),
+            None => {
+                // |z|^n / zy^n, with the common exponents computed without powf (the rig
+                // search integrates many cycles).
+                let u = z.abs() / self.yield_m;
+                let un = if self.n == 2.0 {
+                    u * u
+                } else if self.n == 1.0 {
+                    u
+                } else {
+                    u.powf(self.n)
+                };
+                v - (self.r * v.abs() * z.signum() + (1.0 - self.r) * v) * un
+            }
+        }
+    }
+}
+
+/// The state of `law` over one period of steady motion with velocity `velocity_mps` on a
 /// uniform grid of period `period_s`. Three periods are integrated from z = 0 and the last one
 /// returned (the cycle has settled by then): RK4 with 8 sub-steps per grid interval, the
 /// velocity interpolated linearly over the interval (wrapping around the period).
@@ -51,12 +114,12 @@ pub fn yield_rate(z: f64, v: f64, yield_m: f64) -> f64 {
 /// Why it exists beside [`integrate_record`]: a rebuilt cycle of the rig path is short (a few
 /// hundred points per period) and periodic, so it is integrated accurately and to its steady
 /// state; the time-domain path's record is long and densely sampled and is integrated once.
-pub fn steady_cycle(velocity_mps: &[f64], period_s: f64, yield_m: f64) -> Vec<f64> {
+pub fn steady_cycle(velocity_mps: &[f64], period_s: f64, law: &HysteresisLaw) -> Vec<f64> {
     let l = velocity_mps.len();
     let dt = period_s / l as f64;
     let sub = 8;
     let h = dt / sub as f64;
-    let rate = |z: f64, v: f64| yield_rate(z, v, yield_m);
+    let rate = |z: f64, v: f64| law.rate(z, v);
     let mut z = 0.0;
     let mut out = vec![0.0; l];
     for pass in 0..3 {
@@ -115,11 +178,11 @@ mod tests {
         let v: Vec<f64> = (0..l)
             .map(|i| -amp * w * (TAU * i as f64 / l as f64).sin())
             .collect();
-        let z = steady_cycle(&v, period, 0.001);
+        let z = steady_cycle(&v, period, &HysteresisLaw::yield_law(0.001));
         let zmax = z.iter().fold(0.0f64, |m, z| m.max(z.abs()));
         assert!((zmax - 0.001).abs() < 2e-5, "{zmax}");
         // far from saturation (yield >> amplitude) z follows x - mean
-        let z = steady_cycle(&v, period, 10.0);
+        let z = steady_cycle(&v, period, &HysteresisLaw::yield_law(10.0));
         let x0 = z[0] - z[l / 2];
         assert!((x0 - 2.0 * amp).abs() < 1e-4 * amp * 100.0, "{x0}");
     }
@@ -137,6 +200,53 @@ mod tests {
         for (z, v) in [(0.001, 0.3), (-0.0015, 0.3), (0.0005, -1.2), (0.0, 2.0)] {
             let (g, y) = (bw.rate(z, v), yield_rate(z, v, zy));
             assert!((g - y).abs() <= 1e-12 * v.abs(), "{z} {v}: {g} vs {y}");
+        }
+    }
+
+    #[test]
+    fn the_family_member_at_the_yield_shape_is_the_yield_law() {
+        let zy = 0.002;
+        let law = HysteresisLaw::yield_law(zy);
+        let general = HysteresisLaw {
+            // Not the yield law's shape by one ulp: the general branch.
+            n: 1.0 + f64::EPSILON,
+            ..law
+        };
+        for (z, v) in [(0.001, 0.3), (-0.0015, 0.3), (0.0005, -1.2), (0.0, 2.0)] {
+            let y = yield_rate(z, v, zy);
+            assert_eq!(law.rate(z, v).to_bits(), y.to_bits());
+            let g = general.rate(z, v);
+            assert!((g - y).abs() <= 1e-12 * v.abs(), "{z} {v}: {g} vs {y}");
+        }
+    }
+
+    #[test]
+    fn every_shape_agrees_with_the_general_law_and_saturates_at_the_yield() {
+        let zy = 0.003;
+        for (n, r) in [(0.75, 0.5), (2.0, 0.85), (1.0, 0.85), (2.5, 0.6)] {
+            let law = HysteresisLaw { yield_m: zy, n, r };
+            let bw = law.bouc_wen(1.0);
+            for (z, v) in [(0.001, 0.3), (-0.0025, 0.3), (0.0005, -1.2), (-0.002, -0.7)] {
+                let (a, b) = (law.rate(z, v), bw.rate(z, v));
+                assert!(
+                    (a - b).abs() <= 1e-12 * v.abs(),
+                    "{n} {r} {z} {v}: {a} vs {b}"
+                );
+            }
+            // Rising past the yield the rate vanishes at z = zy (closed form of the family).
+            assert!(law.rate(zy, 0.5).abs() < 1e-12, "{n} {r}");
+            // And the steady cycle of a motion 10 zy in amplitude reaches it.
+            let (l, period, amp) = (512, 0.5, 10.0 * zy);
+            let w = TAU / period;
+            let v: Vec<f64> = (0..l)
+                .map(|i| -amp * w * (TAU * i as f64 / l as f64).sin())
+                .collect();
+            let z = steady_cycle(&v, period, &law);
+            let zmax = z.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+            assert!(
+                zmax < zy * (1.0 + 1e-6) && zmax > 0.95 * zy,
+                "{n} {r}: {zmax}"
+            );
         }
     }
 }

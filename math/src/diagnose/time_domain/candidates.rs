@@ -111,14 +111,18 @@ pub(super) fn candidates(
         .map(|effect| {
             let variants = structures_on(&model, effect, &scales, &AXIS_GRID)
                 .into_iter()
-                .map(|s| {
+                .filter_map(|s| {
                     let mut columns: Vec<Column> = s.terms.into_iter().map(Column::Term).collect();
-                    columns.extend(s.hysteresis_yield_m.map(Column::BoucWen));
-                    Variant {
+                    // The records integrate the one-parameter law only: a member of another
+                    // shape is not offered (the grid builds none), never run as that law.
+                    if let Some(law) = s.hysteresis {
+                        columns.push(Column::BoucWen(law.one_parameter_yield_m()?));
+                    }
+                    Some(Variant {
                         columns,
                         searched: s.searched.into_iter().next(),
                         extra_parameters: s.extra_parameters,
-                    }
+                    })
                 })
                 .collect();
             (effect, variants)
