@@ -85,8 +85,9 @@ fn one_parameter_member_heldout_percent(records: &[Record], baseline: &Model) ->
 
 /// n = 2, r = 0.85, yield 1 mm, alpha zy = 15 N, 30 dB: named hysteresis (explained) with the
 /// world's shape and its yield within 10 % (found: n 2, r 0.85, yield 0.98 mm, alpha 15.2 kN/m),
-/// and a held-out NMSE below the one-parameter member's (0.83 against 0.87 %). Without the
-/// shape search the member is the one-parameter law (no bouc_wen_n: the test fails).
+/// and a held-out NMSE below the one-parameter member's (0.83 against 0.87 %); the verdict's
+/// member names that shape. Without the shape search the member is the one-parameter law (no
+/// bouc_wen_n: the test fails).
 #[test]
 fn a_sharp_loading_dominated_loop_is_found_with_its_shape() {
     let effects = [bouc_wen(15_000.0, 0.001, 2.0, 0.85)];
@@ -116,4 +117,18 @@ fn a_sharp_loading_dominated_loop_is_found_with_its_shape() {
         "{} vs {one}",
         top.gap_after_percent
     );
+    // The verdict names the member and its shape, and its saturated force alpha zy near the
+    // planted 15 N.
+    let member = top.member.as_deref().unwrap_or_default();
+    assert!(
+        member.starts_with("Bouc-Wen yield ") && member.contains("n 2.00, r 0.85"),
+        "{member}"
+    );
+    let force_n: f64 = member
+        .rsplit("saturated force ")
+        .next()
+        .and_then(|f| f.trim_end_matches(" N").parse().ok())
+        .unwrap_or_else(|| panic!("{member}"));
+    assert!((force_n - 15.0).abs() < 1.5, "{member}");
+    assert_eq!(d.findings.top_member.as_deref(), Some(member));
 }

@@ -49,6 +49,7 @@ pub mod exciter;
 pub mod findings;
 pub mod fit;
 pub mod free_play;
+pub mod hysteresis;
 pub mod locate;
 pub mod multisine;
 mod multisine_state;
@@ -245,6 +246,7 @@ pub fn member_of(f: &Fitted, run: Option<&drift::RunDissipation>) -> Option<Stri
         .map(|s| s.describe())
         .or_else(|| series::describe(f))
         .or_else(|| free_play::describe(f))
+        .or_else(|| hysteresis::describe(f))
         .or_else(|| drift::describe(f, run))
 }
 

@@ -3,25 +3,24 @@
 //! cross-validated error is kept. The sensor family may add a second sensor_lowpass candidate,
 //! its single-channel member chosen on the channel identities ([`super::sensor`]); the held-out
 //! ranking keeps the better of the two. The hysteresis family searches its Bouc-Wen shape at
-//! the best yields ([`refine_hysteresis_shape`]) when the steps rank it near the top.
+//! the best yields ([`hysteresis::refine`]) when the steps rank it near the top.
 
 use super::DiagnoseError;
 use super::cycles::{STUCK_FRACTION, StepCycle, step_cycle};
 use super::design::Design;
 use super::effects::{
-    BOUC_WEN_SHAPES, Effect, Scales, Structure, Transform, baseline_has, hysteresis_structure,
-    sensor_structure, stribeck_exponent, structures,
+    Effect, Scales, Structure, Transform, baseline_has, sensor_structure, stribeck_exponent,
+    structures,
 };
 use super::exciter::{amplified_base, estimate_exciter_delay, kinematic_ratios};
 use super::fit::{Fitted, REVERSAL_BAND, root_ratio_percent};
 use super::sensor::{
     Consistency, SubsetMember, best_subset_member, exact_for, refine_on_every_channel,
 };
-use super::{free_play, series};
+use super::{free_play, hysteresis, series};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
-use crate::signal::bouc_wen::HysteresisLaw;
 
 /// One effect's best structure on the step cycles.
 #[derive(Debug, Clone)]
@@ -229,10 +228,10 @@ pub fn search(
     if let Some(i) = candidates
         .iter()
         .position(|c| c.effect == Effect::Hysteresis)
-        && step_rank(&candidates, i) < SHAPE_SEARCH_RANK
+        && step_rank(&candidates, i) < hysteresis::SHAPE_SEARCH_RANK
     {
         let c = candidates[i].clone();
-        candidates[i] = refine_hysteresis_shape(
+        candidates[i] = hysteresis::refine(
             c,
             |c| &c.structure,
             |s| evaluate(setup, baseline, analyses, &cycles, Effect::Hysteresis, s),
@@ -321,78 +320,6 @@ pub fn physical(f: &Fitted) -> bool {
             || series::damping(f).is_some_and(|c| c > 0.0))
 }
 
-/// The Bouc-Wen shape search: the hysteresis family's yield displacement is searched first with
-/// the one-parameter law (n = 1, r = 1/2, [`HYSTERESIS_YIELD_FRACTIONS`]); then each shape of
-/// [`BOUC_WEN_SHAPES`] from that yield, its yield walked by [`YIELD_STEP`] each way while the
-/// error falls (at most [`YIELD_STEPS`] steps: the yield and the knee trade off, a sharper knee
-/// fitting a later yield, and the error is sharp in the yield, so the grid's steps of 2-2.5 are
-/// too coarse to compare shapes on), best by the same error. The member found carries n and r
-/// as searched parameters whatever shape won, so the penalised score counts the search (four
-/// parameters: alpha, zy, n, r).
-///
-/// The best member of the family from `start`, the best yield of the one-parameter law (its
-/// structure `member(&start)`); `evaluate` fits and cross-validates one member (None when it
-/// fails or is not physical), `key` is the error it is chosen by. `start` is returned when it
-/// holds no hysteresis or is not the one-parameter law (its shape already chosen).
-pub fn refine_hysteresis_shape<T, E>(
-    start: T,
-    member: impl Fn(&T) -> &Structure,
-    mut evaluate: impl FnMut(Structure) -> Result<Option<T>, E>,
-    key: impl Fn(&T) -> f64,
-) -> Result<T, E> {
-    let Some(law) = member(&start).hysteresis else {
-        return Ok(start);
-    };
-    if law.one_parameter_yield_m().is_none() {
-        return Ok(start);
-    }
-    // The start again as a member of the searched family (its score counts n and r).
-    let Some(start) = evaluate(hysteresis_structure(law, true))? else {
-        return Ok(start);
-    };
-    let mut best = (key(&start), start);
-    for &(n, r) in &BOUC_WEN_SHAPES {
-        let at = |yield_m: f64| HysteresisLaw { yield_m, n, r };
-        // The shape's best so far: (key, yield).
-        let mut shape_best = if at(law.yield_m) == law {
-            (best.0, law.yield_m)
-        } else {
-            match evaluate(hysteresis_structure(at(law.yield_m), true))? {
-                Some(c) => {
-                    let k = key(&c);
-                    if k < best.0 {
-                        best = (k, c);
-                    }
-                    (k, law.yield_m)
-                }
-                None => (f64::INFINITY, law.yield_m),
-            }
-        };
-        for factor in [1.0 / YIELD_STEP, YIELD_STEP] {
-            let mut yield_m = shape_best.1;
-            for _ in 0..YIELD_STEPS {
-                yield_m *= factor;
-                let Some(c) = evaluate(hysteresis_structure(at(yield_m), true))? else {
-                    break;
-                };
-                let k = key(&c);
-                if k >= shape_best.0 {
-                    break;
-                }
-                shape_best = (k, yield_m);
-                if k < best.0 {
-                    best = (k, c);
-                }
-            }
-        }
-    }
-    Ok(best.1)
-}
-
-/// The hysteresis candidate's Bouc-Wen shape is searched when it ranks among this many first
-/// by step error (fewer than this many candidates have a lower one).
-const SHAPE_SEARCH_RANK: usize = 3;
-
 /// How many of `candidates` have a lower step error than candidate `i`.
 fn step_rank(candidates: &[PhasorCandidate], i: usize) -> usize {
     let e = candidates[i].step_error_percent();
@@ -401,8 +328,3 @@ fn step_rank(candidates: &[PhasorCandidate], i: usize) -> usize {
         .filter(|c| c.step_error_percent() < e)
         .count()
 }
-
-/// The factor the shape search walks the yield by (a quarter of a doubling) and the most
-/// steps it walks each way (a doubling or a halving).
-const YIELD_STEP: f64 = 1.189_207_115_002_721;
-const YIELD_STEPS: usize = 4;
