@@ -58,4 +58,11 @@ fn stribeck_friction_with_exponent_near_one_is_named_with_its_exponent() {
     assert!(top.gap_after_percent < 1.8, "{}", top.gap_after_percent);
     // The excess refitted near the planted 15.3 N (the Gaussian member's: 12.1 N).
     assert!((value("fs") - 15.35).abs() < 3.0, "{}", value("fs"));
+    // The verdict names the member: its excess, velocity and exponent.
+    let member = top.member.as_deref().unwrap_or_default();
+    assert!(
+        member.starts_with("Stribeck excess ") && member.ends_with("exponent 1.0"),
+        "{member}"
+    );
+    assert_eq!(d.findings.top_member.as_deref(), Some(member));
 }
