@@ -62,6 +62,7 @@ pub mod score;
 pub mod search;
 pub mod sensor;
 pub mod series;
+pub mod stribeck;
 pub mod time_domain;
 
 use serde::Serialize;
@@ -247,6 +248,7 @@ pub fn member_of(f: &Fitted, run: Option<&drift::RunDissipation>) -> Option<Stri
         .or_else(|| series::describe(f))
         .or_else(|| free_play::describe(f))
         .or_else(|| hysteresis::describe(f))
+        .or_else(|| stribeck::describe(f))
         .or_else(|| drift::describe(f, run))
 }
 

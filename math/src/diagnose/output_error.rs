@@ -24,7 +24,7 @@ use super::effects::{Effect, Structure};
 use super::findings::{explains, significant};
 use super::fit::Fitted;
 use super::score::{HeldOut, penalised};
-use super::{RankedEffect, heldout_all, mean_nmse, parameter_values, search};
+use super::{RankedEffect, heldout_all, mean_nmse, member_of, parameter_values, search};
 use crate::identify::{IdentifyError, RigDrive, RigMisfit, RigOutputError};
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
@@ -177,6 +177,9 @@ pub(super) fn rescore(
                 r.score_percent = score;
                 r.significant = significant(c.gap_before, c.floor, after, score, c.baseline_score);
                 r.added_parameters = parameter_values(f.added_parameters());
+                // The member as refitted (a refitted family is never drift, whose description
+                // alone needs the run's dissipation).
+                r.member = member_of(&f, None);
                 r.output_error_misfit = Some(m.misfit_rms);
                 fits[i] = (f, h);
             }
