@@ -12,7 +12,7 @@ pub fn describe(f: &Fitted) -> Option<String> {
         .terms
         .iter()
         .find_map(|t| t.stribeck_velocity_mps())?;
-    let fs = f.names.iter().position(|n| n == "fs").map(|i| f.theta[i])?;
+    let fs = f.coefficient("fs")?;
     Some(format!(
         "Stribeck excess {fs:.1} N, vs {:.1} mm/s, Gaussian",
         1e3 * vs
