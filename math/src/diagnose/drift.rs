@@ -52,9 +52,8 @@ pub fn rate(f: &Fitted) -> Option<(f64, f64)> {
     if !f.structure.drift {
         return None;
     }
-    let at = |s: &str| f.names.iter().position(|n| n == s).map(|i| f.theta[i]);
-    let c0 = at(DAMPER_SYMBOL)?;
-    let rate = at(RATE_SYMBOL)?;
+    let c0 = f.coefficient(DAMPER_SYMBOL)?;
+    let rate = f.coefficient(RATE_SYMBOL)?;
     Some((c0, rate / c0))
 }
 

@@ -267,6 +267,15 @@ impl Fitted {
         self.structure.transform
     }
 
+    /// The fitted coefficient of the term or parameter named `symbol` (None when the fit has
+    /// none).
+    pub fn coefficient(&self, symbol: &str) -> Option<f64> {
+        self.names
+            .iter()
+            .position(|n| n == symbol)
+            .map(|i| self.theta[i])
+    }
+
     /// (name, value, std) of the parameters the structure added.
     pub fn added_parameters(&self) -> Vec<(String, f64, f64)> {
         let mut out: Vec<(String, f64, f64)> = self

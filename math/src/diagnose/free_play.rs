@@ -81,11 +81,7 @@ pub fn contacts(s: &Structure) -> Option<(f64, f64)> {
 /// stiffness 4.10 kN/m"; None when the fit holds no free play.
 pub fn describe(f: &Fitted) -> Option<String> {
     let (neg, pos) = contacts(&f.structure)?;
-    let kfp = f
-        .names
-        .iter()
-        .position(|n| n == "kfp")
-        .map(|i| f.theta[i])?;
+    let kfp = f.coefficient("kfp")?;
     let place = if neg == pos {
         format!("centred gap {:.2} mm", 2e3 * pos)
     } else {

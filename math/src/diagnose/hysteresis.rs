@@ -88,11 +88,7 @@ const YIELD_STEPS: usize = 4;
 /// alpha zy. None when `f` holds no hysteresis.
 pub fn describe(f: &Fitted) -> Option<String> {
     let law = f.structure.hysteresis?;
-    let alpha = f
-        .names
-        .iter()
-        .position(|n| n == "alpha")
-        .map(|i| f.theta[i])?;
+    let alpha = f.coefficient("alpha")?;
     Some(format!(
         "Bouc-Wen yield {:.2} mm, n {:.2}, r {:.2}, saturated force {:.1} N",
         1e3 * law.yield_m,

@@ -102,10 +102,7 @@ pub fn describe(f: &Fitted) -> Option<String> {
 
 /// The fitted damper coefficient c [N s/m].
 pub fn damping(f: &Fitted) -> Option<f64> {
-    f.names
-        .iter()
-        .position(|n| n == DAMPER_SYMBOL)
-        .map(|i| f.theta[i])
+    f.coefficient(DAMPER_SYMBOL)
 }
 
 /// The series spring stiffness ks = c / tau [N/m].

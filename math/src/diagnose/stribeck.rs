@@ -10,7 +10,7 @@ use super::fit::Fitted;
 /// Gaussian one). None when `f` holds no Stribeck term.
 pub fn describe(f: &Fitted) -> Option<String> {
     let law = f.structure.terms.iter().find_map(|t| t.stribeck())?;
-    let fs = f.names.iter().position(|n| n == "fs").map(|i| f.theta[i])?;
+    let fs = f.coefficient("fs")?;
     let searched = if stribeck_exponent(&f.structure).is_some() {
         ""
     } else {
