@@ -409,6 +409,14 @@ pub fn diagnose(
         fits.push((c.fitted.clone(), h));
         cand_idx.push(ci);
     }
+    // The Stribeck family's member of each exponent, each at its own best velocity: the
+    // output-error refit tries each ([`output_error::refit_shape`]).
+    let stribeck_members: Vec<Fitted> = ranked
+        .iter()
+        .zip(&fits)
+        .filter(|(r, _)| r.effect == Effect::StribeckFriction)
+        .map(|(_, f)| f.0.clone())
+        .collect();
     keep_best_member(&mut ranked, &mut fits, &mut cand_idx);
     let mut order: Vec<usize> = (0..ranked.len()).collect();
     order.sort_by(|&a, &b| ranked[a].score_percent.total_cmp(&ranked[b].score_percent));
@@ -426,6 +434,7 @@ pub fn diagnose(
             floor,
             n_eff,
             baseline_score,
+            stribeck_members: &stribeck_members,
         };
         let base = output_error::rescore(&context, &mut ranked, &mut fits, &order, &mut notes);
         order.sort_by(|&a, &b| ranked[a].score_percent.total_cmp(&ranked[b].score_percent));

@@ -126,6 +126,7 @@ pub fn refit_shape<H, E>(
     steps: &SineSteps,
     baseline: &Model,
     fitted: &Fitted,
+    members: &[Fitted],
     score: impl Fn(&Fitted) -> Result<(H, f64), E>,
 ) -> Result<(Fitted, RigMisfit, H), String>
 where
@@ -142,7 +143,13 @@ where
     };
     let mut best = chosen;
     for &e in STRIBECK_EXPONENTS.iter().filter(|&&e| e != chosen_exponent) {
-        let member = with_stribeck_exponent(fitted, e);
+        // The family's own member of that exponent (its own velocity) when the phasor search
+        // offered one, else the kept member's law with that exponent.
+        let member = members
+            .iter()
+            .find(|m| stribeck_exponent(&m.structure) == Some(e))
+            .cloned()
+            .unwrap_or_else(|| with_stribeck_exponent(fitted, e));
         if let Ok(c) = scored(refit(steps, baseline, &member))
             && search::physical(&c.0)
             && match &best {
@@ -202,6 +209,8 @@ pub(super) struct Rescoring<'a> {
     pub floor: f64,
     pub n_eff: f64,
     pub baseline_score: f64,
+    /// The Stribeck family's phasor-fitted member of each exponent.
+    pub stribeck_members: &'a [Fitted],
 }
 
 /// Whether the ranking could change by refitting: the best candidate by the phasor fits does
@@ -250,7 +259,7 @@ pub(super) fn rescore(
     };
     for i in friction {
         let r = &mut ranked[i];
-        let refit = refit_shape(&c.steps, c.baseline, &fits[i].0, |f| {
+        let refit = refit_shape(&c.steps, c.baseline, &fits[i].0, c.stribeck_members, |f| {
             heldout_all(f, c.steps.mass_kg, c.heldout).map(|h| {
                 let nmse = mean_nmse(&h);
                 (h, nmse)
