@@ -1,7 +1,8 @@
 //! Faults in the real node graph: an identifier killed with SIGKILL in the middle of a run and
 //! restarted ends with the theta of an undisturbed run; a recorder killed with SIGKILL leaves a
 //! bag that `forcemap bag recover` restores with every message the recorder had put on disk; every
-//! idle node stops cleanly on SIGTERM.
+//! idle node stops cleanly on SIGTERM; a monitor and an identifier that join after a flooded
+//! run was published still end it with its theta.
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
@@ -227,5 +228,63 @@ fn every_idle_node_stops_cleanly_on_sigterm() {
             node.name,
             node.lines().join("\n")
         );
+    }
+}
+
+/// A run published as fast as the graph keeps up is over in a fraction of a second, which on a
+/// loaded host is less than discovery takes. The sensor waits for every node that must see the
+/// run end (`min_excitation_subscribers`), and a monitor that sees the run end before any
+/// identifier is matched on theta waits for one rather than report no theta. CI's four-poster
+/// lost a corner this way: its summary was never written.
+#[test]
+fn a_late_monitor_and_a_late_identifier_still_end_the_run_with_its_theta() {
+    let d = domain(14);
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("summary.json");
+    let _harmonic = NodeProcess::start("harmonic", d, &[]);
+    let mut sensor = NodeProcess::start(
+        "sensor",
+        d,
+        &[
+            "rate_factor:=0.0".into(),
+            "min_excitation_subscribers:=2".into(),
+            "startup_timeout_s:=120.0".into(),
+        ],
+    );
+    sensor.wait_for(
+        "waiting for 2 subscriber(s) on /rig/excitation",
+        Duration::from_secs(60),
+    );
+    // The harmonic node alone is not enough: nothing is published without the monitor.
+    std::thread::sleep(Duration::from_secs(2));
+    let early = sensor.lines();
+    assert!(
+        !early.iter().any(|l| l.contains("publishing")),
+        "the sensor published before the monitor listened:\n{}",
+        early.join("\n")
+    );
+    let mut monitor = NodeProcess::start(
+        "monitor",
+        d,
+        &[
+            format!("summary_json:={}", summary.display()),
+            "quiet_s:=2.0".into(),
+            "timeout_s:=180.0".into(),
+        ],
+    );
+    assert!(sensor.wait_exit(Duration::from_secs(60)).success());
+    // The run is over and no identifier exists yet: the monitor waits for one.
+    monitor.wait_for("no identifier is matched", Duration::from_secs(30));
+    let params = format!(
+        "--params-file={}",
+        repo().join("launch_configs/rig.params.yaml").display()
+    );
+    let _identifier = NodeProcess::start("identifier", d, &[params, "model:=coulomb".into()]);
+    assert!(monitor.wait_exit(Duration::from_secs(90)).success());
+    let s = summary_json(&summary);
+    assert_eq!(s["steps_used"].as_array().unwrap().len(), 10, "{s}");
+    for p in s["parameters"].as_array().unwrap() {
+        let err = p["error_percent"].as_f64().unwrap();
+        assert!(err.abs() < 1.0, "{p}");
     }
 }

@@ -363,6 +363,21 @@ pub fn forward<M, E, F>(
     subscription: Subscription<M>,
     tx: mpsc::UnboundedSender<E>,
     on_error: OnTakeError,
+    wrap: F,
+) -> tokio::task::JoinHandle<()>
+where
+    M: serde::de::DeserializeOwned + Send + Sync + 'static,
+    E: Send + 'static,
+    F: FnMut(M, MessageInfo) -> Option<E> + Send + 'static,
+{
+    forward_shared(std::sync::Arc::new(subscription), tx, on_error, wrap)
+}
+
+/// [`forward`] for a subscription the node still asks about (its matched publishers).
+pub fn forward_shared<M, E, F>(
+    subscription: std::sync::Arc<Subscription<M>>,
+    tx: mpsc::UnboundedSender<E>,
+    on_error: OnTakeError,
     mut wrap: F,
 ) -> tokio::task::JoinHandle<()>
 where
@@ -389,6 +404,38 @@ where
             }
         }
     })
+}
+
+/// Waits until `publisher` has `min` matched subscribers, logging what it waits for. `Ok(false)`
+/// when SIGINT/SIGTERM came first; an error naming the topic and `parameter` (the node's
+/// parameter that set `min`) once `deadline` has passed. Publishers that end quickly (a sensor
+/// flooding the graph, then gone) wait this way for every node that must see the whole run.
+pub async fn wait_for_subscribers<M: serde::Serialize>(
+    node: &Node,
+    publisher: &Publisher<M>,
+    min: usize,
+    topic: &str,
+    parameter: &str,
+    deadline: std::time::Instant,
+    startup_timeout_s: f64,
+) -> anyhow::Result<bool> {
+    crate::log_line!("waiting for {min} subscriber(s) on {topic}");
+    loop {
+        let n = publisher.get_subscription_count(node);
+        if n >= min {
+            return Ok(true);
+        }
+        if shutdown_requested() {
+            crate::log_line!("stopped while waiting for subscribers");
+            return Ok(false);
+        }
+        if std::time::Instant::now() > deadline {
+            anyhow::bail!(
+                "{n} subscriber(s) on {topic} after {startup_timeout_s} s, {min} expected ({parameter}): are the nodes that listen running on the same ROS_DOMAIN_ID?"
+            );
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    }
 }
 
 /// Publishes reliably, retrying while the send window is full (flow control: a publisher

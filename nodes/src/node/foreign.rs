@@ -122,18 +122,19 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let mut ros = RosNode::start(setup.clone())?;
     let samples_pub = ros.publisher::<RigSample>(topics::SAMPLES, qos::samples())?;
     let out_topic = setup.absolute_topic(topics::SAMPLES);
-    log_line!("waiting for {min_subscribers} subscriber(s) on {out_topic}");
     let deadline = Instant::now() + Duration::from_secs_f64(startup_timeout);
-    while samples_pub.get_subscription_count(&ros.node) < min_subscribers {
-        if crate::ros::shutdown_requested() {
-            return Ok(());
-        }
-        if Instant::now() > deadline {
-            bail!(
-                "no {min_subscribers} subscriber(s) on {out_topic} after {startup_timeout} s (min_subscribers): is the harmonic node running on the same ROS_DOMAIN_ID?"
-            );
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
+    if !crate::ros::wait_for_subscribers(
+        &ros.node,
+        &samples_pub,
+        min_subscribers,
+        &out_topic,
+        "min_subscribers",
+        deadline,
+        startup_timeout,
+    )
+    .await?
+    {
+        return Ok(());
     }
 
     // One task per foreign topic forwards its payloads into the node's loop.

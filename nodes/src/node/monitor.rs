@@ -1,7 +1,9 @@
 //! The monitor node: a consumer of live theta, as a control node would be. It prints theta as
 //! it converges and, once the exciter is idle and theta has stopped changing, a summary (with
 //! the truth when the rig's parameters topic carries it, as the simulated rig's does), writes it
-//! as JSON if asked, and exits.
+//! as JSON if asked, and exits. A run that ends before any identifier has matched its theta
+//! (discovery is slow on a loaded host) is not taken for a run without theta: the monitor waits
+//! for an identifier, whose latched theta then arrives at once.
 //!
 //! Parameters: `quiet_s` (how long theta must stay unchanged after the run ends; 3),
 //! `timeout_s` (give up after this long without a run end; 0 = never), `summary_json` (path;
@@ -17,7 +19,7 @@ use serde_json::json;
 use tokio::sync::mpsc;
 
 use crate::log_line;
-use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, qos};
+use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, forward_shared, qos};
 use forcemap_io::topics;
 
 enum Input {
@@ -36,11 +38,12 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         .map(std::path::PathBuf::from);
 
     let mut ros = RosNode::start(setup.clone())?;
-    let theta = ros.subscription::<IdentifiedParameters>(topics::THETA, qos::theta())?;
+    let theta =
+        std::sync::Arc::new(ros.subscription::<IdentifiedParameters>(topics::THETA, qos::theta())?);
     let excitation = ros.subscription::<ExcitationState>(topics::EXCITATION, qos::excitation())?;
     let rig = ros.subscription::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
     let (tx, mut rx) = mpsc::unbounded_channel::<Input>();
-    forward(theta, tx.clone(), OnTakeError::Stop, |m, _| {
+    forward_shared(theta.clone(), tx.clone(), OnTakeError::Stop, |m, _| {
         Some(Input::Theta(m, Instant::now()))
     });
     forward(excitation, tx.clone(), OnTakeError::Stop, |m, _| {
@@ -56,6 +59,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let mut sine_steps = 0usize;
     let mut multisine_steps = 0usize;
     let mut updates = 0usize;
+    // Since when an identifier has been matched on theta (its latched theta follows at once).
+    let mut theta_matched_since: Option<Instant> = None;
+    let mut told_waiting_for_identifier = false;
     log_line!("watching {}", setup.absolute_topic(topics::THETA));
     loop {
         let input = tokio::select! {
@@ -100,11 +106,26 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             }
             None => {}
         }
+        if theta_matched_since.is_none() && theta.get_publisher_count(&ros.node) > 0 {
+            theta_matched_since = Some(Instant::now());
+        }
         if let Some(idle) = idle_since
             && idle.elapsed() >= quiet
             && last_change.elapsed() >= quiet
         {
-            break;
+            match theta_matched_since {
+                _ if latest.is_some() => break,
+                Some(matched) if matched.elapsed() >= quiet => break,
+                Some(_) => {}
+                None if !told_waiting_for_identifier => {
+                    log_line!(
+                        "the exciter is idle and no identifier is matched on {} yet: waiting for one",
+                        setup.absolute_topic(topics::THETA)
+                    );
+                    told_waiting_for_identifier = true;
+                }
+                None => {}
+            }
         }
         if timeout_s > 0.0 && started.elapsed().as_secs_f64() > timeout_s {
             bail!("no end of run within timeout_s = {timeout_s} s ({updates} theta updates seen)");

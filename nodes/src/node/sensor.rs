@@ -7,7 +7,10 @@
 //! - `rate_factor`: 1.0 plays in real time, 10.0 ten times faster, 0 as fast as the graph
 //!   keeps up (reliable publishing that waits for the subscribers' acknowledgements);
 //! - `min_subscribers`: wait until this many subscribers listen to the samples (default 1);
-//! - `startup_timeout_s`: how long to wait for them (default 20);
+//! - `min_excitation_subscribers`: and until this many listen to the excitation state
+//!   (default 1; a launch file with a monitor or diagnoser counts them, as the run's end is
+//!   the idle state they must not miss);
+//! - `startup_timeout_s`: how long to wait for them all (default 20);
 //! - sim only: `system` (`rig` or `three_dof`), `case` (`i`/`ii`, 3-DOF), `sample_rate_hz`
 //!   (100), `step_duration_s` (13, the paper's 1300 samples at 100 Hz), `snr_db` (40; negative
 //!   or `.nan` for noise-free), `seed` (1), `include_random` (true: the two validation
@@ -260,6 +263,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         );
     }
     let min_subscribers = p.opt_usize("min_subscribers")?.unwrap_or(1);
+    let min_excitation_subscribers = p.opt_usize("min_excitation_subscribers")?.unwrap_or(1);
     let startup_timeout = p.opt_f64("startup_timeout_s")?.unwrap_or(20.0);
     let source = p.opt_str("source")?.unwrap_or("sim").to_string();
     let frame = p.opt_str("frame_id")?.unwrap_or("rig").to_string();
@@ -284,29 +288,33 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let parameters_pub =
         ros.publisher::<DiagnosticStatus>(topics::PARAMETERS, qos::parameters())?;
 
-    // Wait for the subscribers that must not miss a sample (the harmonic node, a recorder).
-    log_line!(
-        "waiting for {min_subscribers} subscriber(s) on {}",
-        setup.absolute_topic(topics::SAMPLES)
-    );
+    // Wait for the subscribers that must not miss a sample (the harmonic node, a recorder),
+    // then for those that must see every excitation state (a monitor, a diagnoser): a run
+    // published as fast as the graph keeps up is over in a second, and a node that has not
+    // matched the excitation writer by the time the sensor is gone never sees the run end.
     let deadline = Instant::now() + Duration::from_secs_f64(startup_timeout);
-    loop {
-        let n = samples_pub.get_subscription_count(&ros.node);
-        if n >= min_subscribers {
-            break;
-        }
-        if crate::ros::shutdown_requested() {
-            log_line!("stopped while waiting for subscribers");
-            return Ok(());
-        }
-        if Instant::now() > deadline {
-            bail!(
-                "{} subscriber(s) on {} after {startup_timeout} s, {min_subscribers} expected (min_subscribers): is the harmonic node running on the same ROS_DOMAIN_ID?",
-                n,
-                setup.absolute_topic(topics::SAMPLES)
-            );
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
+    if !crate::ros::wait_for_subscribers(
+        &ros.node,
+        &samples_pub,
+        min_subscribers,
+        &setup.absolute_topic(topics::SAMPLES),
+        "min_subscribers",
+        deadline,
+        startup_timeout,
+    )
+    .await?
+        || !crate::ros::wait_for_subscribers(
+            &ros.node,
+            &excitation_pub,
+            min_excitation_subscribers,
+            &setup.absolute_topic(topics::EXCITATION),
+            "min_excitation_subscribers",
+            deadline,
+            startup_timeout,
+        )
+        .await?
+    {
+        return Ok(());
     }
     // Discovery of the subscriber's reader completes a little after the count changes.
     tokio::time::sleep(Duration::from_millis(300)).await;
