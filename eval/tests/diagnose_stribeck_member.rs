@@ -75,5 +75,8 @@ fn the_stribeck_member_is_named_with_its_excess_and_velocity() {
         "{member}"
     );
     assert!(parameter("fs") > 0.0);
+    // The planted Gaussian shape is not ruled out: found, or among those predicting alike.
+    let named = common::stribeck_exponents_named(member);
+    assert!(named.contains(&2.0), "{member}");
     assert!(d.findings.headline().ends_with(&format!("({member})")));
 }

@@ -127,3 +127,26 @@ pub fn searched(r: &RankedEffect, name: &str) -> Option<f64> {
         .find(|p| p.name == name)
         .map(|p| p.value)
 }
+
+/// The Stribeck shape exponents a verdict's member names: the one found ("exponent 1.0") and,
+/// when the held-out records do not tell them apart, those that predict alike ("exponents 0.5,
+/// 1.0 and 2.0 predict ...").
+pub fn stribeck_exponents_named(member: &str) -> Vec<f64> {
+    let number = |s: &str| {
+        s.trim_matches(|c: char| !c.is_ascii_digit() && c != '.')
+            .parse()
+            .ok()
+    };
+    let mut named: Vec<f64> = member
+        .split("exponent ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(number)
+        .into_iter()
+        .collect();
+    if let Some(list) = member.split("exponents ").nth(1) {
+        let list = list.split(" predict").next().unwrap_or_default();
+        named.extend(list.split([',', ' ']).filter_map(number));
+    }
+    named
+}

@@ -467,6 +467,8 @@ pub fn hysteresis_structure(law: HysteresisLaw, shape_searched: bool) -> Structu
 
 /// The name of the Stribeck shape exponent among a structure's searched parameters.
 pub const STRIBECK_EXPONENT_NAME: &str = "stribeck_exponent";
+/// The name of the Stribeck velocity among a structure's searched parameters.
+pub const STRIBECK_VELOCITY_NAME: &str = "stribeck_velocity_mps";
 
 /// The stribeck_friction structure of one law: the excess fs (with fd sgn(x') too when the
 /// baseline has no friction), its velocity searched and, when `exponent_searched`, its shape
@@ -483,7 +485,7 @@ pub fn stribeck_structure(
     let mut s = one(Effect::StribeckFriction, terms);
     s.extra_parameters += 1;
     s.searched
-        .push(("stribeck_velocity_mps".into(), law.velocity_mps));
+        .push((STRIBECK_VELOCITY_NAME.into(), law.velocity_mps));
     if exponent_searched {
         s.extra_parameters += 1;
         s.searched

@@ -112,6 +112,13 @@ impl Evidence {
     }
 }
 
+/// The smallest drop of the held-out gap (percentage points) that the noise does not explain:
+/// beyond the floor, a tenth of the gap and 0.2 %-points. One rule for a candidate against the
+/// baseline, a pair against its single, and members of a family against each other.
+pub fn least_significant_drop(gap_before: f64, floor: f64) -> f64 {
+    floor.max(0.1 * gap_before).max(0.2)
+}
+
 /// Whether a candidate's shrink is beyond what the noise explains (the rig's and the live
 /// diagnosis's significance; the axis has its own, see [`Evidence::ValidationForceError`]).
 pub fn significant(
@@ -121,7 +128,7 @@ pub fn significant(
     score: f64,
     baseline_score: f64,
 ) -> bool {
-    score < baseline_score && gap_before - gap_after > floor.max(0.1 * gap_before).max(0.2)
+    score < baseline_score && gap_before - gap_after > least_significant_drop(gap_before, floor)
 }
 
 /// Whether a candidate leaving `gap_after` would explain the gap: significant, and at most half
@@ -173,7 +180,7 @@ pub struct PairEvidence {
 pub fn pair_explains(gap_before: f64, floor: f64, single_after: f64, pair: &PairEvidence) -> bool {
     explains(gap_before, floor, pair.gap_after_percent, pair.significant)
         && pair.score_percent < pair.single_score_percent
-        && single_after - pair.gap_after_percent > floor.max(0.1 * gap_before).max(0.2)
+        && single_after - pair.gap_after_percent > least_significant_drop(gap_before, floor)
 }
 
 /// The top-ranked candidate as the verdict sees it.

@@ -18,6 +18,7 @@ use super::cycles::StepCycle;
 use super::design::Design;
 use super::effects::{Effect, Structure, Transform, structures};
 use super::exciter::delay_shown;
+use super::findings::least_significant_drop;
 use super::fit::fit;
 use super::free_play;
 use super::score::penalised;
@@ -491,5 +492,5 @@ pub fn second_stands_out(
     pair: &PairResult,
 ) -> bool {
     pair.score_percent < single_score
-        && single_after - pair.gap_after_percent > floor.max(0.1 * gap_before).max(0.2)
+        && single_after - pair.gap_after_percent > least_significant_drop(gap_before, floor)
 }

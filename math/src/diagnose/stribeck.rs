@@ -4,6 +4,7 @@
 
 use super::effects::stribeck_exponent;
 use super::fit::Fitted;
+use crate::basis::StribeckVelocity;
 
 /// "Stribeck excess 17.4 N, vs 19.8 mm/s, exponent 1.0": the fitted excess fs, the Stribeck
 /// velocity and its shape exponent (with "(not searched)" after it when the grid had only the
@@ -21,4 +22,80 @@ pub fn describe(f: &Fitted) -> Option<String> {
         1e3 * law.velocity_mps,
         law.exponent
     ))
+}
+
+/// `member` with the shape exponents that predict alike named after it ("...; exponents 0.5,
+/// 1.0 and 2.0 predict the held-out records alike: the shape is not identified on these
+/// steps"), unchanged when fewer than two do.
+pub fn with_alike_exponents(member: String, alike: &[f64]) -> String {
+    let names: Vec<String> = alike.iter().map(|e| format!("{e:.1}")).collect();
+    match names.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!(
+            "{member}; exponents {} and {last} predict the held-out records alike: the shape is not identified on these steps",
+            rest.join(", ")
+        ),
+        _ => member,
+    }
+}
+
+/// The Stribeck velocity at which the law of shape `exponent` is nearest `law`: least squares
+/// between exp(-(v/vs)^exponent) and `law`'s curve over speeds up to four of its velocities,
+/// where its excess has fallen off, the velocity searched over a factor of four each way.
+/// The start of another exponent's refit: a shape compared at the same velocity is a different
+/// curve and loses for the wrong reason.
+pub fn equivalent_velocity_mps(law: StribeckVelocity, exponent: f64) -> f64 {
+    const SPEEDS: usize = 200;
+    const CANDIDATES: usize = 241;
+    let curve = |vs: f64, delta: f64, v: f64| (-(v / vs).abs().powf(delta)).exp();
+    let v_max = 4.0 * law.velocity_mps;
+    let misfit = |vs: f64| -> f64 {
+        (1..=SPEEDS)
+            .map(|i| {
+                let v = v_max * i as f64 / SPEEDS as f64;
+                (curve(vs, exponent, v) - curve(law.velocity_mps, law.exponent, v)).powi(2)
+            })
+            .sum()
+    };
+    (0..CANDIDATES)
+        .map(|i| law.velocity_mps * 4f64.powf(-1.0 + 2.0 * i as f64 / (CANDIDATES - 1) as f64))
+        .min_by(|&a, &b| misfit(a).total_cmp(&misfit(b)))
+        .unwrap_or(law.velocity_mps)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_same_shape_is_its_own_equivalent() {
+        let law = StribeckVelocity {
+            velocity_mps: 0.03,
+            exponent: 1.0,
+        };
+        let vs = equivalent_velocity_mps(law, 1.0);
+        assert!((vs / 0.03 - 1.0).abs() < 0.01, "{vs}");
+    }
+
+    #[test]
+    fn another_shape_matches_the_curve_better_than_the_same_velocity() {
+        let law = StribeckVelocity::gaussian(0.0725);
+        let vs = equivalent_velocity_mps(law, 0.5);
+        let gap = |vs: f64| -> f64 {
+            (1..=100)
+                .map(|i| {
+                    let v = 0.29 * f64::from(i) / 100.0;
+                    ((-(v / vs).sqrt()).exp() - (-(v / 0.0725).powi(2)).exp()).abs()
+                })
+                .fold(0.0, f64::max)
+        };
+        // A longer-tailed shape matches a Gaussian at a larger velocity (its fall near zero
+        // is faster), and closer than at the Gaussian's own.
+        assert!(vs > 0.0725, "{vs}");
+        assert!(
+            gap(vs) < 0.5 * gap(0.0725),
+            "{} vs {}",
+            gap(vs),
+            gap(0.0725)
+        );
+    }
 }
