@@ -131,6 +131,7 @@ pub fn searched(r: &RankedEffect, name: &str) -> Option<f64> {
 /// The Stribeck shape exponents a verdict's member names: the one found ("exponent 1.0") and,
 /// when the held-out records do not tell them apart, those that predict alike ("exponents 0.5,
 /// 1.0 and 2.0 predict ...").
+#[allow(dead_code, reason = "not every test file reads a Stribeck member")]
 pub fn stribeck_exponents_named(member: &str) -> Vec<f64> {
     let number = |s: &str| {
         s.trim_matches(|c: char| !c.is_ascii_digit() && c != '.')

@@ -407,7 +407,7 @@ impl<'a> RigOutputError<'a> {
     /// The rig simulated at `p`.
     fn simulate(&self, p: &[f64]) -> Result<SimOutput, IdentifyError> {
         let model = self.model_at(p);
-        let element = ModelElement::new(&*model, &p[..self.model.terms.len()]);
+        let element = ModelElement::new(&model, &p[..self.model.terms.len()]);
         let program = Program::replaying(&self.records, self.base_signal(p));
         simulate_rig(
             &element,
