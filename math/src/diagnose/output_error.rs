@@ -238,9 +238,9 @@ pub fn exponents_alike(exponent_scores: &[(f64, f64)], gap_before: f64, floor: f
 }
 
 /// `fitted` with its Stribeck term's shape exponent set to `exponent`, at the velocity whose
-/// curve is nearest the term's ([`stribeck::equivalent_velocity_mps`]; kept at the same
-/// velocity, exponent 1 refitted from a Gaussian member at 72.5 mm/s left 3.16 % where the
-/// world's 0.93 predicts 1.11 %), the coefficients as the start of a refit.
+/// curve is nearest the term's ([`stribeck::equivalent_velocity_mps`]), the coefficients as
+/// they were: the start of a refit (which fits the velocity too) for an exponent the phasor
+/// search offered no member of.
 fn with_stribeck_exponent(fitted: &Fitted, exponent: f64) -> Fitted {
     let Some(law) = fitted.structure.terms.iter().find_map(|t| t.stribeck()) else {
         return fitted.clone();
