@@ -270,6 +270,25 @@ fn drive_comparison() {
     }
 }
 
+/// The paper's rig sine steps, noise-free, with Stribeck friction: breakaway 18 N over the
+/// kinetic 12.3 N, the excess decaying as exp(-|v/vs|^exponent).
+fn stribeck_rig_records(velocity_mps: f64, exponent: f64) -> Vec<Record> {
+    let truth = TruthElement {
+        friction: Some(forcemap_math::element::Friction {
+            breakaway_n: 18.0,
+            kinetic_n: 12.3,
+            stribeck_velocity_mps: velocity_mps,
+            stribeck_exponent: exponent,
+            asymmetry: 0.0,
+        }),
+        ..TruthElement::rig_coulomb()
+    };
+    RunSpec::paper_rig_sine(None, 0)
+        .with_element(truth)
+        .simulate()
+        .unwrap()
+}
+
 /// A friction variant: Stribeck friction (breakaway above the kinetic level) in the truth and
 /// in the model (`coulomb` plus the Stribeck excess at the true velocity), simulated with the
 /// exact friction law. Noise-free, output error returns the truth to round-off (fd-multi, which
@@ -277,23 +296,9 @@ fn drive_comparison() {
 #[test]
 fn stribeck_friction_on_the_rig_is_recovered_noise_free() {
     use forcemap_math::basis::{StribeckVelocity, Term};
-    use forcemap_math::element::Friction;
     use std::sync::Arc;
     let vs = 0.01;
-    let truth = TruthElement {
-        friction: Some(Friction {
-            breakaway_n: 18.0,
-            kinetic_n: 12.3,
-            stribeck_velocity_mps: vs,
-            stribeck_exponent: 2.0,
-            asymmetry: 0.0,
-        }),
-        ..TruthElement::rig_coulomb()
-    };
-    let rec = RunSpec::paper_rig_sine(None, 0)
-        .with_element(truth)
-        .simulate()
-        .unwrap();
+    let rec = stribeck_rig_records(vs, 2.0);
     let model = coulomb().with_terms(
         "coulomb-stribeck",
         &[Arc::new(StribeckVelocity::gaussian(vs)) as Arc<dyn Term>],
@@ -326,22 +331,8 @@ fn stribeck_friction_on_the_rig_is_recovered_noise_free() {
 #[test]
 fn the_stribeck_velocity_is_fitted_with_the_coefficients() {
     use forcemap_math::basis::{StribeckVelocity, Term};
-    use forcemap_math::element::Friction;
     use std::sync::Arc;
-    let truth = TruthElement {
-        friction: Some(Friction {
-            breakaway_n: 18.0,
-            kinetic_n: 12.3,
-            stribeck_velocity_mps: 0.01,
-            stribeck_exponent: 1.0,
-            asymmetry: 0.0,
-        }),
-        ..TruthElement::rig_coulomb()
-    };
-    let rec = RunSpec::paper_rig_sine(None, 0)
-        .with_element(truth)
-        .simulate()
-        .unwrap();
+    let rec = stribeck_rig_records(0.01, 1.0);
     let (an, _) = analyse_sine_steps(&rec, &PhasorOptions::for_identification()).unwrap();
     let model = coulomb().with_terms(
         "coulomb-stribeck",
