@@ -6,6 +6,10 @@
 //! `sgn(v) * slip_force_n(|v|)`. Simulators treat the stick phase exactly, with no
 //! regularisation.
 
+use std::sync::Arc;
+
+use crate::basis::{StribeckVelocity, Term};
+
 /// The exponent of the Gaussian Stribeck law exp(-(v/vs)^2).
 pub const GAUSSIAN_STRIBECK_EXPONENT: f64 = 2.0;
 
@@ -73,15 +77,55 @@ impl Friction {
 
     /// Friction force while slipping at relative velocity `v` (v != 0) [N].
     pub fn slip_force_n(&self, v: f64) -> f64 {
-        let s = v.signum();
-        let level = self.kinetic_n * (1.0 + s * self.asymmetry);
+        self.slip_force_toward_n(v, v.signum())
+    }
+
+    /// Slip friction with its direction frozen to `dir` (+1 or -1; equal to
+    /// [`Friction::slip_force_n`] whenever `sgn(v) == dir`): the simulators hold the direction
+    /// of a slip phase while a step brackets its end.
+    pub fn slip_force_toward_n(&self, v: f64, dir: f64) -> f64 {
+        let level = self.kinetic_n * (1.0 + dir * self.asymmetry);
         let stribeck = if self.breakaway_n > self.kinetic_n {
             (self.breakaway_n - self.kinetic_n)
                 * stribeck_decay(v, self.stribeck_velocity_mps, self.stribeck_exponent)
         } else {
             0.0
         };
-        s * (level + stribeck)
+        dir * (level + stribeck)
+    }
+
+    /// The friction law of a fitted model's terms at `theta`: the kinetic level from the
+    /// terms that jump at zero speed but the Stribeck excess (a negative level is no friction,
+    /// held at zero), the breakaway above it by the Stribeck term's coefficient with its own
+    /// law (velocity and exponent). None when no term jumps at zero speed.
+    pub fn from_terms(terms: &[Arc<dyn Term>], theta: &[f64]) -> Option<Friction> {
+        let mut kinetic = 0.0;
+        let mut excess = 0.0;
+        let mut law = StribeckVelocity::gaussian(1.0);
+        let mut any = false;
+        for (t, th) in terms.iter().zip(theta) {
+            if !t.jumps_at_zero_velocity() {
+                continue;
+            }
+            any = true;
+            match t.stribeck() {
+                Some(l) => {
+                    excess += th;
+                    law = l;
+                }
+                None => kinetic += th,
+            }
+        }
+        any.then(|| {
+            let kinetic_n = f64::max(kinetic, 0.0);
+            Friction {
+                breakaway_n: kinetic_n + f64::max(excess, 0.0),
+                kinetic_n,
+                stribeck_velocity_mps: law.velocity_mps,
+                stribeck_exponent: law.exponent,
+                asymmetry: 0.0,
+            }
+        })
     }
 }
 

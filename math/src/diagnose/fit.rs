@@ -11,7 +11,7 @@ use num_complex::Complex64;
 use super::cycles::{StepCycle, harmonics_of, synthesize};
 use super::effects::{Structure, Transform};
 use super::{drift, series};
-use crate::basis::{StribeckVelocity, Term};
+use crate::basis::Term;
 use crate::element::{Element, Friction};
 use crate::lstsq::{self, LstsqError};
 use crate::model::Model;
@@ -393,35 +393,10 @@ impl Element for FittedElement {
         f
     }
 
+    /// The Stribeck term's own law (velocity and shape exponent): the replay runs the law
+    /// that was fitted.
     fn friction(&self) -> Option<Friction> {
-        let mut kinetic = 0.0;
-        let mut excess = 0.0;
-        // The Stribeck term's own law (velocity and shape exponent): the replay runs the law
-        // that was fitted.
-        let mut law = StribeckVelocity::gaussian(1.0);
-        let mut any = false;
-        for (t, th) in self.terms.iter().zip(&self.theta) {
-            if !t.jumps_at_zero_velocity() {
-                continue;
-            }
-            any = true;
-            if let Some(l) = t.stribeck() {
-                excess += th;
-                law = l;
-            } else {
-                kinetic += th;
-            }
-        }
-        any.then(|| {
-            let kinetic = kinetic.max(0.0);
-            Friction {
-                breakaway_n: kinetic + excess.max(0.0),
-                kinetic_n: kinetic,
-                stribeck_velocity_mps: law.velocity_mps,
-                stribeck_exponent: law.exponent,
-                asymmetry: 0.0,
-            }
-        })
+        Friction::from_terms(&self.terms, &self.theta)
     }
 
     fn internal_states(&self) -> usize {
@@ -446,6 +421,7 @@ impl Element for FittedElement {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::basis::StribeckVelocity;
 
     #[test]
     fn as_measured_applies_the_response_per_harmonic() {

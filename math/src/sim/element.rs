@@ -13,7 +13,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::excitation::{Derivs, PiecewiseSignal, Program};
-use super::hybrid::{Hybrid, Integrator, Mode, RunStats, SolverOptions, slip_force_dir};
+use super::hybrid::{Hybrid, Integrator, Mode, RunStats, SolverOptions};
 use super::rig::split_records;
 use super::{SampleTrace, SimError, SimOutput, is_positive};
 use crate::element::{Element, Friction};
@@ -57,7 +57,11 @@ impl ForcedMass<'_> {
                 0.0,
             ),
             Mode::Slip(d) => {
-                let fr = slip_force_dir(self.friction.as_ref().expect("slip needs friction"), v, d);
+                let fr = self
+                    .friction
+                    .as_ref()
+                    .expect("slip needs friction")
+                    .slip_force_toward_n(v, d);
                 (
                     (f.value - self.element.smooth_force(x, v, z) - fr) / self.mass_kg,
                     fr,

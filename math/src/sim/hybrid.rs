@@ -49,24 +49,11 @@ pub(crate) enum Mode {
     Stick,
 }
 
-/// Slip friction with its direction frozen to `dir` (equal to `Friction::slip_force_n(v)`
-/// whenever `sgn(v) == dir`).
-pub(crate) fn slip_force_dir(fr: &Friction, v: f64, dir: f64) -> f64 {
-    let level = fr.kinetic_n * (1.0 + dir * fr.asymmetry);
-    let stribeck = if fr.breakaway_n > fr.kinetic_n {
-        (fr.breakaway_n - fr.kinetic_n)
-            * crate::element::stribeck_decay(v, fr.stribeck_velocity_mps, fr.stribeck_exponent)
-    } else {
-        0.0
-    };
-    dir * (level + stribeck)
-}
-
 /// Largest needed friction the stick holds in direction `dir`: `breakaway_n`, or the slip
 /// level at zero speed if that is larger (asymmetric friction), so that a slip never starts
 /// against its own friction.
 pub(crate) fn stick_limit(fr: &Friction, dir: f64) -> f64 {
-    fr.breakaway_n.max(slip_force_dir(fr, 0.0, dir).abs())
+    fr.breakaway_n.max(fr.slip_force_toward_n(0.0, dir).abs())
 }
 
 pub(crate) trait Hybrid {

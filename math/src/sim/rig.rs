@@ -15,7 +15,7 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use super::excitation::{CubicSpline, Derivs, Piece, PiecewiseSignal, Program};
-use super::hybrid::{Hybrid, Integrator, Mode, RunStats, SolverOptions, slip_force_dir};
+use super::hybrid::{Hybrid, Integrator, Mode, RunStats, SolverOptions};
 use super::input_window::{InputWindow, SplineInterval};
 use super::linear_step::Linear2;
 use super::{SampleTrace, SimError, SimOutput, is_positive};
@@ -207,7 +207,7 @@ impl RigSystem<'_> {
     /// [`RigSystem::friction_per_kg`], computed.
     fn friction_per_kg_of(&self, mode: Mode) -> f64 {
         let fr = match (mode, &self.friction) {
-            (Mode::Slip(d), Some(fr)) => slip_force_dir(fr, 0.0, d),
+            (Mode::Slip(d), Some(fr)) => fr.slip_force_toward_n(0.0, d),
             _ => 0.0,
         };
         -fr / self.mass_kg
@@ -260,7 +260,11 @@ impl RigSystem<'_> {
                 0.0,
             ),
             Mode::Slip(d) => {
-                let fr = slip_force_dir(self.friction.as_ref().expect("slip needs friction"), v, d);
+                let fr = self
+                    .friction
+                    .as_ref()
+                    .expect("slip needs friction")
+                    .slip_force_toward_n(v, d);
                 (
                     -(self.element.smooth_force(x, v, z) + fr) / self.mass_kg - b_d2,
                     fr,

@@ -11,7 +11,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::excitation::Program;
-use super::hybrid::{Hybrid, Integrator, Mode, SolverOptions, slip_force_dir};
+use super::hybrid::{Hybrid, Integrator, Mode, SolverOptions};
 use super::rig::split_records;
 use super::{SampleTrace, SimError, SimOutput, is_positive};
 use crate::element::{Element, Friction};
@@ -99,7 +99,7 @@ impl ThreeDofSystem<'_> {
             }
             Mode::Free | Mode::Slip(_) => {
                 let fr = match (mode, self.friction.as_ref()) {
-                    (Mode::Slip(d), Some(fr)) => slip_force_dir(fr, y[5], d),
+                    (Mode::Slip(d), Some(fr)) => fr.slip_force_toward_n(y[5], d),
                     _ => 0.0,
                 };
                 let g = self.element.smooth_force(y[4], y[5], z) + fr;

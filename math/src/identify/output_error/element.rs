@@ -2,7 +2,6 @@
 //! it is and the friction terms (sgn, and the Stribeck excess) as the simulators' set-valued
 //! friction law, so that the stick phase is exact.
 
-use crate::basis::StribeckVelocity;
 use crate::element::{Element, Friction};
 use crate::identify::IdentifyError;
 use crate::model::{IdentifiedModel, Model};
@@ -54,33 +53,9 @@ pub(crate) fn check_model(model: &Model) -> Result<(), IdentifyError> {
 impl ModelElement {
     /// The element of `model` (checked by [`check_model`]) at `theta`.
     pub(crate) fn new(model: &Model, theta: &[f64]) -> ModelElement {
-        let mut kinetic = 0.0;
-        let mut excess = 0.0;
-        let mut law = StribeckVelocity::gaussian(1.0);
-        for (t, th) in model.terms.iter().zip(theta) {
-            if !t.jumps_at_zero_velocity() {
-                continue;
-            }
-            match t.stribeck() {
-                Some(l) => {
-                    excess += th;
-                    law = l;
-                }
-                None => kinetic += th,
-            }
-        }
         // A negative level is no friction: the stick level is kept at zero, as the model
         // simulator does (`IdentifiedModel::friction`).
-        let friction = model.has_velocity_jump().then(|| {
-            let kinetic_n = f64::max(kinetic, 0.0);
-            Friction {
-                breakaway_n: kinetic_n + f64::max(excess, 0.0),
-                kinetic_n,
-                stribeck_velocity_mps: law.velocity_mps,
-                stribeck_exponent: law.exponent,
-                asymmetry: 0.0,
-            }
-        });
+        let friction = Friction::from_terms(&model.terms, theta);
         ModelElement {
             smooth: IdentifiedModel::new(model.clone(), theta.to_vec()),
             friction,
@@ -122,7 +97,7 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
-    use crate::basis::{AtanVelocity, SignVelocity, Term};
+    use crate::basis::{AtanVelocity, SignVelocity, StribeckVelocity, Term};
     use crate::model::ModelOptions;
 
     #[test]
