@@ -6,7 +6,6 @@
 
 mod common;
 
-use forcemap_eval::diagnose_eval::world::{Term, WorldEffect, WorldKind};
 use forcemap_math::diagnose::Effect;
 use forcemap_math::diagnose::findings::Verdict;
 
@@ -19,18 +18,7 @@ use forcemap_math::diagnose::findings::Verdict;
 /// 8.3 N beside a refitted fs of 14.0 N (the test fails so).
 #[test]
 fn the_stribeck_member_is_named_with_its_excess_and_velocity() {
-    let planted = WorldEffect::of_terms(
-        "stribeck_friction",
-        WorldKind::Library,
-        [
-            Some(Term::Stribeck {
-                excess_n: 15.0,
-                velocity_mps: 0.020,
-                exponent: 2.0,
-            }),
-            None,
-        ],
-    );
+    let planted = common::stribeck_effect(15.0, 0.020, 2.0);
     let (d, _) = common::diagnose_world(
         "Gaussian Stribeck",
         &[planted],

@@ -9,7 +9,6 @@
 
 mod common;
 
-use forcemap_eval::diagnose_eval::world::{Term, WorldEffect, WorldKind};
 use forcemap_math::diagnose::Effect;
 use forcemap_math::diagnose::findings::Verdict;
 
@@ -20,17 +19,10 @@ use forcemap_math::diagnose::findings::Verdict;
 /// 14.8 N, 1.16 % left (the true model 1.11 %).
 #[test]
 fn stribeck_friction_with_exponent_near_one_is_named_with_its_exponent() {
-    let planted = WorldEffect::of_terms(
-        "stribeck_friction",
-        WorldKind::Library,
-        [
-            Some(Term::Stribeck {
-                excess_n: 15.347_962_328_380_746,
-                velocity_mps: 0.019_847_728_772_241_648,
-                exponent: 0.931_243_119_150_760_2,
-            }),
-            None,
-        ],
+    let planted = common::stribeck_effect(
+        15.347_962_328_380_746,
+        0.019_847_728_772_241_648,
+        0.931_243_119_150_760_2,
     );
     let (d, _) = common::diagnose_world(
         "seed 2 case 89",

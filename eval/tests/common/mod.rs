@@ -101,6 +101,24 @@ pub fn free_play_effect(gap_neg_m: f64, gap_pos_m: f64, stiffness_n_per_m: f64) 
     )
 }
 
+/// A Stribeck excess of `excess_n` decaying as exp(-|v/velocity_mps|^exponent), planted as
+/// stribeck_friction (the wide forms' form: its shape exponent drawn, not only the Gaussian 2).
+#[allow(dead_code, reason = "not every test file plants a Stribeck friction")]
+pub fn stribeck_effect(excess_n: f64, velocity_mps: f64, exponent: f64) -> WorldEffect {
+    WorldEffect::of_terms(
+        "stribeck_friction",
+        WorldKind::Library,
+        [
+            Some(Term::Stribeck {
+                excess_n,
+                velocity_mps,
+                exponent,
+            }),
+            None,
+        ],
+    )
+}
+
 /// The first two effects of the ranking.
 #[allow(
     dead_code,

@@ -5,6 +5,7 @@
 use super::effects::stribeck_exponent;
 use super::fit::Fitted;
 use crate::basis::StribeckVelocity;
+use crate::element::stribeck_decay;
 
 /// "Stribeck excess 17.4 N, vs 19.8 mm/s, exponent 1.0": the fitted excess fs, the Stribeck
 /// velocity and its shape exponent (with "(not searched)" after it when the grid had only the
@@ -47,7 +48,7 @@ pub fn with_alike_exponents(member: String, alike: &[f64]) -> String {
 pub fn equivalent_velocity_mps(law: StribeckVelocity, exponent: f64) -> f64 {
     const SPEEDS: usize = 200;
     const CANDIDATES: usize = 241;
-    let curve = |vs: f64, delta: f64, v: f64| (-(v / vs).abs().powf(delta)).exp();
+    let curve = |vs: f64, delta: f64, v: f64| stribeck_decay(v, vs, delta);
     let v_max = 4.0 * law.velocity_mps;
     let misfit = |vs: f64| -> f64 {
         (1..=SPEEDS)

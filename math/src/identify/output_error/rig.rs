@@ -367,7 +367,6 @@ impl<'a> RigOutputError<'a> {
         }
         let fit = fit.ok_or(IdentifyError::NoSteps)?;
         let n_terms = self.model.terms.len();
-
         Ok(RigMisfit {
             theta: fit.p[..n_terms].to_vec(),
             misfit_rms: fit.rms(),
