@@ -207,6 +207,7 @@ fn eval_reports_rates_and_a_confusion_matrix() {
         "top1",
         "false_alarms",
         "out_of_library_named",
+        "out_of_library_named_in_part",
         "confusion",
         "shrink_mean_abs_error_percent",
     ] {

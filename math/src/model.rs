@@ -202,18 +202,9 @@ impl Element for IdentifiedModel {
     }
 
     fn friction(&self) -> Option<Friction> {
-        // A negative friction coefficient is not a friction: keep it as a (signed) smooth sgn
-        // force while slipping and let the stick level be zero.
-        let level: f64 = self
-            .model
-            .terms
-            .iter()
-            .zip(&self.theta)
-            .filter(|(t, _)| t.jumps_at_zero_velocity())
-            .map(|(_, th)| *th)
-            .sum();
-        let has = self.model.has_velocity_jump();
-        has.then(|| Friction::coulomb(level.max(0.0)))
+        // One law for every fitted model: a Stribeck term is a breakaway excess with its own
+        // decay, not a share of the kinetic level.
+        Friction::from_terms(&self.model.terms, &self.theta)
     }
 
     fn linear_coefficients(&self) -> Option<(f64, f64)> {
@@ -311,5 +302,24 @@ mod tests {
         assert!((im.smooth_force(0.01, 0.1, &[]) - (63.8 + 18.4)).abs() < 1e-12);
         assert!((im.model.force(&im.theta, 0.01, 0.1) - (63.8 + 18.4 + 12.3)).abs() < 1e-12);
         assert_eq!(im.parameter("fd"), Some(12.3));
+    }
+
+    #[test]
+    fn a_stribeck_term_is_a_breakaway_excess_over_the_kinetic_level() {
+        let m = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
+        let law = crate::basis::StribeckVelocity {
+            velocity_mps: 0.01,
+            exponent: 1.0,
+        };
+        let with = m.with_terms("coulomb+stribeck", &[Arc::new(law)]);
+        let im = IdentifiedModel::new(with, vec![6380.0, 184.0, 12.3, 5.7]);
+        let f = im.friction().unwrap();
+        assert_eq!((f.kinetic_n, f.breakaway_n), (12.3, 18.0));
+        assert_eq!((f.stribeck_velocity_mps, f.stribeck_exponent), (0.01, 1.0));
+        // Slipping at vs the excess has decayed to 5.7 / e.
+        let at_vs = 12.3 + 5.7 * (-1.0f64).exp();
+        assert!((f.slip_force_n(0.01) - at_vs).abs() < 1e-12);
+        // The smooth force leaves both jumping terms out.
+        assert!((im.smooth_force(0.01, 0.1, &[]) - (63.8 + 18.4)).abs() < 1e-12);
     }
 }

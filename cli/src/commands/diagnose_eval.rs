@@ -191,8 +191,9 @@ fn print_summary(args: &DiagnoseEvalArgs, s: &EvalSummary, results: &[Result<Cas
         pct(&s.false_alarms)
     );
     println!(
-        "out-of-library cases given a library name: {}  (target <= 10 %)",
-        pct(&s.out_of_library_named)
+        "out-of-library cases given a library name: {}  (target <= 10 %); named in part: {}",
+        pct(&s.out_of_library_named),
+        pct(&s.out_of_library_named_in_part)
     );
     println!(
         "single effects below 2 % gap: named right {}, adequate {}, other answer {}",
@@ -338,11 +339,18 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
                 }
                 continue;
             }
-            "out of library" => println!(
-                "given a library name: {}  (target <= 10 %){}",
-                pct(&s.out_of_library_named),
-                by_seed(|s| &s.out_of_library_named)
-            ),
+            "out of library" => {
+                println!(
+                    "given a library name: {}  (target <= 10 %){}",
+                    pct(&s.out_of_library_named),
+                    by_seed(|s| &s.out_of_library_named)
+                );
+                println!(
+                    "named \"in part\" (a lead that is not there): {}{}",
+                    pct(&s.out_of_library_named_in_part),
+                    by_seed(|s| &s.out_of_library_named_in_part)
+                );
+            }
             "no effect" => println!(
                 "false alarms: {}  (target <= 5 %){}",
                 pct(&s.false_alarms),

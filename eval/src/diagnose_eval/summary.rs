@@ -73,6 +73,9 @@ pub struct EvalSummary {
     pub false_alarms: Rate,
     /// Out-of-library cases given a library name.
     pub out_of_library_named: Rate,
+    /// Out-of-library cases whose verdict names a library effect "in part": a name given with
+    /// what it leaves, not a confident one, but a lead that is not there all the same.
+    pub out_of_library_named_in_part: Rate,
     /// Single effects with a gap below 2 %: how many were still named right, called adequate,
     /// or given another answer (a wrong name or "unexplained").
     pub below_threshold_named_right: Rate,
@@ -227,6 +230,12 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
         out_of_library_named: rate(
             ool.iter()
                 .filter(|r| r.verdict == Verdict::Explained)
+                .count(),
+            ool.len(),
+        ),
+        out_of_library_named_in_part: rate(
+            ool.iter()
+                .filter(|r| r.verdict == Verdict::ExplainedInPart)
                 .count(),
             ool.len(),
         ),
