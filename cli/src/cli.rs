@@ -458,6 +458,10 @@ pub struct DiagnoseEvalArgs {
     /// One JSON object (summary and cases) instead of tables.
     #[arg(long)]
     pub json: bool,
+    /// Also write that JSON object to this file (whole or not at all) while the tables print:
+    /// one run for both.
+    #[arg(long, value_name = "PATH")]
+    pub json_file: Option<std::path::PathBuf>,
     /// The forms of the planted effects: `exact` plants each in its candidate's form; `wide`
     /// draws each from a wider family in a world simulator of its own, adds new-name and
     /// out-of-library effects, and reports each group separately (its SNRs are fixed, 20, 30

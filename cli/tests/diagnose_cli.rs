@@ -216,6 +216,38 @@ fn eval_reports_rates_and_a_confusion_matrix() {
     assert_eq!(v["cases"].as_array().unwrap().len(), 3);
     let o = forcemap(&["diagnose-eval", "--cases", "0"]);
     assert_eq!(o.status.code(), Some(1));
+
+    // One run gives the tables and the same JSON in a file.
+    let tmp = tempfile::tempdir().unwrap();
+    let file = tmp.path().join("eval.json");
+    let file_arg = file.to_str().unwrap();
+    let o = forcemap(&[
+        "diagnose-eval",
+        "--cases",
+        "3",
+        "--seed",
+        "5",
+        "--json-file",
+        file_arg,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let tables = String::from_utf8_lossy(&o.stdout);
+    assert!(tables.contains("false alarms on no-effect cases"), "{tables}");
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    assert_eq!(saved["summary"], v["summary"]);
+    assert_eq!(saved["cases"], v["cases"]);
+    // A directory that is not there is refused before the run, naming it.
+    let missing = tmp.path().join("no_such_dir").join("eval.json");
+    let o = forcemap(&[
+        "diagnose-eval",
+        "--cases",
+        "3",
+        "--json-file",
+        missing.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("no_such_dir"), "{}", stderr(&o));
 }
 
 /// The EMPS benchmark (real data) through the time-domain path: with M q'' + Fv q' + offset the

@@ -281,5 +281,35 @@ fn an_exciter_resonance_is_not_named_exciter_delay() {
         r.named, r.gap_before_percent, r.gap_after_percent
     );
     assert_ne!(r.verdict, Verdict::Explained, "{r:?}");
-    assert!(r.ranked.iter().all(|(e, ..)| e != "exciter_delay"), "{r:?}");
+    assert!(r.ranked.iter().all(|c| c.effect != "exciter_delay"), "{r:?}");
+}
+
+/// An exciter resonance is not named "in part" by a friction refit that fits the sine steps
+/// no better than the baseline. Case 167 of `forcemap diagnose-eval --forms wide --seed 2`:
+/// its Stribeck candidate, refitted by output error to a misfit of 3.192 noise std against the
+/// baseline's 3.179, predicted the held-out records better (7.02 -> 4.11 %) and the verdict was
+/// "explained in part by stribeck_friction". The refit is now credited only when it fits the
+/// steps better; the note says why it was not, and the gap is unexplained.
+#[test]
+fn an_exciter_resonance_is_not_named_in_part_by_a_refit_that_fits_no_better() {
+    let c = forcemap_eval::diagnose_eval::generate_wide_cases(300, 2)[167];
+    assert_eq!(c.planted.label(), "out_of_library:exciter_resonance");
+    let r = run_case(&c).unwrap();
+    println!(
+        "exciter resonance: {} ({:.2} % -> {:.2} %); notes {:?}",
+        r.named, r.gap_before_percent, r.gap_after_percent, r.notes
+    );
+    assert_eq!(r.verdict, Verdict::Unexplained, "{r:?}");
+    assert!(
+        r.notes
+            .iter()
+            .any(|n| n.starts_with("stribeck_friction: its output-error refit fits the sine steps no better")),
+        "{:?}",
+        r.notes
+    );
+    assert!(
+        r.notes.iter().any(|n| n.contains("amplified")),
+        "the amplified base is named: {:?}",
+        r.notes
+    );
 }

@@ -3,7 +3,7 @@
 
 use forcemap_eval::diagnose_eval::world::World;
 use forcemap_eval::diagnose_eval::world::draw::draw;
-use forcemap_eval::diagnose_eval::{CaseResult, CaseSpec, Planted, summarise};
+use forcemap_eval::diagnose_eval::{CaseResult, CaseSpec, Planted, RankedCandidate, summarise};
 use forcemap_math::diagnose::Verdict;
 use forcemap_math::sim::TruthElement;
 use rand::SeedableRng;
@@ -72,8 +72,16 @@ fn pair_case(index: usize, ranked: [&str; 2], member_gap_percent: [f64; 2]) -> C
         second_named: None,
         ranked: ranked
             .iter()
-            .map(|n| (n.to_string(), 1.0, 1.0, None))
+            .map(|n| RankedCandidate {
+                effect: n.to_string(),
+                gap_after_percent: 1.0,
+                score_percent: 1.0,
+                step_cv_percent: None,
+                output_error_misfit: None,
+            })
             .collect(),
+        baseline_output_error_misfit: None,
+        notes: Vec::new(),
         best_pair: None,
     }
 }

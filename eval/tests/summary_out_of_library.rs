@@ -2,7 +2,7 @@
 //! is counted apart, and "unexplained" or "adequate" count as neither.
 
 use forcemap_eval::diagnose_eval::world::draw::draw;
-use forcemap_eval::diagnose_eval::{CaseResult, CaseSpec, Planted, summarise};
+use forcemap_eval::diagnose_eval::{CaseResult, CaseSpec, Planted, RankedCandidate, summarise};
 use forcemap_math::diagnose::Verdict;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -30,7 +30,15 @@ fn cogging_case(index: usize, verdict: Verdict, named: &str) -> CaseResult {
         baseline_cv_percent: None,
         second: None,
         second_named: None,
-        ranked: vec![("stribeck_friction".into(), 4.0, 4.0, None)],
+        ranked: vec![RankedCandidate {
+            effect: "stribeck_friction".into(),
+            gap_after_percent: 4.0,
+            score_percent: 4.0,
+            step_cv_percent: None,
+            output_error_misfit: None,
+        }],
+        baseline_output_error_misfit: None,
+        notes: Vec::new(),
         best_pair: None,
     }
 }

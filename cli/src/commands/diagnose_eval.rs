@@ -41,6 +41,20 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
     if !args.only.is_empty() {
         cases.retain(|c| args.only.contains(&c.index));
     }
+    if let Some(path) = &args.json_file {
+        // Before the run, not after: a long run should not end in a path it cannot write.
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(std::path::Path::new("."));
+        if !dir.is_dir() {
+            anyhow::bail!(
+                "--json-file {}: the directory {} does not exist",
+                path.display(),
+                dir.display()
+            );
+        }
+    }
     let pb = indicatif::ProgressBar::new(cases.len() as u64);
     pb.set_style(
         indicatif::ProgressStyle::with_template(
@@ -55,7 +69,7 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
     let results = eval::run_cases(&cases, args.threads, &progress);
     pb.finish_and_clear();
     let summary = eval::summarise(&results, args.snr_db);
-    if args.json {
+    let json = || {
         let per_seed: Vec<_> = args
             .seed
             .iter()
@@ -65,10 +79,13 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
             })
             .collect();
         let cases: Vec<_> = results.iter().filter_map(|r| r.as_ref().ok()).collect();
-        println!(
-            "{}",
-            serde_json::json!({"seeds": args.seed, "summary": summary, "per_seed": per_seed, "cases": cases})
-        );
+        serde_json::json!({"seeds": args.seed, "summary": summary, "per_seed": per_seed, "cases": cases})
+    };
+    if let Some(path) = &args.json_file {
+        forcemap_io::atomic::write_atomically(path, &format!("{}\n", json()))?;
+    }
+    if args.json {
+        println!("{}", json());
     } else if !args.only.is_empty() {
         for r in &results {
             match r {
@@ -321,7 +338,7 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
                     pct(&s.pairs_both_named)
                 );
                 for r in subset.iter().filter_map(|r| r.as_ref().ok()) {
-                    let top: Vec<&str> = r.ranked.iter().take(2).map(|x| x.0.as_str()).collect();
+                    let top: Vec<&str> = r.ranked.iter().take(2).map(|x| x.effect.as_str()).collect();
                     let named = match &r.second_named {
                         Some(second) => format!("{} + {second}", r.named),
                         None => r.named.clone(),
@@ -411,16 +428,30 @@ fn print_case(r: &CaseResult) {
         r.baseline_cv_percent
             .map_or("-".to_string(), |v| format!("{v:.3} %"))
     );
-    for (effect, after, score, cv) in &r.ranked {
-        let cv = cv.map_or("-".to_string(), |v| format!("{v:.3} %"));
-        let [after, score] = [after, score].map(|p| {
+    if let Some(m) = r.baseline_output_error_misfit {
+        println!("    (output-error misfit on the sine steps: baseline {m:.3} noise std)");
+    }
+    for c in &r.ranked {
+        let cv = c
+            .step_cv_percent
+            .map_or("-".to_string(), |v| format!("{v:.3} %"));
+        let [after, score] = [c.gap_after_percent, c.score_percent].map(|p| {
             if p.abs() < 1e4 {
                 format!("{p:>7.3} %")
             } else {
                 format!("{p:>7.2e} %")
             }
         });
-        println!("    {effect:<22} held-out {after}  score {score}  step CV {cv:>9}");
+        let oe = c
+            .output_error_misfit
+            .map_or(String::new(), |m| format!("  OE misfit {m:.3}"));
+        println!(
+            "    {:<22} held-out {after}  score {score}  step CV {cv:>9}{oe}",
+            c.effect
+        );
+    }
+    for n in &r.notes {
+        println!("    note: {n}");
     }
 }
 

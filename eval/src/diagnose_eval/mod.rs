@@ -148,12 +148,30 @@ pub struct CaseResult {
     pub second: Option<String>,
     /// The second effect when the verdict names two fitted together (`named` is the first).
     pub second_named: Option<String>,
-    /// Every candidate, best first: (effect, held-out NMSE with it [%], penalised score [%],
-    /// cross-validated force error on the sine steps [%]).
-    pub ranked: Vec<(String, f64, f64, Option<f64>)>,
+    /// Every candidate, best first.
+    pub ranked: Vec<RankedCandidate>,
+    /// The baseline's output-error misfit on the sine steps [noise std], when friction
+    /// candidates were refitted by output error.
+    pub baseline_output_error_misfit: Option<f64>,
+    /// The diagnosis's notes (an amplified base, a refused member, ...).
+    pub notes: Vec<String>,
     /// The best pair fitted together (the top candidate and the second effect searched on what
     /// it leaves): (first, second, held-out NMSE [%], penalised score [%]).
     pub best_pair: Option<(String, String, f64, f64)>,
+}
+
+/// One ranked candidate of a case.
+#[derive(Debug, Clone, Serialize)]
+pub struct RankedCandidate {
+    pub effect: String,
+    /// Held-out NMSE with it [%].
+    pub gap_after_percent: f64,
+    /// Held-out NMSE with the BIC penalty [%].
+    pub score_percent: f64,
+    /// Cross-validated force error on the sine steps [%].
+    pub step_cv_percent: Option<f64>,
+    /// Output-error misfit of its refit on the sine steps [noise std], when refitted.
+    pub output_error_misfit: Option<f64>,
 }
 
 /// Runs the diagnosis on one case.
@@ -255,15 +273,16 @@ fn diagnose_case(
         ranked: d
             .ranked_effects
             .iter()
-            .map(|r| {
-                (
-                    r.effect.name().to_string(),
-                    r.gap_after_percent,
-                    r.score_percent,
-                    r.phasor_cv_percent,
-                )
+            .map(|r| RankedCandidate {
+                effect: r.effect.name().to_string(),
+                gap_after_percent: r.gap_after_percent,
+                score_percent: r.score_percent,
+                step_cv_percent: r.phasor_cv_percent,
+                output_error_misfit: r.output_error_misfit,
             })
             .collect(),
+        baseline_output_error_misfit: d.baseline_output_error_misfit,
+        notes: d.notes.clone(),
         best_pair: d.best_pair.as_ref().map(|p| {
             (
                 p.effects[0].name().to_string(),

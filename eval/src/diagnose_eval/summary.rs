@@ -336,7 +336,7 @@ pub fn summarise(results: &[Result<CaseResult, String>], lower_snr_db: f64) -> E
 fn both_in_top_two(r: &CaseResult) -> bool {
     let top: Vec<&str> = match &r.second_named {
         Some(second) => vec![r.named.as_str(), second.as_str()],
-        None => r.ranked.iter().take(2).map(|x| x.0.as_str()).collect(),
+        None => r.ranked.iter().take(2).map(|x| x.effect.as_str()).collect(),
     };
     r.case
         .planted

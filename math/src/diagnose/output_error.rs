@@ -297,6 +297,20 @@ pub fn misfit_from(
     problem_of(steps, model)?.compare(theta)
 }
 
+/// Whether a refit fits the sine steps better than the baseline at its phasor fit (misfit
+/// `baseline_rms`): its sum of squared misfits lower by more than the BIC penalty of its
+/// `extra` parameters, `extra ln N`. A refit is credited with its held-out score only then: an
+/// out-of-library exciter resonance (wide seed 2 case 167, seed 4 case 158) had its Stribeck
+/// candidate refitted to a misfit no lower than the baseline's (3.192 against 3.179 noise
+/// std) that happened to predict the held-out records better (7.02 -> 4.11 %), and was named
+/// "in part"; a real Stribeck excess lowers it by a third or more (2.94 -> 0.98, exact seed 2
+/// case 139). The baseline is not refitted, so this is a lenient test of the refit, not a
+/// comparison of two optima.
+pub fn fits_steps_better(baseline_rms: f64, refit: &RigMisfit, extra: usize) -> bool {
+    let n = refit.samples as f64;
+    n * (baseline_rms.powi(2) - refit.misfit_rms.powi(2)) > extra as f64 * n.ln()
+}
+
 /// What [`rescore`] needs of the diagnosis so far.
 pub(super) struct Rescoring<'a> {
     pub steps: SineSteps<'a>,
@@ -384,6 +398,15 @@ pub(super) fn rescore(
             },
         );
         match refit {
+            Ok(ShapeRefit { fitted: f, misfit: m, .. })
+                if search::physical(&f) && !fits_steps_better(base, &m, extra) =>
+            {
+                notes.push(format!(
+                    "{}: its output-error refit fits the sine steps no better than the baseline (misfit {:.3} against {base:.3} noise std); phasor fit kept",
+                    r.effect.name(),
+                    m.misfit_rms
+                ))
+            }
             Ok(ShapeRefit {
                 fitted: f,
                 misfit: m,
@@ -415,4 +438,28 @@ pub(super) fn rescore(
         }
     }
     Some(base)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn misfit(rms: f64, samples: usize) -> RigMisfit {
+        RigMisfit {
+            theta: Vec::new(),
+            misfit_rms: rms,
+            samples,
+            stribeck_velocity_mps: None,
+        }
+    }
+
+    #[test]
+    fn a_refit_fits_better_only_by_more_than_its_parameters_cost() {
+        // N = 10^4 samples, 2 added parameters: the sum of squares must fall by more than
+        // 2 ln 10^4 = 18.4, i.e. rms^2 by 1.84e-3: 0.9995^2 is 1.0e-3 lower, 0.999^2 2.0e-3.
+        assert!(!fits_steps_better(1.0, &misfit(0.9995, 10_000), 2));
+        assert!(fits_steps_better(1.0, &misfit(0.999, 10_000), 2));
+        assert!(!fits_steps_better(3.179, &misfit(3.192, 30_000), 2));
+        assert!(fits_steps_better(2.94, &misfit(0.98, 30_000), 3));
+    }
 }
