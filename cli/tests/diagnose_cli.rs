@@ -232,7 +232,10 @@ fn eval_reports_rates_and_a_confusion_matrix() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let tables = String::from_utf8_lossy(&o.stdout);
-    assert!(tables.contains("false alarms on no-effect cases"), "{tables}");
+    assert!(
+        tables.contains("false alarms on no-effect cases"),
+        "{tables}"
+    );
     let saved: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
     assert_eq!(saved["summary"], v["summary"]);

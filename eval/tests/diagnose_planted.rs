@@ -281,7 +281,10 @@ fn an_exciter_resonance_is_not_named_exciter_delay() {
         r.named, r.gap_before_percent, r.gap_after_percent
     );
     assert_ne!(r.verdict, Verdict::Explained, "{r:?}");
-    assert!(r.ranked.iter().all(|c| c.effect != "exciter_delay"), "{r:?}");
+    assert!(
+        r.ranked.iter().all(|c| c.effect != "exciter_delay"),
+        "{r:?}"
+    );
 }
 
 /// An exciter resonance is not named "in part" by a friction refit that fits the sine steps
@@ -301,9 +304,9 @@ fn an_exciter_resonance_is_not_named_in_part_by_a_refit_that_fits_no_better() {
     );
     assert_eq!(r.verdict, Verdict::Unexplained, "{r:?}");
     assert!(
-        r.notes
-            .iter()
-            .any(|n| n.starts_with("stribeck_friction: its output-error refit fits the sine steps no better")),
+        r.notes.iter().any(|n| n.starts_with(
+            "stribeck_friction: its output-error refit fits the sine steps no better"
+        )),
         "{:?}",
         r.notes
     );

@@ -47,8 +47,8 @@ fn cogging_case(index: usize, verdict: Verdict, named: &str) -> CaseResult {
 fn out_of_library_names_in_part_are_counted_apart_from_confident_ones() {
     let cases = [
         cogging_case(0, Verdict::Explained, "stribeck_friction"),
-        cogging_case(1, Verdict::ExplainedInPart, "explained_in_part"),
-        cogging_case(2, Verdict::ExplainedInPart, "explained_in_part"),
+        cogging_case(1, Verdict::ExplainedInPart, "stribeck_friction in part"),
+        cogging_case(2, Verdict::ExplainedInPart, "series_compliance in part"),
         cogging_case(3, Verdict::Unexplained, "unexplained"),
         cogging_case(4, Verdict::Adequate, "adequate"),
     ]

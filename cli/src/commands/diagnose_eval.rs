@@ -338,7 +338,8 @@ fn print_wide(args: &DiagnoseEvalArgs, results: &[Result<CaseResult, String>]) {
                     pct(&s.pairs_both_named)
                 );
                 for r in subset.iter().filter_map(|r| r.as_ref().ok()) {
-                    let top: Vec<&str> = r.ranked.iter().take(2).map(|x| x.effect.as_str()).collect();
+                    let top: Vec<&str> =
+                        r.ranked.iter().take(2).map(|x| x.effect.as_str()).collect();
                     let named = match &r.second_named {
                         Some(second) => format!("{} + {second}", r.named),
                         None => r.named.clone(),
@@ -460,6 +461,14 @@ fn abbreviate(name: &str) -> String {
     match name {
         "adequate" => "adequate".into(),
         "unexplained" => "unexpl".into(),
+        n if n.ends_with(eval::IN_PART) => {
+            // "seri_c/p": a name in part beside the same name explained.
+            let base: String = abbreviate(n.trim_end_matches(eval::IN_PART))
+                .chars()
+                .take(6)
+                .collect();
+            format!("{base}/p")
+        }
         n => n
             .split('_')
             .map(|w| w.chars().take(4).collect::<String>())
@@ -478,5 +487,18 @@ fn diverged_note(s: &EvalSummary) -> String {
         n => format!(
             "; {n} case(s) left out whose baseline's held-out NMSE is above {DIVERGED_BASELINE_PERCENT} % (its simulation diverges)"
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_name_in_part_has_its_own_column_label() {
+        assert_eq!(abbreviate("series_compliance"), "seri_com");
+        let in_part = format!("series_compliance{}", eval::IN_PART);
+        assert_eq!(abbreviate(&in_part), "seri_c/p");
+        assert_eq!(abbreviate("unexplained"), "unexpl");
     }
 }

@@ -123,13 +123,18 @@ pub struct CaseSpec {
     pub snr_db: f64,
 }
 
+/// What follows the effect's name in [`CaseResult::named`] when the verdict is "explained in
+/// part" by it: never a hit, but which name the verdict gave shows in the confusion matrix.
+pub const IN_PART: &str = " in part";
+
 /// What one case gave.
 #[derive(Debug, Clone, Serialize)]
 pub struct CaseResult {
     pub case: CaseSpec,
     pub label: String,
     pub verdict: Verdict,
-    /// The named effect, or "adequate"/"unexplained".
+    /// The named effect, the effect and [`IN_PART`] for "explained in part", or
+    /// "adequate"/"unexplained".
     pub named: String,
     pub gap_before_percent: f64,
     pub gap_after_percent: f64,
@@ -254,6 +259,7 @@ fn diagnose_case(
     let f = &d.findings;
     let named = match (f.verdict, f.top_effect) {
         (Verdict::Explained, Some(e)) => e.name().to_string(),
+        (Verdict::ExplainedInPart, Some(e)) => format!("{}{IN_PART}", e.name()),
         (v, _) => v.name().to_string(),
     };
     Ok(CaseResult {
