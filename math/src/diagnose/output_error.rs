@@ -398,14 +398,16 @@ pub(super) fn rescore(
             },
         );
         match refit {
-            Ok(ShapeRefit { fitted: f, misfit: m, .. })
-                if search::physical(&f) && !fits_steps_better(base, &m, extra) =>
-            {
+            Ok(ShapeRefit {
+                fitted: f,
+                misfit: m,
+                ..
+            }) if search::physical(&f) && !fits_steps_better(base, &m, extra) => {
                 notes.push(format!(
                     "{}: its output-error refit fits the sine steps no better than the baseline (misfit {:.3} against {base:.3} noise std); phasor fit kept",
                     r.effect.name(),
                     m.misfit_rms
-                ))
+                ));
             }
             Ok(ShapeRefit {
                 fitted: f,
