@@ -128,6 +128,9 @@ fn of_seed(
 }
 
 fn pct(r: &eval::Rate) -> String {
+    if r.of == 0 {
+        return "no such case".into();
+    }
     format!("{:.1} % ({}/{})", r.percent, r.hits, r.of)
 }
 
@@ -258,14 +261,22 @@ fn print_confusion(s: &EvalSummary) {
         .collect();
     columns.sort();
     columns.dedup();
+    // Rows as wide as the longest planted label ("out_of_library:exciter_resonance").
+    let width = s
+        .confusion
+        .keys()
+        .map(String::len)
+        .max()
+        .unwrap_or(0)
+        .max(28);
     println!("confusion matrix (rows: planted; columns: named):");
-    print!("{:<28}", "");
+    print!("{:<width$}", "");
     for c in &columns {
         print!(" {:>8}", abbreviate(c));
     }
     println!();
     for (row, m) in &s.confusion {
-        print!("{row:<28}");
+        print!("{row:<width$}");
         for c in &columns {
             match m.get(c) {
                 Some(n) => print!(" {n:>8}"),
@@ -493,6 +504,22 @@ fn diverged_note(s: &EvalSummary) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_rate_of_no_case_says_so() {
+        let none = eval::Rate {
+            hits: 0,
+            of: 0,
+            percent: f64::NAN,
+        };
+        assert_eq!(pct(&none), "no such case");
+        let some = eval::Rate {
+            hits: 1,
+            of: 4,
+            percent: 25.0,
+        };
+        assert_eq!(pct(&some), "25.0 % (1/4)");
+    }
 
     #[test]
     fn a_name_in_part_has_its_own_column_label() {
