@@ -25,7 +25,7 @@ use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::{ExcitationState, RigSample};
 use forcemap_msgs::std_msgs::Header;
 use forcemap_nodes::node::harmonic::find_steps::StepFinder;
-use forcemap_nodes::node::harmonic::{Analysis, HarmonicState, Input, Outcome};
+use forcemap_nodes::node::harmonic::{Analysis, HarmonicState, Input, Outcome, RUN_END_SILENCE};
 
 fn bag(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -103,8 +103,10 @@ fn with_and_without_states(name: &str, options: &PhasorOptions) -> Compared {
     }
     // Each sine step is out once the next has begun, before the run ends.
     let before_end = out.len();
-    // The run ends: no sample for a while, and the last step completes.
+    // The run ends: no sample for a while, and the last step completes. A pause of 4 s (a
+    // reliable writer repairing a lost sample) is not yet the end.
     out.extend(found.handle(Input::Tick, t + Duration::from_secs(1)));
+    out.extend(found.handle(Input::Tick, t + RUN_END_SILENCE - Duration::from_secs(1)));
     assert_eq!(out.len(), before_end, "the run has not ended yet");
     out.extend(found.handle(Input::Tick, t + Duration::from_secs(10)));
     assert_eq!(found.buffered_samples(), Some(0));

@@ -64,6 +64,12 @@ use forcemap_io::topics;
 /// Samples of a step whose excitation state has not arrived are held this long (the two topics
 /// are not ordered with respect to each other).
 const PLAN_WAIT: Duration = Duration::from_secs(2);
+/// Finding steps (no excitation states), the run ends when no sample has come for this long.
+/// A pause in the stream is not always the end: a reliable DDS writer that lost a sample holds
+/// the stream until it repairs it, up to its heartbeat period (Fast DDS's default is 3 s), and
+/// a flooding bench publisher with a full keep-all history stalls with it. At 2 s the graph
+/// test with a Fast DDS bench saw its last step cut in two under load.
+pub const RUN_END_SILENCE: Duration = Duration::from_secs(5);
 /// At most this many samples wait for their excitation state.
 const MAX_PENDING: usize = 1_000_000;
 /// Plans of this many recent steps are kept.
@@ -102,7 +108,7 @@ pub struct HarmonicState {
     idle_since: Option<Instant>,
     /// Steps found in the samples instead of told by excitation states.
     finder: Option<StepFinder>,
-    /// When the last sample came (finding steps: the run ends `PLAN_WAIT` after it).
+    /// When the last sample came (finding steps: the run ends `RUN_END_SILENCE` after it).
     last_sample_at: Option<Instant>,
     /// Provisional phasors every this many seconds of a step's samples (`None`: off).
     update_period_s: Option<f64>,
@@ -174,7 +180,7 @@ impl HarmonicState {
     }
 
     /// Without excitation states: samples go to the finder, and the run ends (every step left
-    /// is complete) when no sample has come for `PLAN_WAIT`.
+    /// is complete) when no sample has come for `RUN_END_SILENCE`.
     fn handle_found(&mut self, input: Input, now: Instant) -> Vec<Outcome> {
         let found = match (&mut self.finder, input) {
             (Some(f), Input::Sample(s)) => {
@@ -184,7 +190,7 @@ impl HarmonicState {
             (Some(f), Input::Tick)
                 if self
                     .last_sample_at
-                    .is_some_and(|t| now.duration_since(t) > PLAN_WAIT) =>
+                    .is_some_and(|t| now.duration_since(t) > RUN_END_SILENCE) =>
             {
                 self.last_sample_at = None;
                 f.finish()
