@@ -6,12 +6,16 @@ use std::path::Path;
 
 use anyhow::Context as _;
 
+/// The directory `path` is written in: its parent, or "." for a bare file name.
+pub fn parent_dir(path: &Path) -> &Path {
+    path.parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+}
+
 /// Writes `text` to `path` through a temporary file in the same directory.
 pub fn write_atomically(path: &Path, text: &str) -> anyhow::Result<()> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let dir = parent_dir(path);
     let tmp = dir.join(format!(
         ".{}.tmp",
         path.file_name().and_then(|n| n.to_str()).unwrap_or("plot")
@@ -36,10 +40,7 @@ pub fn write_dir_atomically(
             dir.display()
         );
     }
-    let parent = dir
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let parent = parent_dir(dir);
     let name = dir
         .file_name()
         .and_then(|n| n.to_str())

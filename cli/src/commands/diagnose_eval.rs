@@ -43,10 +43,7 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.json_file {
         // Before the run, not after: a long run should not end in a path it cannot write.
-        let dir = path
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(std::path::Path::new("."));
+        let dir = forcemap_io::atomic::parent_dir(path);
         if !dir.is_dir() {
             anyhow::bail!(
                 "--json-file {}: the directory {} does not exist",
@@ -69,7 +66,8 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
     let results = eval::run_cases(&cases, args.threads, &progress);
     pb.finish_and_clear();
     let summary = eval::summarise(&results, args.snr_db);
-    let json = || {
+    // Built once, for the file and for stdout alike.
+    let json = (args.json || args.json_file.is_some()).then(|| {
         let per_seed: Vec<_> = args
             .seed
             .iter()
@@ -80,12 +78,12 @@ pub fn run(args: &DiagnoseEvalArgs) -> anyhow::Result<()> {
             .collect();
         let cases: Vec<_> = results.iter().filter_map(|r| r.as_ref().ok()).collect();
         serde_json::json!({"seeds": args.seed, "summary": summary, "per_seed": per_seed, "cases": cases})
-    };
-    if let Some(path) = &args.json_file {
-        forcemap_io::atomic::write_atomically(path, &format!("{}\n", json()))?;
+    });
+    if let (Some(path), Some(json)) = (&args.json_file, &json) {
+        forcemap_io::atomic::write_atomically(path, &format!("{json}\n"))?;
     }
-    if args.json {
-        println!("{}", json());
+    if let (true, Some(json)) = (args.json, &json) {
+        println!("{json}");
     } else if !args.only.is_empty() {
         for r in &results {
             match r {
