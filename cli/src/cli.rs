@@ -165,8 +165,12 @@ pub struct ReproduceArgs {
 
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {
-    /// A bag directory, a bare .mcap, or a test-bench CSV export (see docs/data.md).
-    pub file: PathBuf,
+    /// The data: bag directories or bare .mcap files, test-bench CSV exports, or (with
+    /// --channels) text, MDF4, TDMS or MAT files of a bench's own columns; several files (or
+    /// quoted glob patterns) are identified together, each keeping its own sample rate (see
+    /// docs/data.md).
+    #[arg(required = true, value_name = "FILE")]
+    pub files: Vec<PathBuf>,
     /// Model name (see `forcemap models`).
     #[arg(long)]
     pub model: String,
@@ -205,8 +209,9 @@ pub struct IdentifyArgs {
     /// Rig constants in a ROS 2 params YAML (`/**: ros__parameters: {mass_kg: 36.0}`).
     #[arg(long)]
     pub params: Option<PathBuf>,
-    /// A channel map (YAML): FILE is a bag recorded with the bench's own message types, each
-    /// channel read from the topic and field the map names (see docs/data.md).
+    /// A channel map (YAML): which column of a text, MDF4, TDMS or MAT file (channel:, with
+    /// its unit or scale) or which topic and field of a bag recorded with the bench's own
+    /// message types (topic:, field:) supplies each channel (see docs/data.md).
     #[arg(long, value_name = "MAP")]
     pub channels: Option<PathBuf>,
     /// Highest harmonic to analyse (default: as many as the sampling allows, at most 100;
@@ -399,16 +404,16 @@ pub struct DiagnoseArgs {
     /// A bag directory, a bare .mcap or a test-bench CSV export (sine steps and, for an element
     /// test, multisine records are fitted, random records held out); or an EMPS .mat file
     /// (time-domain path, scored on --validate).
-    #[arg(required_unless_present = "demo")]
-    pub data: Option<PathBuf>,
+    #[arg(required_unless_present = "demo", value_name = "DATA")]
+    pub data: Vec<PathBuf>,
     /// The baseline model (see `forcemap models`; for EMPS: emps-viscous or emps-coulomb).
     #[arg(long, required_unless_present = "demo")]
     pub model: Option<String>,
     /// More held-out data (same forms as DATA): the rig's records simulated on the rig; an
     /// element test's sweep or band-random records, its force predicted from the measured
     /// motion.
-    #[arg(long)]
-    pub validate: Option<PathBuf>,
+    #[arg(long, num_args = 1.., value_name = "FILE")]
+    pub validate: Vec<PathBuf>,
     /// Sine steps to hold out as well, e.g. 3,7.
     #[arg(long, value_delimiter = ',')]
     pub holdout_steps: Vec<usize>,
@@ -418,8 +423,8 @@ pub struct DiagnoseArgs {
     /// Rig constants in a ROS 2 params YAML.
     #[arg(long)]
     pub params: Option<PathBuf>,
-    /// A channel map (YAML): DATA (and --validate) are bags recorded with the bench's own
-    /// message types (see docs/data.md).
+    /// A channel map (YAML) that DATA and --validate are read through: file columns
+    /// (channel:) or a bag's topics (topic:, field:), see docs/data.md.
     #[arg(long, value_name = "MAP")]
     pub channels: Option<PathBuf>,
     /// Slope M [s/m] of the atan friction term (coulomb-atan baselines).

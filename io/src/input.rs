@@ -2,13 +2,13 @@
 //! test-bench CSV export, an ASAM MDF4 or an NI TDMS file.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use forcemap_math::record::Record;
 
 use crate::bag::BagReader;
-use crate::channel_map::ChannelMap;
-use crate::csv_export::read_csv;
+use crate::channel_map::MapFile;
+use crate::csv_export::{CsvImport, read_csv};
 use crate::foreign_bag::read_foreign_bag;
 use crate::rig_bag::{RigBag, RigBagReader, read_rig_bag};
 use forcemap_math::recipe::SetupKind;
@@ -71,12 +71,16 @@ pub fn kind_of(records: &[Record], source: &str) -> anyhow::Result<SetupKind> {
 pub enum FileFormat {
     Mdf,
     Tdms,
+    /// A MATLAB level-5 MAT file.
+    Mat,
+    /// A CSV export or another text file of columns.
     Csv,
 }
 
 impl FileFormat {
     /// The format of the file at `path`: by its first bytes (MDF's `MDF     ` or `UnFinMF `,
-    /// TDMS's `TDSm`), else by its extension (`.mf4`, `.mdf`, `.tdms`), else a CSV export.
+    /// TDMS's `TDSm`, a MAT file's `MATLAB 5.0 MAT-file`), else by its extension (`.mf4`,
+    /// `.mdf`, `.tdms`, `.mat`), else text (a CSV export).
     pub fn of(path: &Path) -> FileFormat {
         let mut head = [0u8; 8];
         let n = std::fs::File::open(path)
@@ -91,10 +95,13 @@ impl FileFormat {
             FileFormat::Mdf
         } else if crate::tdms::is_tdms(head) {
             FileFormat::Tdms
+        } else if crate::axis::is_mat_file(path) {
+            FileFormat::Mat
         } else {
             match ext.as_deref() {
                 Some("mf4" | "mdf") => FileFormat::Mdf,
                 Some("tdms") => FileFormat::Tdms,
+                Some("mat") => FileFormat::Mat,
                 _ => FileFormat::Csv,
             }
         }
@@ -110,20 +117,30 @@ pub fn load(path: &Path) -> anyhow::Result<Loaded> {
         let csv = match FileFormat::of(path) {
             FileFormat::Mdf => crate::mdf::read_mdf(path)?,
             FileFormat::Tdms => crate::tdms::read_tdms(path)?,
+            FileFormat::Mat => anyhow::bail!(
+                "{}: a MAT file is read as an axis record (the EMPS form), or through a channel \
+                 map naming its variables (--channels MAP)",
+                path.display()
+            ),
             FileFormat::Csv => read_csv(path)?,
         };
-        for w in &csv.warnings {
-            eprintln!("warning: {}: {w}", path.display());
-        }
-        for notice in &csv.notices {
-            eprintln!("notice: {notice}");
-        }
-        Ok(Loaded {
-            records: csv.records,
-            kind: csv.kind,
-            parameters: BTreeMap::new(),
-            ignored_columns: csv.ignored_columns,
-        })
+        Ok(of_import(path, csv))
+    }
+}
+
+/// The records of a file read into the CSV contract, its warnings and notices printed.
+fn of_import(path: &Path, csv: CsvImport) -> Loaded {
+    for w in &csv.warnings {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    for notice in &csv.notices {
+        eprintln!("notice: {notice}");
+    }
+    Loaded {
+        records: csv.records,
+        kind: csv.kind,
+        parameters: BTreeMap::new(),
+        ignored_columns: csv.ignored_columns,
     }
 }
 
@@ -166,20 +183,37 @@ fn of_bag_of_kind(path: &Path, bag: RigBag, kind: SetupKind) -> anyhow::Result<L
     })
 }
 
-/// As [`load`]; with a channel map (`channels`), `path` is a bag recorded by a bench's own
-/// tools, read through the map ([`crate::foreign_bag`]).
+/// As [`load`]; with a channel map (`channels`), `path` is read through it: a bag recorded
+/// by a bench's own tools through a topic map ([`crate::foreign_bag`]), a text, MDF4, TDMS
+/// or MAT file through a map of its columns ([`crate::tabular`]).
 pub fn load_mapped(path: &Path, channels: Option<&Path>) -> anyhow::Result<Loaded> {
     let Some(map_path) = channels else {
         return load(path);
     };
-    if !is_bag(path) {
-        anyhow::bail!(
-            "{}: a channel map applies to bags (a directory or a .mcap file) only",
-            path.display()
-        );
+    match MapFile::read(map_path)? {
+        MapFile::Topics(map) => {
+            if !is_bag(path) {
+                anyhow::bail!(
+                    "{}: {} maps a bag's topics (topic:, field:); a file of columns needs a \
+                     map of its columns (channel:, docs/data.md)",
+                    path.display(),
+                    map_path.display()
+                );
+            }
+            of_bag(path, read_foreign_bag(path, &map)?)
+        }
+        MapFile::Columns(map) => {
+            if is_bag(path) {
+                anyhow::bail!(
+                    "{}: {} maps file columns (channel:); a bag needs a map of its topics \
+                     (topic:, field:, docs/data.md)",
+                    path.display(),
+                    map_path.display()
+                );
+            }
+            Ok(of_import(path, crate::tabular::read_mapped(path, &map)?))
+        }
     }
-    let map = ChannelMap::read(map_path)?;
-    of_bag(path, read_foreign_bag(path, &map)?)
 }
 
 /// As [`load_measured`]; with a channel map, the steps of a bench's own bag.
@@ -188,4 +222,93 @@ pub fn load_measured_mapped(path: &Path, channels: Option<&Path>) -> anyhow::Res
         None => load_measured(path),
         Some(_) => Ok(Measured::Steps(load_mapped(path, channels)?)),
     }
+}
+
+/// What several files give together: each file's records in the order of the files, their
+/// steps numbered on after the previous file's last, each keeping its own sample rate; one setup
+/// for all, and the constants the files carry (a constant two files give differently is an
+/// error naming both).
+pub fn load_files(paths: &[PathBuf], channels: Option<&Path>) -> anyhow::Result<Loaded> {
+    let Some((first_path, rest)) = paths.split_first() else {
+        anyhow::bail!("no data file given");
+    };
+    let mut all = load_mapped(first_path, channels)?;
+    if rest.is_empty() {
+        return Ok(all);
+    }
+    let next_step = |records: &[Record]| records.iter().map(|r| r.step + 1).max().unwrap_or(0);
+    let mut spans = vec![(first_path, 0..next_step(&all.records))];
+    for path in rest {
+        let next = load_mapped(path, channels)?;
+        if next.kind != all.kind {
+            anyhow::bail!(
+                "{}: its channels are a {} setup's, but {} holds a {} setup's; files \
+                 identified together must hold one setup",
+                path.display(),
+                next.kind,
+                first_path.display(),
+                all.kind
+            );
+        }
+        for (name, value) in next.parameters {
+            match all.parameters.get(&name) {
+                Some(v) if *v != value => anyhow::bail!(
+                    "{}: carries {name} = {value}, but an earlier file carries {name} = {v}",
+                    path.display()
+                ),
+                _ => {
+                    all.parameters.insert(name, value);
+                }
+            }
+        }
+        let offset = next_step(&all.records);
+        spans.push((path, offset..offset + next_step(&next.records)));
+        all.records.extend(next.records.into_iter().map(|mut r| {
+            r.step += offset;
+            r
+        }));
+        for c in next.ignored_columns {
+            if !all.ignored_columns.contains(&c) {
+                all.ignored_columns.push(c);
+            }
+        }
+    }
+    let listed: Vec<String> = spans
+        .iter()
+        .map(|(p, s)| match s.len() {
+            0 => format!("{}: no record", p.display()),
+            1 => format!("{}: step {}", p.display(), s.start),
+            _ => format!("{}: steps {}-{}", p.display(), s.start, s.end - 1),
+        })
+        .collect();
+    eprintln!(
+        "notice: {} files read together: {}",
+        paths.len(),
+        listed.join("; ")
+    );
+    Ok(all)
+}
+
+/// The files `args` name: each argument as it is where such a path exists, else as a glob
+/// pattern (`runs/*.txt`, for shells that do not expand it) matching at least one file, in
+/// sorted order.
+pub fn expand_paths(args: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for a in args {
+        let text = a.to_string_lossy();
+        if a.exists() || !text.contains(['*', '?', '[']) {
+            out.push(a.clone());
+            continue;
+        }
+        let mut matched: Vec<PathBuf> = glob::glob(&text)
+            .map_err(|e| anyhow::anyhow!("{text}: not a valid file pattern: {e}"))?
+            .filter_map(Result::ok)
+            .collect();
+        if matched.is_empty() {
+            anyhow::bail!("{text}: no file matches this pattern");
+        }
+        matched.sort();
+        out.append(&mut matched);
+    }
+    Ok(out)
 }

@@ -21,5 +21,8 @@ pub mod ros_msg;
 pub mod stamp_align;
 pub mod steps;
 pub mod table;
+pub mod table_map;
+pub mod tabular;
 pub mod tdms;
 pub mod topics;
+pub mod units;

@@ -3,17 +3,19 @@
 //! last release within our rust-version) into records through the CSV contract's rows
 //! ([`crate::table`]).
 //!
-//! Channels are picked by name ([`crate::table::contract_column`]) from one channel group;
-//! time is the `time_s` channel, or else the group's master channel (its time stamps, as
-//! asammdf's `time` master). Invalid samples (their invalidation bit set) become NaN, which
-//! the row rules refuse naming the sample.
+//! Channels are picked by a channel map ([`crate::tabular`]), or without one by forcemap's
+//! names ([`crate::table::contract_column`]) from one channel group; time is the `time_s`
+//! channel, or else the group's master channel (its time stamps, as asammdf's `time`
+//! master). Invalid samples (their invalidation bit set) become NaN, which the row rules
+//! refuse naming the sample.
 
 use std::path::Path;
 
 use mdf4_rs::MDF;
 
-use crate::csv_export::{CsvImport, TIME_COLUMN};
-use crate::table::{SampleTable, TableError, contract_column};
+use crate::csv_export::CsvImport;
+use crate::table::TableError;
+use crate::tabular::{ColumnFile, ColumnInfo, RawValues, TimeBase};
 
 const FORMAT: &str = "MDF4";
 /// `cn_type` of a master and a virtual master channel, `cn_sync_type` of time.
@@ -26,30 +28,125 @@ pub fn is_mdf(bytes: &[u8]) -> bool {
     bytes.starts_with(b"MDF     ") || bytes.starts_with(b"UnFinMF ")
 }
 
-/// Reads an MDF4 file's forcemap channels into records.
+/// Reads an MDF4 file's forcemap channels (named as forcemap names them) into records.
+pub fn read_mdf(path: &Path) -> Result<CsvImport, TableError> {
+    crate::tabular::read_by_contract_names(path)
+}
+
+/// An MDF4 file as a file of columns: every channel of every channel group, with its unit;
+/// a group's master time channel is its time base.
 ///
 /// mdf4-rs 0.3.0 follows some links without checking them (fuzzing found a slice past the
 /// file's end within 343 inputs; 0.6 checks them but needs Rust 1.97): the chains of data
 /// groups, channel groups and channels are checked here first (inside the file, the expected
 /// block, no cycle), and a panic left in the crate is caught and reported as a malformed file.
-pub fn read_mdf(path: &Path) -> Result<CsvImport, TableError> {
-    let fail = |message: String| TableError::Format {
+pub struct MdfColumns {
+    path: std::path::PathBuf,
+    mdf: MDF,
+    columns: Vec<ColumnInfo>,
+    /// The channel group and channel of each column.
+    at: Vec<(usize, usize)>,
+}
+
+fn malformed(path: &Path) -> TableError {
+    TableError::Format {
         path: path.to_path_buf(),
         format: FORMAT,
-        message,
-    };
-    let bytes = std::fs::read(path).map_err(|source| TableError::Io {
-        path: path.to_path_buf(),
-        action: "cannot read",
-        source,
-    })?;
-    check_chains(&bytes).map_err(fail)?;
-    drop(bytes);
-    let table = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read_table(path)))
-        .map_err(|_| {
-            fail("malformed: the MDF4 parser (mdf4-rs) failed on a block of this file".to_string())
-        })??;
-    table.into_import(path, FORMAT)
+        message: "malformed: the MDF4 parser (mdf4-rs) failed on a block of this file".to_string(),
+    }
+}
+
+impl MdfColumns {
+    pub fn open(path: &Path) -> Result<MdfColumns, TableError> {
+        let fail = |message: String| TableError::Format {
+            path: path.to_path_buf(),
+            format: FORMAT,
+            message,
+        };
+        let bytes = std::fs::read(path).map_err(|source| TableError::Io {
+            path: path.to_path_buf(),
+            action: "cannot read",
+            source,
+        })?;
+        check_chains(&bytes).map_err(fail)?;
+        drop(bytes);
+        let name = path
+            .to_str()
+            .ok_or_else(|| fail("the path is not UTF-8".to_string()))?;
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            let mdf = MDF::from_file(name).map_err(|e| fail(e.to_string()))?;
+            let mut columns = Vec::new();
+            let mut at = Vec::new();
+            for (g, group) in mdf.channel_groups().iter().enumerate() {
+                let group_name = group
+                    .name()
+                    .ok()
+                    .flatten()
+                    .filter(|n| !n.is_empty())
+                    .unwrap_or_else(|| g.to_string());
+                for (c, ch) in group.channels().iter().enumerate() {
+                    let block = ch.block();
+                    let name = ch
+                        .name()
+                        .map_err(|e| fail(format!("channel group {g}: {e}")))?;
+                    let is_time = matches!(block.channel_type, MASTER | VIRTUAL_MASTER)
+                        && block.sync_type == SYNC_TIME;
+                    columns.push(ColumnInfo {
+                        name,
+                        group: Some(group_name.clone()),
+                        position: c + 1,
+                        matrix_column: None,
+                        unit: ch.unit().ok().flatten(),
+                        time_base: is_time.then_some(TimeBase::Master),
+                    });
+                    at.push((g, c));
+                }
+            }
+            Ok(MdfColumns {
+                path: path.to_path_buf(),
+                mdf,
+                columns,
+                at,
+            })
+        }))
+        .map_err(|_| malformed(path))?
+    }
+}
+
+impl ColumnFile for MdfColumns {
+    fn format(&self) -> &'static str {
+        FORMAT
+    }
+
+    fn columns(&self) -> &[ColumnInfo] {
+        &self.columns
+    }
+
+    fn read(&mut self, picks: &[(usize, bool)]) -> Result<Vec<RawValues>, TableError> {
+        let path = self.path.clone();
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            let groups = self.mdf.channel_groups();
+            picks
+                .iter()
+                .map(|&(k, _)| {
+                    let (g, c) = self.at[k];
+                    let channels = groups[g].channels();
+                    let values = channels[c].values().map_err(|e| TableError::Format {
+                        path: path.clone(),
+                        format: FORMAT,
+                        message: format!("{}: {e}", self.columns[k].label()),
+                    })?;
+                    Ok(RawValues::Numbers(
+                        values
+                            .into_iter()
+                            .map(|v| v.and_then(|v| v.as_f64()).unwrap_or(f64::NAN))
+                            .collect(),
+                    ))
+                })
+                .collect()
+        }))
+        .map_err(|_| malformed(&path))?
+    }
 }
 
 fn u64_at(bytes: &[u8], at: usize) -> Option<u64> {
@@ -129,82 +226,4 @@ fn check_chains(bytes: &[u8]) -> Result<(), String> {
         dg = link(d, 0);
     }
     Ok(())
-}
-
-fn read_table(path: &Path) -> Result<SampleTable, TableError> {
-    let fail = |message: String| TableError::Format {
-        path: path.to_path_buf(),
-        format: FORMAT,
-        message,
-    };
-    let name = path
-        .to_str()
-        .ok_or_else(|| fail("the path is not UTF-8".to_string()))?;
-    let mdf = MDF::from_file(name).map_err(|e| fail(e.to_string()))?;
-
-    // The forcemap channels of each group, and the group's master time channel.
-    let mut picked: Vec<(usize, Vec<(&'static str, mdf4_rs::Channel<'_>)>)> = Vec::new();
-    let groups = mdf.channel_groups();
-    for (g, group) in groups.iter().enumerate() {
-        let mut found = Vec::new();
-        let mut master = None;
-        for ch in group.channels() {
-            let block = ch.block();
-            let name = ch
-                .name()
-                .map_err(|e| fail(format!("channel group {g}: {e}")))?;
-            let column = name.as_deref().and_then(contract_column);
-            if let Some(column) = column {
-                found.push((column, ch));
-            } else if matches!(block.channel_type, MASTER | VIRTUAL_MASTER)
-                && block.sync_type == SYNC_TIME
-            {
-                master = Some(ch);
-            }
-        }
-        if found.is_empty() {
-            continue;
-        }
-        if !found.iter().any(|(c, _)| *c == TIME_COLUMN)
-            && let Some(m) = master
-        {
-            found.insert(0, (TIME_COLUMN, m));
-        }
-        picked.push((g, found));
-    }
-    match picked.len() {
-        0 => return Ok(SampleTable::default()),
-        1 => {}
-        _ => {
-            let list: Vec<String> = picked
-                .iter()
-                .map(|(g, f)| {
-                    let names: Vec<&str> = f.iter().map(|(c, _)| *c).collect();
-                    format!("group {g} ({})", names.join(", "))
-                })
-                .collect();
-            return Err(fail(format!(
-                "forcemap channels are in several channel groups: {}; forcemap reads one time \
-                 base (put them in one group)",
-                list.join("; ")
-            )));
-        }
-    }
-    let (g, found) = picked.remove(0);
-    let mut table = SampleTable::default();
-    for (column, ch) in found {
-        let values = ch
-            .values()
-            .map_err(|e| fail(format!("channel group {g}, channel '{column}': {e}")))?
-            .into_iter()
-            .map(|v| v.and_then(|v| v.as_f64()).unwrap_or(f64::NAN))
-            .collect();
-        table.push(column, values, path, FORMAT)?;
-    }
-    if !table.columns.iter().any(|(c, _)| *c == TIME_COLUMN) {
-        return Err(fail(format!(
-            "channel group {g} has neither a 'time_s' channel nor a master time channel"
-        )));
-    }
-    Ok(table)
 }

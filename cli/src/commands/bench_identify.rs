@@ -97,9 +97,10 @@ type Theta = Vec<(String, f64)>;
 /// and CPU seconds and theta.
 fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Theta)> {
     let a = &args.identify;
-    let file = a.file.display().to_string();
+    let path = the_file(args)?;
+    let file = path.display().to_string();
     let t0 = Clocks::start();
-    let import = forcemap_io::input::load(&a.file)?;
+    let import = forcemap_io::input::load(path)?;
     let (csv_s, csv_cpu_s) = t0.elapsed();
     let recipe = super::identify::recipe(a, import.kind, &import.parameters, &file)?;
     let setup = recipe.setup.setup()?;
@@ -157,7 +158,7 @@ fn run_peer(
     // `python - ARGS` runs the script from stdin.
     let mut child = Command::new(python)
         .arg("-")
-        .arg(&args.identify.file)
+        .arg(the_file(args)?)
         .args(["--mass-kg", &mass_kg.to_string()])
         .args(["--repeats", &args.repeats.to_string()])
         .stdin(Stdio::piped())
@@ -204,6 +205,14 @@ fn run_peer(
     }))
 }
 
+/// The one file a benchmark times.
+fn the_file(args: &BenchIdentifyArgs) -> anyhow::Result<&std::path::Path> {
+    match args.identify.files.as_slice() {
+        [one] => Ok(one),
+        _ => bail!("bench identify times one file at a time"),
+    }
+}
+
 pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
     if args.repeats == 0 {
         bail!("--repeats must be at least 1");
@@ -232,7 +241,7 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
         "total_cpu_s": med_cpu(Stages::total_s),
         "theta": theta.iter().map(|(n, v)| (n.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
     });
-    let file = args.identify.file.display().to_string();
+    let file = the_file(args)?.display().to_string();
     println!(
         "{file}: forcemap identify, medians of {} runs",
         args.repeats
@@ -260,7 +269,7 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
     let mass_kg = match args.identify.mass_kg {
         Some(m) => m,
         None => {
-            let import = forcemap_io::input::load(&args.identify.file)?;
+            let import = forcemap_io::input::load(the_file(args)?)?;
             let recipe =
                 super::identify::recipe(&args.identify, import.kind, &import.parameters, &file)?;
             match recipe.setup.setup()? {

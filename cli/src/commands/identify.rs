@@ -72,26 +72,33 @@ fn phasor_options(args: &IdentifyArgs) -> PhasorOptions {
 /// The sine steps of a bag analysed as they are read (`Err`: the first analysis that failed).
 type Streamed = Result<(Vec<HarmonicAnalysis>, Vec<String>), pipeline::PipelineError>;
 
-/// Reads `args.file`. A rig's or drive-point bag identified by fd or fd-multi, converged and
+/// Reads `args.files`. A rig's or drive-point bag identified by fd or fd-multi, converged and
 /// without plots, is streamed: each sine step is analysed into its phasors as soon as it is
 /// complete and dropped, so that memory does not grow with the bag (the other records are
 /// kept, for validation); the analyses are returned with it.
 fn load(args: &IdentifyArgs) -> anyhow::Result<(forcemap_io::input::Loaded, Option<Streamed>)> {
-    let streams = forcemap_io::input::is_bag(&args.file)
-        && args.channels.is_none()
+    let files = forcemap_io::input::expand_paths(&args.files)?;
+    let single_bag = match files.as_slice() {
+        [f] => forcemap_io::input::is_bag(f).then_some(f),
+        _ => None,
+    };
+    let Some(bag) = single_bag.filter(|_| args.channels.is_none()) else {
+        let import = forcemap_io::input::load_files(&files, args.channels.as_deref())?;
+        return Ok((import, None));
+    };
+    let streams = args.plot.is_none()
         && args.plot.is_none()
         && matches!(method(args)?, Method::Fd | Method::FdMulti)
         && Tracking::from_factor(args.forgetting_per_step)? == Tracking::Converged
         && args.update_period_s.is_none();
     if !streams {
-        let import = forcemap_io::input::load_mapped(&args.file, args.channels.as_deref())?;
-        return Ok((import, None));
+        return Ok((forcemap_io::input::load(bag)?, None));
     }
     let phasor = phasor_options(args);
     let mut streamed: Streamed = Ok((Vec::new(), Vec::new()));
     // An element test's outputs need its sine steps' samples: kept whole.
     let mut element = false;
-    let import = forcemap_io::input::load_bag_reduced(&args.file, |kind, r| {
+    let import = forcemap_io::input::load_bag_reduced(bag, |kind, r| {
         element = kind == SetupKind::Element;
         let Ok((analyses, notes)) = &mut streamed else {
             return Some(r);
@@ -114,8 +121,17 @@ fn load(args: &IdentifyArgs) -> anyhow::Result<(forcemap_io::input::Loaded, Opti
     Ok((import, (!element).then_some(streamed)))
 }
 
+/// How the data are named in messages: the file, or the first and how many more.
+pub fn data_name(files: &[std::path::PathBuf]) -> String {
+    match files {
+        [one] => one.display().to_string(),
+        [first, rest @ ..] => format!("{} (+{} files)", first.display(), rest.len()),
+        [] => String::new(),
+    }
+}
+
 pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
-    let file = args.file.display().to_string();
+    let file = data_name(&args.files);
     let (import, mut streamed) = load(args)?;
     if !import.ignored_columns.is_empty() {
         eprintln!(

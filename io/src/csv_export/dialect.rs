@@ -195,7 +195,7 @@ pub fn prepare<'a>(bytes: &'a [u8], path: &Path) -> Result<Prepared<'a>, CsvErro
 }
 
 /// Byte ranges of the lines of `body`, each with its line end.
-fn line_spans(body: &[u8]) -> Vec<std::ops::Range<usize>> {
+pub(crate) fn line_spans(body: &[u8]) -> Vec<std::ops::Range<usize>> {
     let mut spans = Vec::new();
     let mut start = 0;
     for (i, &b) in body.iter().enumerate() {
@@ -210,12 +210,12 @@ fn line_spans(body: &[u8]) -> Vec<std::ops::Range<usize>> {
     spans
 }
 
-fn is_blank(line: &[u8]) -> bool {
+pub(crate) fn is_blank(line: &[u8]) -> bool {
     line.iter().all(u8::is_ascii_whitespace)
 }
 
 /// The cells of one line (quotes as the `csv` crate reads them), trimmed.
-fn cells(line: &[u8], separator: u8) -> Vec<String> {
+pub(crate) fn cells(line: &[u8], separator: u8) -> Vec<String> {
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(false)
         .flexible(true)

@@ -10,15 +10,17 @@
 //! contiguous or interleaved chunks; object lists carried over between segments) and bounds
 //! every length it reads by the bytes that are there.
 //!
-//! Channels are picked by name in any group ([`crate::table::contract_column`]); time is the
-//! `time_s` channel, or else the waveform properties of the picked channels
-//! (`wf_start_offset + k * wf_increment`), which must agree.
+//! Channels are picked by a channel map (group and channel, [`crate::tabular`]), or without
+//! one by forcemap's names ([`crate::table::contract_column`]); a channel's unit is its
+//! `unit_string`; time is the `time_s` channel, or else the waveform properties of the
+//! picked channels (`wf_start_offset + k * wf_increment`), which must agree.
 
 use std::collections::HashMap;
 use std::path::Path;
 
-use crate::csv_export::{CsvImport, TIME_COLUMN};
-use crate::table::{SampleTable, TableError, contract_column};
+use crate::csv_export::CsvImport;
+use crate::table::TableError;
+use crate::tabular::{ColumnFile, ColumnInfo, RawValues, TimeBase};
 
 const FORMAT: &str = "TDMS";
 const LEAD_IN: usize = 28;
@@ -36,24 +38,93 @@ pub fn is_tdms(bytes: &[u8]) -> bool {
     bytes.starts_with(b"TDSm")
 }
 
-/// Reads a TDMS file's forcemap channels into records.
+/// Reads a TDMS file's forcemap channels (named as forcemap names them) into records.
 pub fn read_tdms(path: &Path) -> Result<CsvImport, TableError> {
-    let bytes = std::fs::read(path).map_err(|source| TableError::Io {
-        path: path.to_path_buf(),
-        action: "cannot read",
-        source,
-    })?;
-    read_tdms_bytes(&bytes, path)
+    crate::tabular::read_by_contract_names(path)
 }
 
 /// [`read_tdms`] of a file's bytes; `path` names it in errors.
 pub fn read_tdms_bytes(bytes: &[u8], path: &Path) -> Result<CsvImport, TableError> {
-    let file = parse(bytes).map_err(|message| TableError::Format {
-        path: path.to_path_buf(),
-        format: FORMAT,
-        message,
-    })?;
-    file.into_table(path)?.into_import(path, FORMAT)
+    let mut file = TdmsColumns::from_bytes(bytes, path)?;
+    let map = crate::tabular::default_map(&file, path)?;
+    crate::tabular::read_through(&mut file, path, &map)
+}
+
+/// A TDMS file as a file of columns: every channel of every group with data, its unit from
+/// `unit_string`, its waveform timing from `wf_start_offset` and `wf_increment`.
+pub struct TdmsColumns {
+    columns: Vec<ColumnInfo>,
+    values: Vec<Vec<f64>>,
+}
+
+impl TdmsColumns {
+    pub fn open(path: &Path) -> Result<TdmsColumns, TableError> {
+        let bytes = std::fs::read(path).map_err(|source| TableError::Io {
+            path: path.to_path_buf(),
+            action: "cannot read",
+            source,
+        })?;
+        TdmsColumns::from_bytes(&bytes, path)
+    }
+
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<TdmsColumns, TableError> {
+        let mut file = parse(bytes).map_err(|message| TableError::Format {
+            path: path.to_path_buf(),
+            format: FORMAT,
+            message,
+        })?;
+        let mut columns = Vec::new();
+        let mut values = Vec::new();
+        for p in &file.order {
+            let Some((group, channel)) = object_names(p) else {
+                continue;
+            };
+            let obj = file.objects.remove(p).unwrap_or_default();
+            let position = columns
+                .iter()
+                .filter(|c: &&ColumnInfo| c.group.as_deref() == Some(group.as_str()))
+                .count()
+                + 1;
+            let time_base =
+                obj.properties
+                    .get("wf_increment")
+                    .map(|&increment_s| TimeBase::Waveform {
+                        start_s: obj
+                            .properties
+                            .get("wf_start_offset")
+                            .copied()
+                            .unwrap_or(0.0),
+                        increment_s,
+                    });
+            columns.push(ColumnInfo {
+                name: Some(channel),
+                group: Some(group),
+                position,
+                matrix_column: None,
+                unit: obj.text_properties.get("unit_string").cloned(),
+                time_base,
+            });
+            values.push(obj.data);
+        }
+        Ok(TdmsColumns { columns, values })
+    }
+}
+
+impl ColumnFile for TdmsColumns {
+    fn format(&self) -> &'static str {
+        FORMAT
+    }
+
+    fn columns(&self) -> &[ColumnInfo] {
+        &self.columns
+    }
+
+    fn read(&mut self, picks: &[(usize, bool)]) -> Result<Vec<RawValues>, TableError> {
+        Ok(picks
+            .iter()
+            .map(|&(k, _)| RawValues::Numbers(std::mem::take(&mut self.values[k])))
+            .collect())
+    }
 }
 
 /// A channel's data type: its size in bytes and how a value becomes an f64 (`None` for types
@@ -120,6 +191,8 @@ struct RawIndex {
 struct Object {
     index: Option<RawIndex>,
     properties: HashMap<String, f64>,
+    /// String properties (`unit_string`, `NI_ChannelName`, ...).
+    text_properties: HashMap<String, String>,
     data: Vec<f64>,
 }
 
@@ -330,7 +403,8 @@ fn read_metadata(
             let name = c.string()?;
             let code = c.u32()?;
             let value = if code == STRING_TYPE {
-                c.string()?;
+                let text = c.string()?;
+                obj.text_properties.insert(name.clone(), text);
                 None
             } else {
                 let t = DataType::of(code)
@@ -410,8 +484,9 @@ fn read_raw(
     Ok(())
 }
 
-/// The channel name of an object path `/'group'/'channel'` (quotes doubled inside names).
-fn channel_name(path: &str) -> Option<String> {
+/// The group and channel names of an object path `/'group'/'channel'` (quotes doubled
+/// inside names).
+fn object_names(path: &str) -> Option<(String, String)> {
     let mut parts = Vec::new();
     let mut rest = path;
     while let Some(r) = rest.strip_prefix("/'") {
@@ -434,65 +509,16 @@ fn channel_name(path: &str) -> Option<String> {
         parts.push(name);
         rest = &r[end?..];
     }
-    (parts.len() == 2 && rest.is_empty())
-        .then(|| parts.pop())
-        .flatten()
+    if parts.len() != 2 || !rest.is_empty() {
+        return None;
+    }
+    let channel = parts.pop()?;
+    Some((parts.pop()?, channel))
 }
 
-impl TdmsFile {
-    fn into_table(mut self, path: &Path) -> Result<SampleTable, TableError> {
-        let fail = |message: String| TableError::Format {
-            path: path.to_path_buf(),
-            format: FORMAT,
-            message,
-        };
-        let mut table = SampleTable::default();
-        let mut waveform: Option<(f64, f64, String)> = None;
-        for p in &self.order {
-            let Some(column) = channel_name(p).and_then(|n| contract_column(&n)) else {
-                continue;
-            };
-            let obj = self.objects.remove(p).unwrap_or_default();
-            if column != TIME_COLUMN
-                && let Some(&increment) = obj.properties.get("wf_increment")
-            {
-                let offset = obj
-                    .properties
-                    .get("wf_start_offset")
-                    .copied()
-                    .unwrap_or(0.0);
-                match &waveform {
-                    Some((o, i, first)) if (*o, *i) != (offset, increment) => {
-                        return Err(fail(format!(
-                            "channel {p} has wf_start_offset {offset}, wf_increment {increment} \
-                             but {first} has {o}, {i}; the channels must share one time base"
-                        )));
-                    }
-                    Some(_) => {}
-                    None => waveform = Some((offset, increment, p.clone())),
-                }
-            }
-            table.push(column, obj.data, path, FORMAT)?;
-        }
-        if !table.columns.iter().any(|(n, _)| *n == TIME_COLUMN) {
-            let Some((offset, increment, _)) = waveform else {
-                return Err(fail(
-                    "no time: neither a 'time_s' channel nor the waveform properties \
-                     wf_increment (and wf_start_offset) on the channels"
-                        .to_string(),
-                ));
-            };
-            if !(increment.is_finite() && increment > 0.0 && offset.is_finite()) {
-                return Err(fail(format!(
-                    "wf_increment {increment} is not a positive time"
-                )));
-            }
-            let n = table.columns.first().map_or(0, |(_, v)| v.len());
-            let time = (0..n).map(|k| offset + k as f64 * increment).collect();
-            table.columns.insert(0, (TIME_COLUMN, time));
-        }
-        Ok(table)
-    }
+#[cfg(test)]
+fn channel_name(path: &str) -> Option<String> {
+    object_names(path).map(|(_, c)| c)
 }
 
 #[cfg(test)]

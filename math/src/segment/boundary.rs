@@ -240,9 +240,26 @@ impl Ctx<'_> {
                 };
                 let omega0 = run_omega(self.analysis, r)
                     .or_else(|| self.analysis.windows[middle(r)].fit.map(|f| f.omega));
-                match omega0.and_then(|w| fit_from(&self.x[from..to], from, w, FIT_ITERATIONS)) {
+                let first =
+                    omega0.and_then(|w| fit_from(&self.x[from..to], from, w, FIT_ITERATIONS));
+                // The frequency from the settled part: a start-up transient (a machine ramping
+                // up from rest) left in the fit pulls it.
+                let fit = first.and_then(|fit| {
+                    settled_start = self.settled(&fit, start, end);
+                    if settled_start > from && to > settled_start + 8 {
+                        fit_from(
+                            &self.x[settled_start..to],
+                            settled_start,
+                            fit.omega,
+                            FIT_ITERATIONS,
+                        )
+                        .or(Some(fit))
+                    } else {
+                        Some(fit)
+                    }
+                });
+                match fit {
                     Some(fit) => {
-                        settled_start = self.settled(&fit, start, end);
                         let f = fit.frequency_hz(self.fs);
                         let std = fit.omega_std * self.fs / (2.0 * PI);
                         let tol = self.options.snap_sigmas * std + 1e-12 * f;

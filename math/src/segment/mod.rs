@@ -34,8 +34,9 @@
 //!    the step's sine is within `clean_residual_factor` times the step's residual.
 //!
 //! Limits: a step needs at least three windows (1.5 windows, about six periods of the lowest
-//! frequency) to be found; consecutive broadband records are one step (their bands are not
-//! told apart).
+//! frequency) to be found; a series too short for that, in which no sine is found, is looked
+//! at again with windows of 2.2 periods when three of them fit (3.3 periods: one sine test
+//! per file). Consecutive broadband records are one step (their bands are not told apart).
 
 mod boundary;
 pub mod sine_fit;
@@ -180,13 +181,44 @@ pub fn detect_steps(
     check_options(options)?;
     let mut fitter = SineFitter::new();
     let analysis = windows::analyse(x, options, &mut fitter);
+    let segmentation = segment_with(x, sample_rate_hz, t0_s, analysis, options);
+    let found_sine = segmentation
+        .steps
+        .iter()
+        .any(|s| matches!(s.kind, DetectedKind::Sine { .. }));
+    // A series too short for three windows of `window_period` periods (its windows clamped
+    // to a third of it: a test machine's one sine test per file, a few periods of a slow
+    // sine) is looked at again with windows of the fewest periods that show a sine, when
+    // three such windows fit in it.
+    if !found_sine && let Some(period) = windows::lowest_line_period(x) {
+        let window =
+            (windows::MIN_WINDOW_PERIODS * SHORT_SERIES_PERIOD_MARGIN * period).ceil() as usize;
+        if window > segmentation.window_samples && window as f64 * 1.5 <= x.len() as f64 {
+            let analysis = windows::analyse_in_windows(x, window, options, &mut fitter);
+            return Ok(segment_with(x, sample_rate_hz, t0_s, analysis, options));
+        }
+    }
+    Ok(segmentation)
+}
+
+/// The windows of a short series hold this much more than the fewest periods that show a
+/// sine (the lowest line's period is read off a padded spectrum, to a few per cent).
+const SHORT_SERIES_PERIOD_MARGIN: f64 = 1.1;
+
+fn segment_with(
+    x: &[f64],
+    sample_rate_hz: f64,
+    t0_s: f64,
+    analysis: windows::Analysis,
+    options: &SegmentOptions,
+) -> Segmentation {
     let runs = windows::runs(&analysis, options);
     let steps = boundary::steps(x, sample_rate_hz, t0_s, &analysis, &runs, options);
-    Ok(Segmentation {
+    Segmentation {
         steps,
         window_samples: analysis.window,
         noise_rms: analysis.noise_rms,
-    })
+    }
 }
 
 fn check_options(o: &SegmentOptions) -> Result<(), SegmentError> {

@@ -401,3 +401,50 @@ fn phase_continuous_changes_at_30_db_are_found_at_the_exact_sample() {
         }
     }
 }
+
+/// One test per file: five and a half periods of a slow sine after a second at rest, 30 dB
+/// (a test machine's 0.25 Hz test). Too few periods for three windows of four; found as one
+/// sine step, its frequency from its settled part, when the windows are fitted to the series.
+#[test]
+fn a_sine_test_of_few_periods_is_one_sine_step() {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let (fs, f, amplitude) = (200.0, 0.254, 0.0244);
+    let rest = 200;
+    let n = rest + (5.5 / f * fs) as usize;
+    let noise_std = amplitude / 2f64.sqrt() * 10f64.powf(-30.0 / 20.0);
+    let normal = Normal::new(0.0, noise_std).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let x: Vec<f64> = (0..n)
+        .map(|k| {
+            let t = (k as f64 - rest as f64) / fs;
+            let drive = if k < rest {
+                0.0
+            } else {
+                amplitude * (2.0 * std::f64::consts::PI * f * t).sin()
+            };
+            drive + normal.sample(&mut rng)
+        })
+        .collect();
+    let seg = detect_steps(&x, fs, 0.0, &SegmentOptions::default()).unwrap();
+    let sines: Vec<&DetectedStep> = seg
+        .steps
+        .iter()
+        .filter(|s| matches!(s.kind, DetectedKind::Sine { .. }))
+        .collect();
+    assert_eq!(sines.len(), 1, "{:?}", seg.steps);
+    let (_, estimate, std, a) = sine(sines[0]);
+    assert!(
+        (estimate - f).abs() < 5.0 * std,
+        "{estimate} +- {std}: {:?}",
+        seg.steps
+    );
+    assert!((a - amplitude).abs() < 0.02 * amplitude, "{a}");
+    // The rest before it is shorter than a window: inside the step, before its settled part.
+    let period = (fs / f) as usize;
+    let settled = sines[0].settled_start;
+    assert!(
+        (rest..rest + period).contains(&settled),
+        "settled from {settled}"
+    );
+}

@@ -59,6 +59,18 @@ pub(super) struct Run {
 fn window_length(x: &[f64], periods: f64) -> usize {
     let n = x.len();
     let upper = (n / 3).max(16);
+    match lowest_line_period(x) {
+        Some(samples_per_period) => {
+            ((periods * samples_per_period).round() as usize).clamp(16, upper)
+        }
+        None => (n / 8).clamp(16, upper),
+    }
+}
+
+/// Samples per period of the lowest strong line of the spectrum of the whole series, if it
+/// has one.
+pub(super) fn lowest_line_period(x: &[f64]) -> Option<f64> {
+    let n = x.len();
     let m = n.next_power_of_two();
     let mean = x.iter().sum::<f64>() / n as f64;
     let mut buf: Vec<Complex64> = x
@@ -79,19 +91,26 @@ fn window_length(x: &[f64], periods: f64) -> usize {
             && power.get(k + 1).is_none_or(|&q| p >= q)
     });
     match lowest {
-        Some(k) if peak > 0.0 => {
-            let samples_per_period = m as f64 / k as f64;
-            ((periods * samples_per_period).round() as usize).clamp(16, upper)
-        }
-        _ => (n / 8).clamp(16, upper),
+        Some(k) if peak > 0.0 => Some(m as f64 / k as f64),
+        _ => None,
     }
 }
 
 /// Cuts `x` into windows (hop a quarter window, the last one ending at the end) and classes
 /// each.
 pub(super) fn analyse(x: &[f64], options: &SegmentOptions, fitter: &mut SineFitter) -> Analysis {
+    analyse_in_windows(x, window_length(x, options.window_periods), options, fitter)
+}
+
+/// [`analyse`] with windows of `window` samples (at most the series' length).
+pub(super) fn analyse_in_windows(
+    x: &[f64],
+    window: usize,
+    options: &SegmentOptions,
+    fitter: &mut SineFitter,
+) -> Analysis {
     let n = x.len();
-    let window = window_length(x, options.window_periods);
+    let window = window.min(n);
     let hop = (window / 4).max(1);
     let mut starts: Vec<usize> = (0..=n - window).step_by(hop).collect();
     if starts.last().is_some_and(|&s| s + window < n) {

@@ -1,7 +1,7 @@
 //! `forcemap diagnose DATA --model BASELINE`: the sim-to-real gap diagnosis (library:
 //! `forcemap_math::diagnose`), as a summary, JSON, or an HTML report with SVG plots.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use forcemap_math::diagnose::{self, DiagnoseOptions, DiagnosisDetail, Verdict};
@@ -36,8 +36,8 @@ struct Data {
     source: String,
 }
 
-fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data> {
-    let file = path.display().to_string();
+fn load(args: &DiagnoseArgs, files: &[PathBuf], import: Loaded) -> anyhow::Result<Data> {
+    let file = super::identify::data_name(files);
     if import.kind == SetupKind::DrivePoint {
         bail!(
             "{file}: the diagnosis needs the base-excited rig channels (base and relative displacement, mass acceleration) or an element test's (relative displacement, force); this is a {} export",
@@ -57,20 +57,20 @@ fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data
         &file,
     )?
     .setup()?;
-    let validation = match &args.validate {
-        Some(v) => {
-            let vi = forcemap_io::input::load_mapped(v, args.channels.as_deref())?;
-            if vi.kind != import.kind {
-                bail!(
-                    "{}: validation data must hold the channels of the data's {} setup; these are a {} setup's",
-                    v.display(),
-                    import.kind,
-                    vi.kind
-                );
-            }
-            vi.records
+    let validation = if args.validate.is_empty() {
+        Vec::new()
+    } else {
+        let held_out = forcemap_io::input::expand_paths(&args.validate)?;
+        let vi = forcemap_io::input::load_files(&held_out, args.channels.as_deref())?;
+        if vi.kind != import.kind {
+            bail!(
+                "{}: validation data must hold the channels of the data's {} setup; these are a {} setup's",
+                super::identify::data_name(&held_out),
+                import.kind,
+                vi.kind
+            );
         }
-        None => Vec::new(),
+        vi.records
     };
     Ok(Data {
         records: import.records,
@@ -96,14 +96,19 @@ fn demo_data() -> anyhow::Result<Data> {
 
 pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     // What the data are decides the path: a force-driven axis record goes to the time domain.
-    let measured = match &args.data {
-        Some(path) if !args.demo => Some(forcemap_io::input::load_measured_mapped(
+    let files = forcemap_io::input::expand_paths(&args.data)?;
+    let measured = match files.as_slice() {
+        _ if args.demo => None,
+        [path] => Some(forcemap_io::input::load_measured_mapped(
             path,
             args.channels.as_deref(),
         )?),
-        _ => None,
+        several => Some(Measured::Steps(forcemap_io::input::load_files(
+            several,
+            args.channels.as_deref(),
+        )?)),
     };
-    if let (Some(Measured::Axis(fit)), Some(path)) = (&measured, &args.data) {
+    if let (Some(Measured::Axis(fit)), [path]) = (&measured, files.as_slice()) {
         return time_domain::run(args, path, fit);
     }
     // Refuse an existing report directory before any work.
@@ -118,10 +123,6 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     let (data, model_name) = if args.demo {
         (demo_data()?, "linear".to_string())
     } else {
-        let path = args
-            .data
-            .as_ref()
-            .expect("clap requires DATA without --demo");
         let model = args
             .model
             .clone()
@@ -129,7 +130,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
         let Some(Measured::Steps(import)) = measured else {
             unreachable!("an axis record returned above");
         };
-        (load(args, path, import)?, model)
+        (load(args, &files, import)?, model)
     };
     let baseline = Model::by_name(
         &model_name,

@@ -45,11 +45,16 @@ pub fn run(args: &DiagnoseArgs, data: &Path, fit: &AxisRecord) -> anyhow::Result
             dir.display()
         );
     }
-    let Some(val_path) = &args.validate else {
-        bail!(
+    let val_path = match args.validate.as_slice() {
+        [one] => one,
+        [] => bail!(
             "{}: the time-domain path scores on another record: give --validate (e.g. DATA_EMPS_PULSES.mat)",
             data.display()
-        );
+        ),
+        _ => bail!(
+            "{}: the time-domain path scores on one record: give one --validate file",
+            data.display()
+        ),
     };
     let val = read_axis(val_path)?;
     let d = diagnose_axis(baseline, fit, &val, &TimeDomainOptions::default())

@@ -1,0 +1,118 @@
+//! Files of columns read through a channel map ([`crate::table_map`]): delimited and
+//! whitespace text with or without a header, ASAM MDF4, NI TDMS and MATLAB MAT files. Each
+//! format lists its columns (name, group, position, unit, its own time base) and reads the
+//! ones the map picks; the picking, the units and the time are one piece of code for every
+//! format ([`resolve`]), and the picked columns become the CSV contract's rows
+//! ([`crate::table`]), so that a file read through a map gives the records, checks and
+//! errors of the same samples in forcemap's CSV.
+
+pub mod datetime;
+pub(crate) mod mat;
+mod resolve;
+pub(crate) mod text;
+
+use std::path::Path;
+
+use crate::csv_export::CsvImport;
+use crate::input::FileFormat;
+use crate::table::TableError;
+use crate::table_map::TableMap;
+
+pub use resolve::{default_map, read_through};
+
+/// One column of a file, as its format describes it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColumnInfo {
+    /// Header cell, channel name or variable name (`None` for a headerless text column).
+    pub name: Option<String>,
+    /// MDF4 channel group or TDMS group.
+    pub group: Option<String>,
+    /// 1-based position in the file (MDF4, TDMS: within its group).
+    pub position: usize,
+    /// The 1-based column of a MAT matrix this column is.
+    pub matrix_column: Option<usize>,
+    /// The unit the file gives (a units row, the name's `(unit)`, MDF4's unit, TDMS's
+    /// `unit_string`).
+    pub unit: Option<String>,
+    /// What the file says of this column's time.
+    pub time_base: Option<TimeBase>,
+}
+
+impl ColumnInfo {
+    /// How the column is named in messages: `'Force (N)'` (group `G`), or `column 3`.
+    pub fn label(&self) -> String {
+        let mut s = match &self.name {
+            Some(n) => format!("'{n}'"),
+            None => format!("column {}", self.position),
+        };
+        if let Some(c) = self.matrix_column {
+            s.push_str(&format!(" column {c}"));
+        }
+        if let Some(g) = &self.group {
+            s.push_str(&format!(" (group '{g}')"));
+        }
+        s
+    }
+}
+
+/// A time base a file carries beside its columns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TimeBase {
+    /// The column is its group's master time channel (MDF4).
+    Master,
+    /// The column's samples are at `start_s + k * increment_s` (TDMS waveform properties).
+    Waveform { start_s: f64, increment_s: f64 },
+}
+
+/// A column's values as read.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RawValues {
+    Numbers(Vec<f64>),
+    /// Cells that are not numbers (date-times), with the line of each for errors.
+    Text(Vec<String>),
+}
+
+/// A file of columns: what it holds, and the values of the columns picked from it.
+pub trait ColumnFile {
+    fn format(&self) -> &'static str;
+    fn columns(&self) -> &[ColumnInfo];
+    /// The values of the columns at these indices of [`columns`](Self::columns); a column
+    /// with `true` may come back as text (a time column of date-times), the others must be
+    /// numbers.
+    fn read(&mut self, picks: &[(usize, bool)]) -> Result<Vec<RawValues>, TableError>;
+    /// The file's line of each row, where the format has lines (text).
+    fn row_lines(&self) -> Option<&[u64]> {
+        None
+    }
+    /// What the reader found of the file's layout (dialect, skipped lines).
+    fn notices(&self) -> Vec<String> {
+        Vec::new()
+    }
+}
+
+/// Opens `path` as the file of columns its format is.
+pub fn open(path: &Path, map: Option<&TableMap>) -> Result<Box<dyn ColumnFile>, TableError> {
+    Ok(match FileFormat::of(path) {
+        FileFormat::Mdf => Box::new(crate::mdf::MdfColumns::open(path)?),
+        FileFormat::Tdms => Box::new(crate::tdms::TdmsColumns::open(path)?),
+        FileFormat::Mat => Box::new(mat::MatColumns::open(path)?),
+        FileFormat::Csv => Box::new(text::TextColumns::open(
+            path,
+            &map.map(|m| m.text.clone()).unwrap_or_default(),
+        )?),
+    })
+}
+
+/// The records of the file at `path`, its columns picked by `map`.
+pub fn read_mapped(path: &Path, map: &TableMap) -> Result<CsvImport, TableError> {
+    let mut file = open(path, Some(map))?;
+    resolve::read_through(file.as_mut(), path, map)
+}
+
+/// The records of an MDF4 or TDMS file whose channels are named as forcemap names them (no
+/// map): the map of those names ([`default_map`]).
+pub fn read_by_contract_names(path: &Path) -> Result<CsvImport, TableError> {
+    let mut file = open(path, None)?;
+    let map = default_map(file.as_ref(), path)?;
+    resolve::read_through(file.as_mut(), path, &map)
+}

@@ -1,0 +1,300 @@
+//! A bench's own files read through a map of their columns, with no conversion step: a
+//! damper dyno's element test (six sine steps at 1 kHz, 40 dB, unlabelled as a DAQ writes
+//! it) as a headerless whitespace file in mm, a CSV with ISO 8601 date-times and units in its
+//! column names, an MDF4 written by asammdf and a TDMS written by npTDMS in several segments,
+//! each with the bench's channel names and units. Each gives the theta of forcemap's CSV of
+//! the same samples; the mistakes a map can make are named.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use forcemap_io::input::{load_files, load_mapped};
+use forcemap_math::identify::{FdMultiOptions, Method};
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::phasor::PhasorOptions;
+use forcemap_math::pipeline::identify_records;
+use forcemap_math::recipe::{Setup, SetupKind};
+use forcemap_math::record::{Channel, Record};
+use forcemap_math::sim::{ElementDrive, RunSpec, StepSpec};
+
+fn dyno_records() -> Vec<Record> {
+    let element = RunSpec::damper_dyno(None, 0).element;
+    let steps = [2.0, 4.0, 8.0]
+        .iter()
+        .flat_map(|&f| {
+            [0.005, 0.02].map(|a| StepSpec::Sine {
+                frequency_hz: f,
+                amplitude: a,
+            })
+        })
+        .collect();
+    RunSpec {
+        snr_db: Some(40.0),
+        seed: 11,
+        ..RunSpec::element_test(
+            ElementDrive::Displacement,
+            0.8,
+            element,
+            steps,
+            1000.0,
+            4000,
+        )
+    }
+    .simulate()
+    .unwrap()
+}
+
+/// (time [s], displacement [m], force [N]) of every sample, in order.
+fn samples(records: &[Record]) -> Vec<(f64, f64, f64)> {
+    let mut out = Vec::new();
+    for r in records {
+        let x = r.channel(Channel::RelativeDisplacementM).unwrap();
+        let f = r.channel(Channel::ForceN).unwrap();
+        for k in 0..r.len() {
+            out.push((r.start_time_s + k as f64 / r.sample_rate_hz, x[k], f[k]));
+        }
+    }
+    out
+}
+
+fn theta(records: &[Record]) -> Vec<f64> {
+    let model = Model::by_name("damper", &ModelOptions::default()).unwrap();
+    identify_records(
+        &model,
+        &Setup::Element {
+            moving_mass_kg: Some(0.8),
+        },
+        Method::FdMulti,
+        records,
+        &PhasorOptions::for_identification(),
+        &FdMultiOptions::default(),
+    )
+    .unwrap()
+    .theta()
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// forcemap's CSV of the samples, without labels (as the bench files have none).
+fn contract_csv(s: &[(f64, f64, f64)]) -> String {
+    let mut t = String::from("time_s,relative_displacement_m,force_n\n");
+    for (time, x, f) in s {
+        writeln!(t, "{time},{x},{f}").unwrap();
+    }
+    t
+}
+
+fn assert_same_theta(reference: &[f64], got: &[f64], what: &str) {
+    assert_eq!(reference.len(), got.len(), "{what}");
+    for (a, b) in reference.iter().zip(got) {
+        assert!(
+            ((a - b) / a).abs() < 1e-9,
+            "{what}: theta {got:?} vs the contract CSV's {reference:?}"
+        );
+    }
+    println!("{what}: theta {got:?}");
+}
+
+#[test]
+fn text_files_as_benches_write_them_give_the_contract_theta() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = samples(&dyno_records());
+    let plain = write(dir.path(), "plain.csv", &contract_csv(&s));
+    let reference = theta(&load_mapped(&plain, None).unwrap().records);
+    assert_eq!(reference.len(), 5);
+
+    // A test machine's file: headerless, whitespace runs, mm and mm/s.
+    let mut text = String::new();
+    for (k, (t, x, f)) in s.iter().enumerate() {
+        let v = if k == 0 { 0.0 } else { (x - s[k - 1].1) * 1e6 };
+        writeln!(text, "  {t:.6}\t{:e}   {v:e} {f:e}", x * 1e3).unwrap();
+    }
+    let file = write(dir.path(), "sine_tests.txt", &text);
+    let map = write(
+        dir.path(),
+        "machine.yaml",
+        "channels:\n  time_s: {channel: 1, unit: s}\n  relative_displacement_m: {channel: 2, unit: mm}\n  force_n: {channel: 4, unit: N}\n",
+    );
+    let loaded = load_mapped(&file, Some(&map)).unwrap();
+    assert_eq!(loaded.kind, SetupKind::Element);
+    assert_same_theta(&reference, &theta(&loaded.records), "headerless whitespace");
+
+    // A dyno's CSV: ISO 8601 date-times, units in the names, channels it does not map.
+    let mut text =
+        String::from("Timestamp,Force (N),Displacement (mm),Supply (V),Oil temperature [degC]\n");
+    for (t, x, f) in &s {
+        let micros = (t * 1e6).round() as i64;
+        let (secs, frac) = (micros / 1_000_000, micros % 1_000_000);
+        writeln!(
+            text,
+            "2026-11-28T10:{:02}:{:02}.{frac:06},{f},{},24.0,41.5",
+            15 + secs / 60,
+            secs % 60,
+            x * 1e3
+        )
+        .unwrap();
+    }
+    let file = write(dir.path(), "dyno.csv", &text);
+    let map = write(
+        dir.path(),
+        "dyno.yaml",
+        "channels:\n  time_s: {channel: Timestamp}\n  relative_displacement_m: {channel: Displacement}\n  force_n: {channel: 'Force (N)'}\n",
+    );
+    let loaded = load_mapped(&file, Some(&map)).unwrap();
+    assert_same_theta(&reference, &theta(&loaded.records), "ISO date-times");
+
+    // The same export cut in two files, read together: the records of one.
+    let lines: Vec<&str> = text.lines().collect();
+    let cut = 1 + 3 * 4000;
+    let first = write(dir.path(), "dyno_a.csv", &(lines[..cut].join("\n") + "\n"));
+    let second = write(
+        dir.path(),
+        "dyno_b.csv",
+        &(lines[0].to_string() + "\n" + &lines[cut..].join("\n") + "\n"),
+    );
+    let both = load_files(&[first, second], Some(&map)).unwrap();
+    assert_eq!(both.records.len(), loaded.records.len());
+    let steps: Vec<usize> = both.records.iter().map(|r| r.step).collect();
+    assert_eq!(steps, (0..6).collect::<Vec<_>>());
+    assert_same_theta(&reference, &theta(&both.records), "two files");
+}
+
+#[test]
+fn a_maps_mistakes_are_named_with_file_and_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = samples(&dyno_records());
+    let mut text = String::from("Time [s];Weg;Kraft [V];Temp\n");
+    for (t, x, f) in s.iter().take(500) {
+        writeln!(text, "{t};{x};{f};20").unwrap();
+    }
+    let file = write(dir.path(), "bench.csv", &text);
+    let cases = [
+        (
+            "channels:\n  relative_displacement_m: {channel: Weg, unit: m}\n  force_n: {channel: Kraft}\n",
+            "bench.csv: text: 'Kraft [V]' (for force_n) has unit 'V' (the file's unit), which forcemap does not know; give 'scale:'",
+        ),
+        (
+            "channels:\n  relative_displacement_m: {channel: Weg}\n  force_n: {channel: Kraft, scale: 100}\n",
+            "bench.csv: text: 'Weg' (for relative_displacement_m) has no unit in the file; give 'unit:' (such as mm) or 'scale:'",
+        ),
+        (
+            "channels:\n  relative_displacement_m: {channel: Travel, unit: mm}\n  force_n: {channel: Kraft, scale: 100}\n",
+            "bench.csv: text: no 'Travel' for relative_displacement_m; the file has 'Time [s]', 'Weg', 'Kraft [V]', 'Temp'",
+        ),
+        (
+            "channels:\n  relative_displacement_m: {channel: 7, unit: mm}\n  force_n: {channel: Kraft, scale: 100}\n",
+            "no column 7 for relative_displacement_m",
+        ),
+        (
+            "channels:\n  relative_displacement_m: {channel: Weg, unit: m}\n  force_n: {channel: 'Time [s]'}\n",
+            "'Time [s]' (for force_n) has unit 's' (the file's unit), not a unit of force_n (its SI unit is N)",
+        ),
+        (
+            "channels:\n  relative_displacement_m: {topic: /a, field: x}\n  force_n: {topic: /a, field: f}\n",
+            "maps a bag's topics (topic:, field:); a file of columns needs a map of its columns",
+        ),
+    ];
+    for (k, (map, expected)) in cases.into_iter().enumerate() {
+        let map = write(dir.path(), &format!("map{k}.yaml"), map);
+        let e = format!("{:#}", load_mapped(&file, Some(&map)).unwrap_err());
+        assert!(e.contains(expected), "map {k}:\n{e}\nexpected: {expected}");
+    }
+    // A cell that is no number: named with its line in the file and its column.
+    let bad = write(
+        dir.path(),
+        "bad.csv",
+        &text.replacen("\n0.01;", "\n0.01x;", 1),
+    );
+    let map = write(
+        dir.path(),
+        "good.yaml",
+        "channels:\n  relative_displacement_m: {channel: Weg, unit: m}\n  force_n: {channel: Kraft, scale: 100}\n",
+    );
+    let e = format!("{:#}", load_mapped(&bad, Some(&map)).unwrap_err());
+    assert!(
+        e.contains("bad.csv: text: line 12: 'Time [s]': '0.01x' is not a number"),
+        "{e}"
+    );
+}
+
+fn python_with_writers() -> Option<String> {
+    let py = std::env::var("FORCEMAP_PYTHON").ok();
+    let usable = py.as_ref().is_some_and(|p| {
+        Command::new(p)
+            .args(["-c", "import asammdf, nptdms"])
+            .status()
+            .is_ok_and(|s| s.success())
+    });
+    if !usable {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI is set but FORCEMAP_PYTHON ({py:?}) has no asammdf/npTDMS: .ci/run must install them"
+        );
+        println!("skipped: set FORCEMAP_PYTHON to a Python with asammdf and npTDMS");
+        return None;
+    }
+    py
+}
+
+#[test]
+fn mdf4_and_tdms_with_the_benchs_names_and_units_give_the_contract_theta() {
+    let Some(py) = python_with_writers() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let s = samples(&dyno_records());
+    let plain = write(dir.path(), "plain.csv", &contract_csv(&s));
+    let reference = theta(&load_mapped(&plain, None).unwrap().records);
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/python/bench_files.py");
+    let out = Command::new(&py)
+        .arg(&script)
+        .arg(&plain)
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "bench_files.py failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Units from the files' metadata: no scale or unit in the maps.
+    let mdf_map = write(
+        dir.path(),
+        "mdf.yaml",
+        "channels:\n  relative_displacement_m: {channel: Act_Pos}\n  force_n: {channel: Load, group: Dyno}\n",
+    );
+    let loaded = load_mapped(&dir.path().join("bench.mf4"), Some(&mdf_map)).unwrap();
+    assert_same_theta(&reference, &theta(&loaded.records), "MDF4 (asammdf)");
+
+    let tdms_map = write(
+        dir.path(),
+        "tdms.yaml",
+        "channels:\n  time_s: {channel: Time, group: Dyno}\n  relative_displacement_m: {channel: Act_Pos, group: Dyno}\n  force_n: {channel: Load}\n",
+    );
+    let loaded = load_mapped(&dir.path().join("bench.tdms"), Some(&tdms_map)).unwrap();
+    assert_same_theta(&reference, &theta(&loaded.records), "TDMS (npTDMS)");
+
+    // A channel whose unit forcemap does not know, mapped without a scale: named.
+    let volts = write(
+        dir.path(),
+        "volts.yaml",
+        "channels:\n  relative_displacement_m: {channel: Act_Pos}\n  force_n: {channel: Supply}\n",
+    );
+    let e = format!(
+        "{:#}",
+        load_mapped(&dir.path().join("bench.tdms"), Some(&volts)).unwrap_err()
+    );
+    assert!(
+        e.contains("bench.tdms: TDMS: 'Supply' (group 'Dyno') (for force_n) has unit 'V'"),
+        "{e}"
+    );
+}
