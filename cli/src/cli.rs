@@ -25,6 +25,10 @@ pub enum Command {
     Identify(IdentifyArgs),
     /// Simulate the suspension rig or the 3-DOF example and write a test-bench CSV export.
     Simulate(SimulateArgs),
+    /// What measured files hold and how forcemap cuts them: columns and units, the map's
+    /// picks and conversions, the setup, and each record (kind, frequency, amplitude, rate,
+    /// span); `--plot DIR` draws the drive with the records found.
+    Info(InfoArgs),
     /// Inspect or repair rosbag2 MCAP bags.
     Bag(BagArgs),
     /// Import data into a bag.
@@ -45,6 +49,24 @@ pub enum Command {
     /// Benchmarks: the node graph (throughput without loss, latency, CPU and memory) and
     /// `identify` on a CSV export against its numpy peer.
     Bench(BenchArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// The files: bags, CSV exports, or (with --channels) text, MDF4, TDMS or MAT files of a
+    /// bench's own columns; quoted glob patterns are expanded.
+    #[arg(required = true, value_name = "FILE")]
+    pub files: Vec<PathBuf>,
+    /// The channel map the files are read through (see docs/data.md).
+    #[arg(long, value_name = "MAP")]
+    pub channels: Option<PathBuf>,
+    /// One JSON object instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+    /// Write `drive_N.svg` per file into this directory: the driven channel over time, each
+    /// record found shaded and labelled.
+    #[arg(long, value_name = "DIR")]
+    pub plot: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]

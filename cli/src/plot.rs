@@ -491,6 +491,75 @@ pub fn series_panels_svg(title: &str, panels: &[SeriesPanel]) -> anyhow::Result<
     Ok(svg)
 }
 
+/// The driven channel of records over time, each record in its own colour with its step and
+/// kind written above it, so a reader sees how the data were cut; as SVG text.
+pub fn records_svg(
+    title: &str,
+    records: &[forcemap_math::record::Record],
+    driven: forcemap_math::record::Channel,
+) -> anyhow::Result<String> {
+    let traces: Vec<(Vec<f64>, &[f64])> = records
+        .iter()
+        .filter_map(|r| {
+            let v = r.channel(driven)?;
+            let t = (0..v.len())
+                .map(|k| r.start_time_s + k as f64 / r.sample_rate_hz)
+                .collect();
+            Some((t, v))
+        })
+        .collect();
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1400, 460)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let y_range = span(traces.iter().flat_map(|(_, v)| v.iter().copied()));
+        let top = y_range.end;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(
+                span(traces.iter().flat_map(|(t, _)| t.iter().copied())),
+                y_range,
+            )
+            .map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .x_desc("time [s]")
+            .y_desc(driven.name())
+            .draw()
+            .map_err(draw_err)?;
+        for (i, ((t, v), r)) in traces.iter().zip(records).enumerate() {
+            let color = series_color(i);
+            chart
+                .draw_series(LineSeries::new(
+                    t.iter().copied().zip(v.iter().copied()),
+                    color.stroke_width(1),
+                ))
+                .map_err(draw_err)?;
+            use forcemap_math::record::Excitation as E;
+            let kind = match &r.excitation {
+                E::Sine { frequency_hz, .. } => format!("{} sine {frequency_hz:.4} Hz", r.step),
+                E::Random { .. } => format!("{} random", r.step),
+                E::Multisine { .. } => format!("{} multisine", r.step),
+                E::Sweep { .. } => format!("{} sweep", r.step),
+            };
+            if let Some(&t0) = t.first() {
+                chart
+                    .draw_series(std::iter::once(Text::new(
+                        kind,
+                        (t0, top),
+                        ("sans-serif", 12).into_font().color(&color),
+                    )))
+                    .map_err(draw_err)?;
+            }
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
 /// The colour of series `i` (the "tab10" palette, repeating).
 pub fn series_color(i: usize) -> RGBColor {
     COLORS[i % COLORS.len()]

@@ -9,6 +9,7 @@ pub mod diagnose_eval;
 pub mod element_outputs;
 pub mod identify;
 pub mod import;
+pub mod info;
 pub mod reproduce;
 pub mod simulate;
 
@@ -27,6 +28,7 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Reproduce(a) => reproduce::run(&a),
         Command::Identify(a) => identify::run(&a),
         Command::Simulate(a) => simulate::run(&a),
+        Command::Info(a) => info::run(&a),
         Command::Bag(a) => bag::run(&a),
         Command::Import(a) => import::run(&a),
         Command::Diagnose(a) => diagnose::run(&a),

@@ -83,7 +83,9 @@ pub fn is_record(s: &DetectedStep) -> bool {
 }
 
 /// The record of found step `s` of `run`, numbered `step`, with its frequency (`None`: not a
-/// sine); `times_s` as in [`split_run`]. Its excitation is `run`'s (the caller knows better).
+/// sine): its samples from its start to the end of its steady part (a taper at the end of a
+/// test is left out); `times_s` as in [`split_run`]. Its excitation is `run`'s (the caller
+/// knows better).
 pub fn step_record(
     run: &Record,
     s: &DetectedStep,
@@ -98,7 +100,7 @@ pub fn step_record(
         channels: run
             .channels
             .iter()
-            .map(|(c, v)| (*c, v[s.start..s.end].to_vec()))
+            .map(|(c, v)| (*c, v[s.start..s.settled_end].to_vec()))
             .collect(),
     };
     (record, frequency(s))

@@ -18,7 +18,7 @@ use crate::input::FileFormat;
 use crate::table::TableError;
 use crate::table_map::TableMap;
 
-pub use resolve::{default_map, read_through};
+pub use resolve::{Picks, default_map, pick, read_through};
 
 /// One column of a file, as its format describes it.
 #[derive(Debug, Clone, PartialEq)]

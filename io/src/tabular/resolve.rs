@@ -323,12 +323,28 @@ enum FileTime {
     Waveform { start_s: f64, increment_s: f64 },
 }
 
-/// Reads the picked columns of `file` into the CSV contract's rows and through its reader.
-pub fn read_through(
-    file: &mut dyn ColumnFile,
-    path: &Path,
-    map: &TableMap,
-) -> Result<CsvImport, TableError> {
+/// What a map reads from a file: each entry's column and factor, and where time comes from
+/// when no column gives it.
+pub struct Picks {
+    plans: Vec<Plan>,
+    time_rate: Option<f64>,
+    waveform: Option<(f64, f64)>,
+    time_format: Option<String>,
+}
+
+impl Picks {
+    /// Each pick as (what it supplies, the column's index, how its unit is converted).
+    pub fn described(&self) -> Vec<(&'static str, usize, String)> {
+        self.plans
+            .iter()
+            .map(|p| (p.name, p.column, p.how.clone()))
+            .collect()
+    }
+}
+
+/// The columns `map` picks from `file`, their units and the time, checked before any value is
+/// read.
+pub fn pick(file: &dyn ColumnFile, path: &Path, map: &TableMap) -> Result<Picks, TableError> {
     let mut plans: Vec<Plan> = Vec::new();
     let entries: Vec<(&'static str, &ColumnSource)> = map
         .channels
@@ -338,8 +354,8 @@ pub fn read_through(
         .chain(map.frequency_hz.iter().map(|s| (FREQUENCY_COLUMN, s)))
         .collect();
     for (name, src) in entries {
-        let column = find(&*file, path, name, src)?;
-        let (factor, how) = factor(&*file, path, name, src, &file.columns()[column])?;
+        let column = find(file, path, name, src)?;
+        let (factor, how) = factor(file, path, name, src, &file.columns()[column])?;
         plans.push(Plan {
             name,
             column,
@@ -356,8 +372,8 @@ pub fn read_through(
     let mut time_format: Option<String> = None;
     match &map.time {
         Some(TimeSource::Column { source, format }) => {
-            let column = find(&*file, path, TIME_LABEL, source)?;
-            let (factor, how) = factor(&*file, path, TIME_LABEL, source, &file.columns()[column])?;
+            let column = find(file, path, TIME_LABEL, source)?;
+            let (factor, how) = factor(file, path, TIME_LABEL, source, &file.columns()[column])?;
             time_format = format.clone();
             plans.insert(
                 0,
@@ -375,7 +391,7 @@ pub fn read_through(
             source,
             sample_rate_hz,
         }) => {
-            let column = find(&*file, path, TIME_LABEL, source)?;
+            let column = find(file, path, TIME_LABEL, source)?;
             plans.insert(
                 0,
                 Plan {
@@ -389,7 +405,7 @@ pub fn read_through(
             );
         }
         Some(TimeSource::Rate { sample_rate_hz }) => time_rate = Some(*sample_rate_hz),
-        None => match file_time(&*file, path, &picked)? {
+        None => match file_time(file, path, &picked)? {
             FileTime::Column(column) => {
                 let info = file.columns()[column].clone();
                 let src = ColumnSource {
@@ -400,7 +416,7 @@ pub fn read_through(
                     scale: None,
                     offset: 0.0,
                 };
-                let (factor, how) = factor(&*file, path, TIME_LABEL, &src, &info)?;
+                let (factor, how) = factor(file, path, TIME_LABEL, &src, &info)?;
                 plans.insert(
                     0,
                     Plan {
@@ -429,7 +445,7 @@ pub fn read_through(
             .collect();
         list.dedup();
         return Err(format_error(
-            &*file,
+            file,
             path,
             format!(
                 "the mapped channels are in several groups ({} and {}): {}; forcemap reads one \
@@ -440,6 +456,27 @@ pub fn read_through(
             ),
         ));
     }
+    Ok(Picks {
+        plans,
+        time_rate,
+        waveform,
+        time_format,
+    })
+}
+
+/// Reads the picked columns of `file` into the CSV contract's rows and through its reader.
+pub fn read_through(
+    file: &mut dyn ColumnFile,
+    path: &Path,
+    map: &TableMap,
+) -> Result<CsvImport, TableError> {
+    let Picks {
+        plans,
+        time_rate,
+        waveform,
+        time_format,
+    } = pick(&*file, path, map)?;
+    let columns = file.columns();
     let described: Vec<String> = plans
         .iter()
         .map(|p| {

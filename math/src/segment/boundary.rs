@@ -14,6 +14,11 @@ const FIT_ITERATIONS: usize = 50;
 const MODEL_WINDOWS: usize = 4;
 /// The frequency snaps only when its tolerance is below this fraction of it.
 const SNAP_MAX_REL: f64 = 1e-3;
+/// A step's tail is cut where its periods leave this many times the cleanness limit of the
+/// step's sine (a taper), never for noise.
+const TAIL_RESIDUAL_FACTOR: f64 = 3.0;
+/// The end of a tapered step is looked for in this fraction of a period.
+const TAIL_HOPS_PER_PERIOD: f64 = 16.0;
 /// Floor of a model's noise variance, relative to the series' largest magnitude squared:
 /// noise-free data still have a finite likelihood.
 const VARIANCE_FLOOR_REL: f64 = 1e-28;
@@ -231,6 +236,7 @@ impl Ctx<'_> {
         let rms =
             (seg.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / seg.len().max(1) as f64).sqrt();
         let mut settled_start = start;
+        let mut settled_end = end;
         let kind = match r.class {
             Class::Sine => {
                 let (from, to) = if end > start + guard.0 + guard.1 + 8 {
@@ -244,9 +250,11 @@ impl Ctx<'_> {
                     omega0.and_then(|w| fit_from(&self.x[from..to], from, w, FIT_ITERATIONS));
                 // The frequency from the settled part: a start-up transient (a machine ramping
                 // up from rest) left in the fit pulls it.
+                settled_end = self.settled_end(r, start, end);
                 let fit = first.and_then(|fit| {
-                    settled_start = self.settled(&fit, start, end);
-                    if settled_start > from && to > settled_start + 8 {
+                    settled_start = self.settled(&fit, start, settled_end);
+                    let to = to.min(settled_end);
+                    if (settled_start > from || settled_end < end) && to > settled_start + 8 {
                         fit_from(
                             &self.x[settled_start..to],
                             settled_start,
@@ -287,9 +295,40 @@ impl Ctx<'_> {
             start,
             end,
             settled_start,
+            settled_end,
             start_interval,
             kind,
         }
+    }
+
+    /// The end of the step's steady part: where a period-long stretch before it stops being far
+    /// off the sine of the run's last window (the steady state nearest the end). A test that
+    /// ramps its amplitude down at its end (a test machine's taper) ends there; only a stretch
+    /// far off (residual above `TAIL_RESIDUAL_FACTOR` times the cleanness limit of that
+    /// window's own residual) is cut, so that noise never shortens a step.
+    fn settled_end(&self, r: &Run, start: usize, end: usize) -> usize {
+        let Some(reference) = self.analysis.windows[r.last].fit else {
+            return end;
+        };
+        let period = 2.0 * PI / reference.omega;
+        let limit = TAIL_RESIDUAL_FACTOR
+            * self.options.clean_residual_factor
+            * reference.residual_rms.max(self.var_floor.sqrt());
+        let width = period.ceil() as usize;
+        let hop = ((period / TAIL_HOPS_PER_PERIOD) as usize).max(1);
+        let mut b = end;
+        while b >= start + 2 * width {
+            let rms = ((b - width..b)
+                .map(|i| (self.x[i] - reference.eval(i as f64)).powi(2))
+                .sum::<f64>()
+                / width as f64)
+                .sqrt();
+            if rms <= limit {
+                return b;
+            }
+            b -= hop;
+        }
+        end
     }
 
     /// The first whole period from `start` whose residual against `fit` is within the

@@ -31,7 +31,9 @@
 //!    for white noise). With `snap` on, the reported frequency is the roundest decimal within
 //!    `snap_sigmas` standard deviations of the estimate (the estimate is kept beside it).
 //! 5. **Settled part**: the first whole period from the step's start whose residual against
-//!    the step's sine is within `clean_residual_factor` times the step's residual.
+//!    the step's sine is within `clean_residual_factor` times the step's residual, and its
+//!    end: before the last periods that leave three times that (a taper at the end of a
+//!    test). The step's frequency is refitted over the settled part.
 //!
 //! Limits: a step needs at least three windows (1.5 windows, about six periods of the lowest
 //! frequency) to be found; a series too short for that, in which no sine is found, is looked
@@ -126,6 +128,9 @@ pub struct DetectedStep {
     pub end: usize,
     /// First sample of the settled part (`start` for non-sine steps).
     pub settled_start: usize,
+    /// End of the steady part: before a taper at the step's end (`end` for a step without
+    /// one, and for non-sine steps).
+    pub settled_end: usize,
     /// Samples `start_interval.0..=start_interval.1` are as likely a start as `start` (a
     /// single sample for the first step and for noise-free data).
     pub start_interval: (usize, usize),

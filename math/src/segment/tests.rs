@@ -448,3 +448,54 @@ fn a_sine_test_of_few_periods_is_one_sine_step() {
         "settled from {settled}"
     );
 }
+
+/// A test that ramps its amplitude up and down over a period and a half at each end (a test
+/// machine's taper), 30 dB: one sine step whose steady part ends in the taper's first period,
+/// its frequency from the steady part.
+#[test]
+fn a_tapered_test_ends_its_steady_part_at_the_taper() {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let (fs, f, amplitude) = (1000.0, 3.05, 0.0045);
+    let period = fs / f;
+    let taper = (1.5 * period) as usize;
+    let n = (12.0 * period) as usize;
+    let noise_std = amplitude / 2f64.sqrt() * 10f64.powf(-30.0 / 20.0);
+    let normal = Normal::new(0.0, noise_std).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let gain = |k: usize| {
+        let ramp = |i: usize| 0.5 - 0.5 * (std::f64::consts::PI * i as f64 / taper as f64).cos();
+        if k < taper {
+            ramp(k)
+        } else if k >= n - taper {
+            ramp(n - k)
+        } else {
+            1.0
+        }
+    };
+    let x: Vec<f64> = (0..n)
+        .map(|k| {
+            gain(k) * amplitude * (2.0 * std::f64::consts::PI * f * k as f64 / fs).sin()
+                + normal.sample(&mut rng)
+        })
+        .collect();
+    let seg = detect_steps(&x, fs, 0.0, &SegmentOptions::default()).unwrap();
+    let sines: Vec<&DetectedStep> = seg
+        .steps
+        .iter()
+        .filter(|s| matches!(s.kind, DetectedKind::Sine { .. }))
+        .collect();
+    assert_eq!(sines.len(), 1, "{:?}", seg.steps);
+    let s = sines[0];
+    let taper_start = n - taper;
+    // A taper's first samples differ from the steady sine by less than the noise: the end
+    // is found within its first period.
+    assert!(
+        (taper_start..taper_start + period as usize).contains(&s.settled_end),
+        "steady part ends at {}, the taper starts at {taper_start}",
+        s.settled_end
+    );
+    let (_, estimate, std, a) = sine(s);
+    assert!((estimate - f).abs() < 5.0 * std, "{estimate} +- {std}");
+    assert!((a - amplitude).abs() < 0.02 * amplitude, "{a}");
+}
