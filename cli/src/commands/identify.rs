@@ -76,14 +76,16 @@ type Streamed = Result<(Vec<HarmonicAnalysis>, Vec<String>), pipeline::PipelineE
 /// without plots, is streamed: each sine step is analysed into its phasors as soon as it is
 /// complete and dropped, so that memory does not grow with the bag (the other records are
 /// kept, for validation); the analyses are returned with it.
-fn load(args: &IdentifyArgs) -> anyhow::Result<(forcemap_io::input::Loaded, Option<Streamed>)> {
-    let files = forcemap_io::input::expand_paths(&args.files)?;
-    let single_bag = match files.as_slice() {
+fn load(
+    args: &IdentifyArgs,
+    files: &[std::path::PathBuf],
+) -> anyhow::Result<(forcemap_io::input::Loaded, Option<Streamed>)> {
+    let single_bag = match files {
         [f] => forcemap_io::input::is_bag(f).then_some(f),
         _ => None,
     };
     let Some(bag) = single_bag.filter(|_| args.channels.is_none()) else {
-        let import = forcemap_io::input::load_files(&files, args.channels.as_deref())?;
+        let import = forcemap_io::input::load_files(files, args.channels.as_deref())?;
         return Ok((import, None));
     };
     let streams = args.plot.is_none()
@@ -131,8 +133,9 @@ pub fn data_name(files: &[std::path::PathBuf]) -> String {
 }
 
 pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
-    let file = data_name(&args.files);
-    let (import, mut streamed) = load(args)?;
+    let files = forcemap_io::input::expand_paths(&args.files)?;
+    let file = data_name(&files);
+    let (import, mut streamed) = load(args, &files)?;
     if !import.ignored_columns.is_empty() {
         eprintln!(
             "notice: {file}: ignored columns not in the contract: {}",
