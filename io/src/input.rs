@@ -130,7 +130,7 @@ pub fn load(path: &Path) -> anyhow::Result<Loaded> {
 
 /// The records of a file read into the CSV contract, its warnings and notices printed.
 fn of_import(path: &Path, csv: CsvImport) -> Loaded {
-    for w in &csv.warnings {
+    for w in crate::messages::grouped(&csv.warnings) {
         eprintln!("warning: {}: {w}", path.display());
     }
     for notice in &csv.notices {
@@ -172,7 +172,7 @@ fn of_bag_of_kind(path: &Path, bag: RigBag, kind: SetupKind) -> anyhow::Result<L
     if let Some(why) = &bag.left_out {
         eprintln!("notice: {}: {why}", path.display());
     }
-    for w in &bag.warnings {
+    for w in crate::messages::grouped(&bag.warnings) {
         eprintln!("warning: {}: {w}", path.display());
     }
     Ok(Loaded {

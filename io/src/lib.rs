@@ -13,6 +13,7 @@ pub mod foreign_bag;
 pub mod foreign_topics;
 pub mod input;
 pub mod mdf;
+pub mod messages;
 pub mod params;
 pub mod rig_bag;
 pub mod rig_constants;

@@ -411,7 +411,7 @@ fn print_identification(file: &str, id: &Identification, validations: &[Validati
             v.step, v.nmse_percent
         );
     }
-    for w in &id.warnings {
+    for w in forcemap_io::messages::grouped(&id.warnings) {
         println!("warning: {w}");
     }
 }

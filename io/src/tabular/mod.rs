@@ -7,9 +7,9 @@
 //! errors of the same samples in forcemap's CSV.
 
 pub mod datetime;
-pub(crate) mod mat;
+pub mod mat;
 mod resolve;
-pub(crate) mod text;
+pub mod text;
 
 use std::path::Path;
 
