@@ -545,7 +545,7 @@ fn assemble(
             assembled.push((frequency_of(&a.record), a.record));
         }
     }
-    if let Some(done) = assembler.finish_step() {
+    for done in assembler.finish_step() {
         let a = done.map_err(step_err)?;
         assembled.push((frequency_of(&a.record), a.record));
     }
@@ -571,6 +571,7 @@ fn assemble(
         left_out: (left_before > 0)
             .then(|| format!("{left_before} samples before the first step label left out")),
         warnings: Vec::new(),
+        notices: Vec::new(),
     })
 }
 
