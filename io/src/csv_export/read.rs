@@ -15,7 +15,7 @@ use super::error::{CsvError, csv_error};
 use super::multisine::{self, MultisineLabel};
 use super::sweep::{self, SweepLabel};
 use crate::steps::timing::{JitterSummary, TimingNote};
-use crate::steps::unlabelled::{StepWithFrequency, check_labels, split_run};
+use crate::steps::unlabelled::{StepWithFrequency, check_labels, split_parts};
 use crate::steps::{
     AssembledStep, StepAssembler, StepError, StepFault, StepPlan, StepRules, StepSample,
     estimated_excitation, rms_about_mean, sine_amplitude_from_rms,
@@ -258,6 +258,7 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
         steps.iter().map(|s| s.multisine.clone()).collect();
     let sweeps: Vec<Option<SweepLabel>> = steps.iter().map(|s| s.sweep).collect();
     let first_samples: Vec<usize> = steps.iter().map(|s| s.assembled.first_sample).collect();
+    let labels: Vec<usize> = steps.iter().map(|s| s.assembled.label).collect();
     let mut found: Vec<StepWithFrequency> = steps
         .into_iter()
         .map(|s| (s.assembled.record, s.frequency))
@@ -265,18 +266,37 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
     let options = SegmentOptions::default();
     let warnings = if labelled {
         // The segmenter knows sines and the rest: a multisine or sweep label is not checked by
-        // it. It takes the steps of one time series: each run of records back to back at one
-        // rate is checked apart.
-        let checkable: Vec<StepWithFrequency> = found
-            .iter()
-            .zip(multisines.iter().zip(&sweeps))
-            .filter(|(_, (m, s))| m.is_none() && s.is_none())
-            .map(|(s, _)| s.clone())
-            .collect();
+        // it. It takes labelled steps one after the other at one rate: a step its timing split
+        // is joined again (named by its label), and each run of steps at one rate is checked
+        // apart.
+        let mut checkable: Vec<StepWithFrequency> = Vec::new();
+        for (k, (record, frequency)) in found.iter().enumerate() {
+            if multisines[k].is_some() || sweeps[k].is_some() {
+                continue;
+            }
+            match checkable.last_mut() {
+                Some((last, _))
+                    if k > 0 && labels[k - 1] == labels[k] && last.step == labels[k] =>
+                {
+                    for ((_, x), (_, y)) in last.channels.iter_mut().zip(&record.channels) {
+                        x.extend_from_slice(y);
+                    }
+                }
+                _ => checkable.push((
+                    Record {
+                        step: labels[k],
+                        ..record.clone()
+                    },
+                    *frequency,
+                )),
+            }
+        }
         let mut warnings = Vec::new();
         let mut start = 0;
         for k in 1..=checkable.len() {
-            if k == checkable.len() || !back_to_back(&checkable[k - 1].0, &checkable[k].0) {
+            if k == checkable.len()
+                || checkable[k - 1].0.sample_rate_hz != checkable[k].0.sample_rate_hz
+            {
                 warnings.extend(check_labels(&checkable[start..k], driven, &options));
                 start = k;
             }
@@ -285,22 +305,17 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
     } else {
         // Every row is of one step; a pause or lost rows cut it in parts, each cut into steps
         // where its drive changes, the records numbered in order.
-        let parts = std::mem::take(&mut found);
-        for ((run, _), first) in parts.into_iter().zip(first_samples) {
-            let times = &unlabelled_times[first..first + run.len()];
-            let run = Record {
-                step: found.len(),
-                ..run
-            };
-            found.extend(split_run(&run, driven, times, &options).map_err(|e| {
-                CsvError::Unlabelled {
-                    path: p(),
-                    first_s: times.first().copied().unwrap_or(0.0),
-                    last_s: times.last().copied().unwrap_or(0.0),
-                    message: e.to_string(),
-                }
-            })?);
-        }
+        let parts: Vec<(&Record, &[f64])> = found
+            .iter()
+            .zip(first_samples)
+            .map(|((run, _), first)| (run, &unlabelled_times[first..first + run.len()]))
+            .collect();
+        found = split_parts(&parts, driven, &options).map_err(|e| CsvError::Unlabelled {
+            path: p(),
+            first_s: unlabelled_times.first().copied().unwrap_or(0.0),
+            last_s: unlabelled_times.last().copied().unwrap_or(0.0),
+            message: e.to_string(),
+        })?;
         Vec::new()
     };
     let records = found
@@ -335,14 +350,6 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
         warnings,
         notices,
     })
-}
-
-/// Whether record `b` starts one interval of `a`'s after `a` ends, at `a`'s rate (within half
-/// an interval): the two are one time series.
-fn back_to_back(a: &Record, b: &Record) -> bool {
-    let dt = 1.0 / a.sample_rate_hz;
-    a.sample_rate_hz == b.sample_rate_hz
-        && (b.start_time_s - (a.start_time_s + a.len() as f64 * dt)).abs() < 0.5 * dt
 }
 
 /// The rows of the step being read: its frequency, its lines (sample `k` of the step is on

@@ -58,7 +58,8 @@ use stream::StepStream;
 use crate::latency_trace;
 use crate::log_line;
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos};
-use forcemap_io::steps::{StepAssembler, StepError, StepPlan, StepSample};
+use forcemap_io::steps::timing::JitterSummary;
+use forcemap_io::steps::{AssembledStep, StepAssembler, StepError, StepPlan, StepSample};
 use forcemap_io::topics;
 
 /// Samples of a step whose excitation state has not arrived are held this long (the two topics
@@ -114,6 +115,8 @@ pub struct HarmonicState {
     update_period_s: Option<f64>,
     /// The record of the last step analysed from its stream ([`HarmonicState::take_spent`]).
     spent: Option<Record>,
+    /// Whether a record's jitter was reported (once per run).
+    jitter_reported: bool,
 }
 
 impl Default for HarmonicState {
@@ -141,6 +144,7 @@ impl HarmonicState {
             last_sample_at: None,
             update_period_s: None,
             spent: None,
+            jitter_reported: false,
         }
     }
 
@@ -257,12 +261,12 @@ impl HarmonicState {
                 {
                     self.idle_since = None;
                     self.flush_pending(&mut done, true);
-                    if let Some(r) = self.assembler.finish_step() {
+                    let mut stream = self.stream.take();
+                    for r in self.assembler.finish_step() {
                         if let Ok(a) = &r {
-                            done.extend(a.warnings.iter().cloned().map(Outcome::Warning));
+                            self.timing_warnings(a, &mut done);
                         }
-                        let stream = self.stream.take();
-                        done.push(self.outcome(r.map(|a| a.record), stream));
+                        done.push(self.outcome(r.map(|a| a.record), stream.take()));
                     }
                 }
             }
@@ -301,7 +305,7 @@ impl HarmonicState {
         let mut previous = previous;
         for r in self.assembler.push_sample(&sample, plan.as_ref()) {
             if let Ok(a) = &r {
-                done.extend(a.warnings.iter().cloned().map(Outcome::Warning));
+                self.timing_warnings(a, done);
             }
             let r = r.map(|a| a.record);
             let step_of = r.as_ref().map_or_else(|e| e.step, |rec| rec.step);
@@ -311,6 +315,27 @@ impl HarmonicState {
                 self.stream.take_if(|st| st.step == step_of)
             };
             done.push(self.outcome(r, st));
+        }
+    }
+
+    /// What a completed record's assembly says: its warnings, the timing rule's notes (a step
+    /// split at a pause or lost samples), and the first jittered record's jitter (once).
+    fn timing_warnings(&mut self, a: &AssembledStep, done: &mut Vec<Outcome>) {
+        done.extend(a.warnings.iter().cloned().map(Outcome::Warning));
+        done.extend(
+            a.notes
+                .iter()
+                .map(|n| Outcome::Warning(n.describe(a.label))),
+        );
+        if !self.jitter_reported && a.timing.jitter.is_some() {
+            self.jitter_reported = true;
+            let mut summary = JitterSummary::default();
+            summary.add(a.timing.jitter.as_ref());
+            done.extend(
+                summary
+                    .notice()
+                    .map(|n| Outcome::Warning(format!("step {}: {n} (said once)", a.label))),
+            );
         }
     }
 
