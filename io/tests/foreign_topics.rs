@@ -120,7 +120,7 @@ fn samples_are_the_values_written_at_their_stamps() {
     let samples: Vec<(i64, Vec<(Channel, f64)>)> = out
         .into_iter()
         .map(|o| match o {
-            Output::Sample { t_ns, values } => (t_ns, values),
+            Output::Sample { t_ns, values, .. } => (t_ns, values),
             other => panic!("{other:?}"),
         })
         .collect();
@@ -317,7 +317,7 @@ fn a_headerless_topic_received_late_aligns_with_the_stamped_one() {
     let out = feed_received(200, 4_000_000, 3_000_000);
     let mut samples = 0;
     for o in &out {
-        let Output::Sample { t_ns, values } = o else {
+        let Output::Sample { t_ns, values, .. } = o else {
             panic!("{o:?}");
         };
         let i = (t_ns - T0) / DT;
