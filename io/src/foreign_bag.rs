@@ -210,7 +210,7 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
     let samples = read_samples(&p, &reader, map, topics)?;
     let driven = setup_kind(&p, map)?.driven_channel();
     if labelled {
-        return assemble(&p, map, &samples, driven).map(|a| a.bag);
+        return assemble(&p, map, &samples, driven, TimingReport::default()).map(|a| a.bag);
     }
     // No labels: the run as one random step (cut at pauses or lost samples), each part then
     // cut where the drive changes.
@@ -218,7 +218,7 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
         .iter()
         .map(|(t, v, _)| (*t, v.clone(), Some([Some(0.0), Some(0.0)])))
         .collect();
-    let mut bag = assemble(&p, map, &unlabelled, driven)?;
+    let mut bag = assemble(&p, map, &unlabelled, driven, TimingReport::of_run())?;
     let t0 = samples.first().map_or(0, |s| s.0);
     let times_s: Vec<f64> = samples
         .iter()
@@ -410,6 +410,7 @@ fn assemble(
     map: &ChannelMap,
     samples: &[Sample],
     driven: forcemap_math::record::Channel,
+    mut timing: TimingReport,
 ) -> Result<Assembled, ForeignBagError> {
     let step_src = map.step.as_ref().map_or("", |s| s.topic.as_str());
     let freq_src = map.frequency_hz.as_ref().map_or("", |s| s.topic.as_str());
@@ -503,7 +504,6 @@ fn assemble(
             topics: topics.join(", "),
         });
     }
-    let mut timing = TimingReport::default();
     let mut first_samples = Vec::new();
     let records = assembled
         .into_iter()

@@ -167,7 +167,13 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
                 let result = assembler.finish_step();
                 steps.extend(done.completed(path, result)?);
             }
-            current = Some(StepRows::new(step, freq, multisine.clone(), swept));
+            current = Some(StepRows::new(
+                step,
+                freq,
+                multisine.clone(),
+                swept,
+                labelled,
+            ));
         }
         let cur = current.as_mut().expect("current step exists");
         if cur.frequency != freq {
@@ -362,6 +368,8 @@ struct StepRows {
     sweep: Option<SweepLabel>,
     lines: Vec<u64>,
     plan: StepPlan,
+    /// The file labels its steps (else this is the whole run).
+    labelled: bool,
 }
 
 /// A record read and assembled (a step, or a part of a step its timing cut).
@@ -380,6 +388,7 @@ impl StepRows {
         frequency: Option<f64>,
         multisine: Option<MultisineLabel>,
         sweep: Option<SweepLabel>,
+        labelled: bool,
     ) -> StepRows {
         // The export carries no amplitude: it is estimated once the step is complete (a
         // sweep's duration too, by the assembler).
@@ -406,6 +415,7 @@ impl StepRows {
             multisine,
             sweep,
             lines: Vec::new(),
+            labelled,
             plan: StepPlan {
                 excitation,
                 sample_count: 0,
@@ -453,13 +463,22 @@ impl StepRows {
     /// What the timing rule did to this step, naming its lines; `record` is the number of the
     /// record the note comes with.
     fn notice(&self, path: &Path, note: &TimingNote, record: usize) -> String {
-        let at = format!("{}: step {}", path.display(), self.step);
+        let at = match self.labelled {
+            true => format!("{}: step {}", path.display(), self.step),
+            false => path.display().to_string(),
+        };
         match note {
             TimingNote::Break(b) => format!(
-                "{at}, line {}, column '{TIME_COLUMN}': {} after line {}: the step goes on in another record from here (record {record} or after)",
+                "{at}, line {}, column '{TIME_COLUMN}': {} after line {}: {}",
                 self.line(b.sample),
                 b.describe(),
-                self.line(b.sample - 1)
+                self.line(b.sample - 1),
+                match self.labelled {
+                    true => format!(
+                        "the step goes on in another record from here (record {record} or after)"
+                    ),
+                    false => "the run is cut here, each part searched for steps apart".to_string(),
+                }
             ),
             TimingNote::LeftOut { first, count } => format!(
                 "{at}, lines {}-{}: {count} row{} between breaks of the sampling, too few for a record: left out",

@@ -132,7 +132,7 @@ fn pieces_too_short_for_a_record_are_left_out_with_a_note() {
         parts[1].notes
     );
     assert_eq!(
-        parts[1].notes[1].describe(0),
+        parts[1].notes[1].describe(Some(0)),
         "step 0, samples 5-5: 1 sample between breaks of the sampling, too few for a record: left out"
     );
 }

@@ -79,17 +79,23 @@ pub enum TimingNote {
 }
 
 impl TimingNote {
-    /// The note for a source without lines, naming the step (its label) and samples counted in
-    /// it: `step 3, sample 1200: 1 sample lost (...): the step goes on in another record`.
-    pub fn describe(&self, step: usize) -> String {
+    /// The note for a source without lines, naming the step (its label; `None`: an unlabelled
+    /// run) and samples counted in it: `step 3, sample 1200: 1 sample lost (...): the step goes
+    /// on in another record from there`.
+    pub fn describe(&self, step: Option<usize>) -> String {
+        let what = step.map_or_else(|| "the run".to_string(), |s| format!("step {s}"));
         match self {
             TimingNote::Break(b) => format!(
-                "step {step}, sample {}: {}: the step goes on in another record from there",
+                "{what}, sample {}: {}: {}",
                 b.sample,
-                b.describe()
+                b.describe(),
+                match step {
+                    Some(_) => "the step goes on in another record from there",
+                    None => "the run is cut there, each part searched for steps apart",
+                }
             ),
             TimingNote::LeftOut { first, count } => format!(
-                "step {step}, samples {first}-{}: {count} sample{} between breaks of the sampling, too few for a record: left out",
+                "{what}, samples {first}-{}: {count} sample{} between breaks of the sampling, too few for a record: left out",
                 first + count - 1,
                 if *count == 1 { "" } else { "s" }
             ),
@@ -103,13 +109,23 @@ impl TimingNote {
 pub struct TimingReport {
     notes: Vec<String>,
     jitter: JitterSummary,
+    /// The records are the parts of an unlabelled run (one step of the assembler).
+    unlabelled: bool,
 }
 
 impl TimingReport {
+    /// The report of an unlabelled run's parts.
+    pub fn of_run() -> TimingReport {
+        TimingReport {
+            unlabelled: true,
+            ..TimingReport::default()
+        }
+    }
+
     pub fn add(&mut self, a: &super::AssembledStep) {
         self.jitter.add(a.timing.jitter.as_ref());
-        self.notes
-            .extend(a.notes.iter().map(|n| n.describe(a.label)));
+        let step = (!self.unlabelled).then_some(a.label);
+        self.notes.extend(a.notes.iter().map(|n| n.describe(step)));
     }
 
     /// The notices, in order, the jitter's last.

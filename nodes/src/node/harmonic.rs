@@ -325,7 +325,7 @@ impl HarmonicState {
         done.extend(
             a.notes
                 .iter()
-                .map(|n| Outcome::Warning(n.describe(a.label))),
+                .map(|n| Outcome::Warning(n.describe(Some(a.label)))),
         );
         if !self.jitter_reported && a.timing.jitter.is_some() {
             self.jitter_reported = true;
