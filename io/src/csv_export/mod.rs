@@ -27,8 +27,11 @@
 //! they include the transient. Steps must be contiguous (each new step is the previous one
 //! plus one; the first may be any non-negative integer) and each step must have at least 3
 //! rows. Time must increase strictly over the whole file (it counts from the start of the
-//! run). The sampling must be uniform within a step, and all steps must have the same sample
-//! rate; the tolerance is 1e-6 relative plus the rounding of the time column when the file
+//! run). Times are read by the assembler's timing rule ([`crate::steps::timing`]): each record
+//! has its own sample rate; a pause or lost rows end a record (the step goes on in another,
+//! with a notice naming the line); times that jitter about a uniform grid by up to a tenth of
+//! an interval are read as uniform (one notice per file); a time off by more is refused.
+//! Times are exact within 1e-6 relative plus the rounding of the time column when the file
 //! writes time with a fixed number of decimals (e.g. `0.000100`).
 //!
 //! The excitation amplitude is not part of the export, so it is *estimated* on import: for a
