@@ -176,8 +176,13 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             futures::pin_mut!(stream);
             while let Some(m) = stream.next().await {
                 match m {
-                    Ok((RawCdr(bytes), _info)) => {
-                        let received = crate::ros::now_time().as_nanos();
+                    Ok((RawCdr(bytes), info)) => {
+                        // When the DDS reader received it (RustDDS stamps each incoming
+                        // sample), not when this task ran: under load the task runs
+                        // milliseconds late, and a topic without a header is timed by it.
+                        let received = info
+                            .received_timestamp()
+                            .map_or_else(|| crate::ros::now_time().as_nanos(), |t| t.to_nanos());
                         if tx.send((k, bytes, received)).is_err() {
                             break;
                         }
