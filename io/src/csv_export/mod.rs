@@ -50,7 +50,7 @@
 //!
 //! Files: `contract` (column names, required columns, the header's layout), `dialect`,
 //! `multisine` (the multisine label columns), `sweep` (the sweep label columns), `read`,
-//! `write`, `error`.
+//! `label_runs` (the label check over records of several rates), `write`, `error`.
 //!
 //! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
 //! [`SetupKind::DrivePoint`]: forcemap_math::recipe::SetupKind::DrivePoint
@@ -59,6 +59,7 @@
 mod contract;
 pub mod dialect;
 mod error;
+mod label_runs;
 pub mod multisine;
 mod read;
 pub mod sweep;

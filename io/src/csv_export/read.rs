@@ -12,10 +12,11 @@ use std::path::Path;
 use super::contract::{CsvImport, FREQUENCY_COLUMN, Layout, STEP_COLUMN, TIME_COLUMN};
 use super::dialect;
 use super::error::{CsvError, csv_error};
+use super::label_runs::label_warnings;
 use super::multisine::{self, MultisineLabel};
 use super::sweep::{self, SweepLabel};
 use crate::steps::timing::{JitterSummary, TimingNote};
-use crate::steps::unlabelled::{StepWithFrequency, check_labels, split_parts};
+use crate::steps::unlabelled::{StepWithFrequency, split_parts};
 use crate::steps::{
     AssembledStep, StepAssembler, StepError, StepFault, StepPlan, StepRules, StepSample,
     estimated_excitation, rms_about_mean, sine_amplitude_from_rms,
@@ -165,15 +166,9 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
             }
             if let Some(done) = current.take() {
                 let result = assembler.finish_step();
-                steps.extend(done.completed(path, result)?);
+                steps.extend(done.completed(path, result, labelled)?);
             }
-            current = Some(StepRows::new(
-                step,
-                freq,
-                multisine.clone(),
-                swept,
-                labelled,
-            ));
+            current = Some(StepRows::new(step, freq, multisine.clone(), swept));
         }
         let cur = current.as_mut().expect("current step exists");
         if cur.frequency != freq {
@@ -235,13 +230,13 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
             values: std::mem::take(&mut values),
         };
         let done = assembler.push_sample(&sample, Some(&cur.plan));
-        steps.extend(cur.completed(path, done)?);
+        steps.extend(cur.completed(path, done, labelled)?);
         values = sample.values;
     }
     match current {
         Some(done) => {
             let result = assembler.finish_step();
-            steps.extend(done.completed(path, result)?);
+            steps.extend(done.completed(path, result, labelled)?);
         }
         None => return Err(CsvError::HeaderOnly { path: p() }),
     }
@@ -272,42 +267,9 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
     let options = SegmentOptions::default();
     let warnings = if labelled {
         // The segmenter knows sines and the rest: a multisine or sweep label is not checked by
-        // it. It takes labelled steps one after the other at one rate: a step its timing split
-        // is joined again (named by its label), and each run of steps at one rate is checked
-        // apart.
-        let mut checkable: Vec<StepWithFrequency> = Vec::new();
-        for (k, (record, frequency)) in found.iter().enumerate() {
-            if multisines[k].is_some() || sweeps[k].is_some() {
-                continue;
-            }
-            match checkable.last_mut() {
-                Some((last, _))
-                    if k > 0 && labels[k - 1] == labels[k] && last.step == labels[k] =>
-                {
-                    for ((_, x), (_, y)) in last.channels.iter_mut().zip(&record.channels) {
-                        x.extend_from_slice(y);
-                    }
-                }
-                _ => checkable.push((
-                    Record {
-                        step: labels[k],
-                        ..record.clone()
-                    },
-                    *frequency,
-                )),
-            }
-        }
-        let mut warnings = Vec::new();
-        let mut start = 0;
-        for k in 1..=checkable.len() {
-            if k == checkable.len()
-                || checkable[k - 1].0.sample_rate_hz != checkable[k].0.sample_rate_hz
-            {
-                warnings.extend(check_labels(&checkable[start..k], driven, &options));
-                start = k;
-            }
-        }
-        warnings
+        // it.
+        let checked = |k: usize| multisines[k].is_none() && sweeps[k].is_none();
+        label_warnings(&found, &labels, checked, driven, &options)
     } else {
         // Every row is of one step; a pause or lost rows cut it in parts, each cut into steps
         // where its drive changes, the records numbered in order.
@@ -368,8 +330,6 @@ struct StepRows {
     sweep: Option<SweepLabel>,
     lines: Vec<u64>,
     plan: StepPlan,
-    /// The file labels its steps (else this is the whole run).
-    labelled: bool,
 }
 
 /// A record read and assembled (a step, or a part of a step its timing cut).
@@ -388,7 +348,6 @@ impl StepRows {
         frequency: Option<f64>,
         multisine: Option<MultisineLabel>,
         sweep: Option<SweepLabel>,
-        labelled: bool,
     ) -> StepRows {
         // The export carries no amplitude: it is estimated once the step is complete (a
         // sweep's duration too, by the assembler).
@@ -415,7 +374,6 @@ impl StepRows {
             multisine,
             sweep,
             lines: Vec::new(),
-            labelled,
             plan: StepPlan {
                 excitation,
                 sample_count: 0,
@@ -434,11 +392,12 @@ impl StepRows {
     }
 
     /// The assembler's verdict on this step (its records, or why it has none), with the
-    /// step's lines.
+    /// step's lines; `labelled`: the file labels its steps (else this is the whole run).
     fn completed(
         &self,
         path: &Path,
         results: Vec<Result<AssembledStep, StepError>>,
+        labelled: bool,
     ) -> Result<Vec<ReadStep>, CsvError> {
         results
             .into_iter()
@@ -447,7 +406,7 @@ impl StepRows {
                 let notices = assembled
                     .notes
                     .iter()
-                    .map(|n| self.notice(path, n, assembled.record.step))
+                    .map(|n| self.notice(path, n, assembled.record.step, labelled))
                     .collect();
                 Ok(ReadStep {
                     frequency: self.frequency,
@@ -462,8 +421,8 @@ impl StepRows {
 
     /// What the timing rule did to this step, naming its lines; `record` is the number of the
     /// record the note comes with.
-    fn notice(&self, path: &Path, note: &TimingNote, record: usize) -> String {
-        let at = match self.labelled {
+    fn notice(&self, path: &Path, note: &TimingNote, record: usize, labelled: bool) -> String {
+        let at = match labelled {
             true => format!("{}: step {}", path.display(), self.step),
             false => path.display().to_string(),
         };
@@ -473,7 +432,7 @@ impl StepRows {
                 self.line(b.sample),
                 b.describe(),
                 self.line(b.sample - 1),
-                match self.labelled {
+                match labelled {
                     true => format!(
                         "the step goes on in another record from here (record {record} or after)"
                     ),

@@ -274,6 +274,21 @@ pub struct AssembledStep {
     pub notes: Vec<timing::TimingNote>,
 }
 
+impl AssembledStep {
+    /// What a user should know about the record, each naming its step (its label): its
+    /// warnings, the timing rule's notes (a step split at a pause or lost samples) and its
+    /// times' jitter, if any. (A file's readers say the jitter once, [`timing::TimingReport`].)
+    pub fn messages(&self) -> impl Iterator<Item = String> + '_ {
+        let mut jitter = timing::JitterSummary::default();
+        jitter.add(self.timing.jitter.as_ref());
+        self.warnings
+            .iter()
+            .cloned()
+            .chain(self.notes.iter().map(|n| n.describe(Some(self.label))))
+            .chain(jitter.notice().map(|n| format!("step {}: {n}", self.label)))
+    }
+}
+
 struct Building {
     record: Record,
     /// Sample times [s] from the run start.

@@ -3,10 +3,11 @@
 //! Subscribes to the samples and the excitation state, assembles each step (the same
 //! [`StepAssembler`] that reads bags, so a replayed step is the record `forcemap identify`
 //! reads), finds its settled part and publishes the phasors of every harmonic once the step is
-//! complete. Steps with gaps, lost samples or non-finite values are dropped and reported on
-//! /diagnostics, never used. Random (validation) records and sweeps give no phasors. A periodic
-//! multisine step (`ExcitationState` MULTISINE, its lines found from the driven channel when
-//! the step is assembled) is analysed whole at its end (`analyse_multisine`) and published as
+//! complete; a pause or lost samples split a step in records (warned about). Steps with
+//! non-finite values are dropped and reported on /diagnostics. Random (validation) records and
+//! sweeps give no phasors. A periodic multisine step (`ExcitationState` MULTISINE, its lines
+//! found from the driven channel when the step is assembled) is analysed whole at its end
+//! (`analyse_multisine`) and published as
 //! the bins of its averaged period, harmonics of the base frequency, with `harmonic_cap`
 //! [`HarmonicPhasors::MULTISINE_CAP`] (the identifier does not take them yet).
 //!
@@ -58,8 +59,7 @@ use stream::StepStream;
 use crate::latency_trace;
 use crate::log_line;
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos};
-use forcemap_io::steps::timing::JitterSummary;
-use forcemap_io::steps::{AssembledStep, StepAssembler, StepError, StepPlan, StepSample};
+use forcemap_io::steps::{StepAssembler, StepError, StepPlan, StepSample};
 use forcemap_io::topics;
 
 /// Samples of a step whose excitation state has not arrived are held this long (the two topics
@@ -115,8 +115,6 @@ pub struct HarmonicState {
     update_period_s: Option<f64>,
     /// The record of the last step analysed from its stream ([`HarmonicState::take_spent`]).
     spent: Option<Record>,
-    /// Whether a record's jitter was reported (once per run).
-    jitter_reported: bool,
 }
 
 impl Default for HarmonicState {
@@ -144,7 +142,6 @@ impl HarmonicState {
             last_sample_at: None,
             update_period_s: None,
             spent: None,
-            jitter_reported: false,
         }
     }
 
@@ -264,7 +261,7 @@ impl HarmonicState {
                     let mut stream = self.stream.take();
                     for r in self.assembler.finish_step() {
                         if let Ok(a) = &r {
-                            self.timing_warnings(a, &mut done);
+                            done.extend(a.messages().map(Outcome::Warning));
                         }
                         done.push(self.outcome(r.map(|a| a.record), stream.take()));
                     }
@@ -305,7 +302,7 @@ impl HarmonicState {
         let mut previous = previous;
         for r in self.assembler.push_sample(&sample, plan.as_ref()) {
             if let Ok(a) = &r {
-                self.timing_warnings(a, done);
+                done.extend(a.messages().map(Outcome::Warning));
             }
             let r = r.map(|a| a.record);
             let step_of = r.as_ref().map_or_else(|e| e.step, |rec| rec.step);
@@ -315,27 +312,6 @@ impl HarmonicState {
                 self.stream.take_if(|st| st.step == step_of)
             };
             done.push(self.outcome(r, st));
-        }
-    }
-
-    /// What a completed record's assembly says: its warnings, the timing rule's notes (a step
-    /// split at a pause or lost samples), and the first jittered record's jitter (once).
-    fn timing_warnings(&mut self, a: &AssembledStep, done: &mut Vec<Outcome>) {
-        done.extend(a.warnings.iter().cloned().map(Outcome::Warning));
-        done.extend(
-            a.notes
-                .iter()
-                .map(|n| Outcome::Warning(n.describe(Some(a.label)))),
-        );
-        if !self.jitter_reported && a.timing.jitter.is_some() {
-            self.jitter_reported = true;
-            let mut summary = JitterSummary::default();
-            summary.add(a.timing.jitter.as_ref());
-            done.extend(
-                summary
-                    .notice()
-                    .map(|n| Outcome::Warning(format!("step {}: {n} (said once)", a.label))),
-            );
         }
     }
 
