@@ -25,7 +25,7 @@ use forcemap_msgs::builtin_interfaces::Time;
 
 use crate::bag::{BagError, BagReader};
 use crate::channel_map::{ChannelMap, FREQUENCY_LABEL, STEP_LABEL, Source};
-use crate::foreign_topics::{ForeignTopics, LiveTopic, Output, SampleLabels};
+use crate::foreign_topics::{ForeignTopics, LiveTopic, Output, SampleLabels, step_of_labels};
 use crate::rig_bag::RigBag;
 use crate::ros_msg::{Registry, builtin_registry, parse_msg};
 use crate::stamp_align::median_interval_ns;
@@ -436,25 +436,14 @@ fn assemble(
             left_before += 1;
             continue;
         };
-        let (step, freq) = (*step, *freq);
-        if !(step.is_finite() && step >= 0.0 && step.fract() == 0.0 && step <= u32::MAX as f64) {
-            return Err(label_err(
-                step_src,
-                STEP_LABEL,
-                k,
-                format!("{step} is not a whole number from 0"),
-            ));
-        }
-        if !(freq.is_finite() && freq >= 0.0) {
-            return Err(label_err(
-                freq_src,
-                FREQUENCY_LABEL,
-                k,
-                format!("{freq} Hz is not a frequency (0 for random excitation)"),
-            ));
-        }
-        let step = step as usize;
-        let frequency = (freq > 0.0).then_some(freq);
+        let (step, frequency) = step_of_labels(*step, *freq).map_err(|(entry, problem)| {
+            let topic = if entry == STEP_LABEL {
+                step_src
+            } else {
+                freq_src
+            };
+            label_err(topic, entry, k, problem)
+        })?;
         let (f0, plan) = plans.entry(step).or_insert_with(|| {
             // The level is not known until the step is complete (estimated then).
             let excitation = estimated_excitation(frequency, f64::NAN);

@@ -113,6 +113,24 @@ impl LiveTopic {
 /// The labels of a sample: the step and the frequency, each `None` before its first message.
 pub type SampleLabels = [Option<f64>; 2];
 
+/// A sample's labels as its step and frequency (`None`: random excitation), or which label is
+/// wrong and why: a step is a whole number from 0, a frequency at least 0 (0 for random).
+pub fn step_of_labels(
+    step: f64,
+    frequency_hz: f64,
+) -> Result<(usize, Option<f64>), (&'static str, String)> {
+    if !(step.is_finite() && step >= 0.0 && step.fract() == 0.0 && step <= u32::MAX as f64) {
+        return Err((STEP_LABEL, format!("{step} is not a whole number from 0")));
+    }
+    if !(frequency_hz.is_finite() && frequency_hz >= 0.0) {
+        return Err((
+            FREQUENCY_LABEL,
+            format!("{frequency_hz} Hz is not a frequency (0 for random excitation)"),
+        ));
+    }
+    Ok((step as usize, (frequency_hz > 0.0).then_some(frequency_hz)))
+}
+
 /// What a payload gives.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Output {

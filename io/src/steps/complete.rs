@@ -125,6 +125,9 @@ fn note_sample(n: &TimingNote) -> usize {
     }
 }
 
+/// A record of a step: where it starts among the step's samples, and its timing.
+type Part = (usize, StepTiming);
+
 /// The step's samples (at least [`MIN_STEP_SAMPLES`]) as records: where each starts among them
 /// and its timing, and what was done to the step. Exact stamps under `rule` are one record;
 /// otherwise the step is cut at its breaks, and each part's stamps must lie on a grid within
@@ -133,7 +136,7 @@ fn read_timing(
     stamps: &[f64],
     resolution_s: f64,
     rule: IntervalRule,
-) -> Result<(Vec<(usize, StepTiming)>, Vec<TimingNote>), StepFault> {
+) -> Result<(Vec<Part>, Vec<TimingNote>), StepFault> {
     let timing_of = |s: &[f64]| StepTiming {
         samples: s.len(),
         first_s: s[0],

@@ -29,7 +29,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use forcemap_io::channel_map::{CHANNELS_KEY, ChannelMap};
-use forcemap_io::foreign_topics::{ForeignTopics, Output, SampleLabels};
+use forcemap_io::foreign_topics::{ForeignTopics, Output, SampleLabels, step_of_labels};
 use forcemap_io::steps::estimated_excitation;
 use forcemap_io::topics;
 use forcemap_math::recipe::SetupKind;
@@ -357,24 +357,20 @@ impl Steps {
             self.skip(t_ns, "before the first step and frequency_hz labels");
             return None;
         };
-        if !(step.is_finite() && step >= 0.0 && step.fract() == 0.0 && step <= u32::MAX as f64)
-            || !(frequency.is_finite() && frequency >= 0.0)
-        {
-            self.skip(
-                t_ns,
-                &format!("step {step}, frequency_hz {frequency}: not a step index and a frequency"),
-            );
-            return None;
-        }
-        let step = step as u32;
+        let (step, frequency) = match step_of_labels(step, frequency) {
+            Ok((step, frequency)) => (step as u32, frequency),
+            Err((label, problem)) => {
+                self.skip(t_ns, &format!("{label}: {problem}"));
+                return None;
+            }
+        };
         let starts = match self.current {
             Some((s, last)) if s == step => {
                 self.interval_ns = t_ns - last;
                 None
             }
             _ => {
-                let excitation =
-                    estimated_excitation((frequency > 0.0).then_some(frequency), f64::NAN);
+                let excitation = estimated_excitation(frequency, f64::NAN);
                 let time = Time::from_nanos(t_ns);
                 Some(ExcitationState::from_excitation(
                     Header::new(time, &self.frame),
