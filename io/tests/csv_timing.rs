@@ -276,7 +276,7 @@ fn dyno_identification(records: &[Record]) -> forcemap_math::identify::Identific
 /// An element test in one file at 1 kHz and 200 Hz identifies together: noise-free, every
 /// parameter within 1e-4 of the truth (each record analysed at its own rate); at 30 dB, every
 /// parameter within three of its standard errors of the truth. Within 1 % at 30 dB is beyond
-/// the data: k's standard error is 1.6 % here (0.76 % with every step at 1 kHz, whose k is
+/// the data: k's standard error is 1.6 % here (0.75 % with every step at 1 kHz, whose k is
 /// 0.7 % off for this seed and up to 1.4 % for seeds 1-6).
 #[test]
 fn steps_at_1_khz_and_200_hz_identify_together() {
