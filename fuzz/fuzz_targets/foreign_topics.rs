@@ -161,9 +161,10 @@ fuzz_target!(|data: &[u8]| {
             receive_ns += DT_NS;
         }
     }
+    topics.flush(&mut out);
     let mut last_ns: Option<i64> = None;
     for o in &out {
-        if let Output::Sample { t_ns, values } = o {
+        if let Output::Sample { t_ns, values, .. } = o {
             assert_eq!(values.len(), n_channels, "a sample without every mapped channel");
             if let Some(last) = last_ns {
                 assert!(*t_ns > last, "sample times not increasing: {last} then {t_ns}");

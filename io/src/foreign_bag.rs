@@ -1,40 +1,40 @@
 //! A bag recorded by a bench's own tools, read through a [`ChannelMap`]: each mapped topic is
 //! decoded from its definition (the bag's schema, a `.msg` file named by the map, or a
-//! built-in standard message), the channels of different topics are aligned by their header
-//! stamps (the log time for a message without a header), and the samples are assembled into
-//! steps by the same [`StepAssembler`] as forcemap's own bags.
+//! built-in standard message), and the messages go in log-time order (a log time is when the
+//! recorder received the message) through [`ForeignTopics`], the reader the live `foreign`
+//! node feeds as messages arrive: the same alignment by stamps (a message without a header by
+//! its receive time less the reference's delay, to the nearest sample; [`crate::stamp_align`]),
+//! the same labels (`step`, `frequency_hz`: from the sample nearest their time until the next
+//! message; samples before the first label are left out). The samples are then assembled into
+//! steps by the same [`StepAssembler`] as forcemap's own bags (its timing rule: a pause or lost
+//! samples end a record, jittered stamps are read as uniform).
 //!
-//! Alignment: the samples take the times of a reference topic (the first channel's topic whose
-//! type has a header, else the first channel's). The data topics must have one sample rate;
-//! over the time span they all cover, each reference message takes the message of every other
-//! data topic stamped within [`ALIGN_TOLERANCE`] sample intervals of it, once each (no
-//! resampling: a lost message, a clock offset or a different rate is an error that says
-//! which). The rule is [`crate::stamp_align`]'s, which the live `foreign` node applies too. The labels (`step`, `frequency_hz`) hold from their message's stamp (less
-//! the tolerance) until the next one, so a state topic published once per step works as well as
-//! one published with every sample; samples before the first label are left out. A map with
-//! neither label gives the run as one record cut where its driven channel changes
-//! ([`split_run`], as an unlabelled CSV export is cut, and as the harmonic node's `find_steps`
-//! cuts the same samples live).
+//! The data topics must have one sample rate (no resampling: a lost message, a clock offset or
+//! a different rate is an error that says which). A map with neither label gives the run as
+//! records cut where its driven channel changes ([`split_parts`], as an unlabelled CSV export
+//! is cut, each part between pauses apart, and as the harmonic node's `find_steps` cuts the
+//! same samples live).
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::Record;
+use forcemap_math::segment::SegmentOptions;
 use forcemap_msgs::builtin_interfaces::Time;
 
 use crate::bag::{BagError, BagReader};
 use crate::channel_map::{ChannelMap, FREQUENCY_LABEL, STEP_LABEL, Source};
+use crate::foreign_topics::{ForeignTopics, LiveTopic, Output, SampleLabels, step_of_labels};
 use crate::rig_bag::RigBag;
-use crate::ros_msg::{Registry, builtin_registry, decode, has_header, header_stamp_ns, parse_msg};
-use crate::stamp_align::{
-    Aligned as AlignedMessage, StampAligner, median_interval_ns, tolerance_ns,
-};
-use crate::steps::unlabelled::split_run;
+use crate::ros_msg::{Registry, builtin_registry, parse_msg};
+use crate::stamp_align::median_interval_ns;
+use crate::steps::timing::TimingReport;
+use crate::steps::unlabelled::split_parts;
 use crate::steps::{
-    StepAssembler, StepError, StepPlan, StepRules, StepSample, estimated_excitation, rms_about_mean,
+    AssembledStep, StepAssembler, StepError, StepPlan, StepRules, StepSample, estimated_excitation,
+    rms_about_mean,
 };
-use forcemap_math::segment::SegmentOptions;
 
 pub use crate::stamp_align::{ALIGN_TOLERANCE, RATE_TOLERANCE};
 
@@ -97,28 +97,6 @@ pub enum ForeignBagError {
     Empty { path: String, topics: String },
 }
 
-/// A mapped topic: its type's definitions and messages' times and values.
-struct Topic {
-    type_name: String,
-    registry: Registry,
-    /// Times are header stamps (else log times).
-    stamped: bool,
-    /// The map's entries read from this topic, in the order of each row's values.
-    entries: Vec<String>,
-    /// (time [ns], one value per entry), in time order.
-    rows: Vec<(i64, Vec<f64>)>,
-}
-
-impl Topic {
-    /// Where the value of `entry` is in a row.
-    fn column(&self, entry: &str) -> usize {
-        self.entries
-            .iter()
-            .position(|e| e == entry)
-            .unwrap_or_default()
-    }
-}
-
 /// The definitions `type_name` is decoded with: the bag's schema, else the map's `.msg` files,
 /// completed by the built-in ones.
 pub fn registry_for(
@@ -152,7 +130,7 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
     let sources: Vec<(&str, &Source)> = map.sources().collect();
 
     // The map against the bag: topics, types, fields.
-    let mut topics: BTreeMap<&str, Topic> = BTreeMap::new();
+    let mut topics: Vec<LiveTopic> = Vec::new();
     for (entry, s) in &sources {
         let info = reader
             .topic(&s.topic)
@@ -179,7 +157,7 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
                 ),
             });
         }
-        if !topics.contains_key(s.topic.as_str()) {
+        if !topics.iter().any(|t| t.name == s.topic) {
             let registry = registry_for(map, &info.type_name, &info.schema_text).map_err(
                 |(unknown, problem)| {
                     if unknown {
@@ -198,20 +176,14 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
                     }
                 },
             )?;
-            topics.insert(
-                &s.topic,
-                Topic {
-                    type_name: info.type_name.clone(),
-                    stamped: has_header(&registry, &info.type_name),
-                    registry,
-                    entries: Vec::new(),
-                    rows: Vec::new(),
-                },
-            );
+            topics.push(LiveTopic::new(&s.topic, &info.type_name, registry));
         }
-        let t = &topics[s.topic.as_str()];
+        let t = topics
+            .iter()
+            .find(|t| t.name == s.topic)
+            .expect("added above");
         s.field
-            .check(&t.registry, &t.type_name)
+            .check(t.registry(), &t.type_name)
             .map_err(|e| ForeignBagError::Field {
                 path: p.clone(),
                 topic: s.topic.clone(),
@@ -235,75 +207,170 @@ pub fn read_foreign_bag(path: &Path, map: &ChannelMap) -> Result<RigBag, Foreign
         });
     }
 
-    // Every mapped topic's messages: time and values.
-    for (name, topic) in &mut topics {
-        let on_topic: Vec<(&str, &Source)> = sources
-            .iter()
-            .filter(|(_, s)| s.topic == *name)
-            .copied()
-            .collect();
-        topic.entries = on_topic.iter().map(|(e, _)| e.to_string()).collect();
-        let stamped = topic.stamped;
-        for (index, m) in reader.messages_on(&[*name])?.enumerate() {
-            let m = m?;
-            let bad = |problem: String| ForeignBagError::Message {
-                path: p.clone(),
-                topic: name.to_string(),
-                index,
-                problem,
-            };
-            let value = decode(&topic.registry, &topic.type_name, &m.data)
-                .map_err(|e| bad(format!("{} does not decode: {e}", topic.type_name)))?;
-            let t = if stamped {
-                let ns = header_stamp_ns(&value).ok_or_else(|| bad("no header stamp".into()))?;
-                i64::try_from(ns).map_err(|_| bad(format!("stamp {ns} ns out of range")))?
-            } else {
-                i64::try_from(m.log_time).map_err(|_| bad("log time out of range".into()))?
-            };
-            let values = on_topic
-                .iter()
-                .map(|(_, s)| {
-                    s.field
-                        .get(&value)
-                        .map(|raw| s.apply(raw))
-                        .map_err(|e| bad(format!("field {}: {e}", s.field.text)))
-                })
-                .collect::<Result<Vec<f64>, _>>()?;
-            topic.rows.push((t, values));
-        }
-        topic.rows.sort_by_key(|(t, _)| *t);
+    let samples = read_samples(&p, &reader, map, topics)?;
+    let driven = setup_kind(&p, map)?.driven_channel();
+    if labelled {
+        return assemble(&p, map, &samples, driven, TimingReport::default()).map(|a| a.bag);
     }
+    // No labels: the run as one random step (cut at pauses or lost samples), each part then
+    // cut where the drive changes.
+    let unlabelled: Vec<Sample> = samples
+        .iter()
+        .map(|(t, v, _)| (*t, v.clone(), Some([Some(0.0), Some(0.0)])))
+        .collect();
+    let mut bag = assemble(&p, map, &unlabelled, driven, TimingReport::of_run())?;
+    let t0 = samples.first().map_or(0, |s| s.0);
+    let times_s: Vec<f64> = samples
+        .iter()
+        .map(|s| Time::from_nanos(s.0).secs_since(Time::from_nanos(t0)))
+        .collect();
+    let parts: Vec<(&Record, &[f64])> = bag
+        .bag
+        .records
+        .iter()
+        .zip(&bag.first_samples)
+        .map(|(r, &first)| (r, &times_s[first..first + r.len()]))
+        .collect();
+    let records = split_parts(&parts, driven, &SegmentOptions::default())
+        .map_err(|e| ForeignBagError::Segment {
+            path: p.clone(),
+            problem: e.to_string(),
+        })?
+        .into_iter()
+        .map(|(mut r, frequency)| {
+            let level = r.channel(driven).map_or(f64::NAN, rms_about_mean);
+            r.excitation = estimated_excitation(frequency, level);
+            r
+        })
+        .collect();
+    bag.bag.records = records;
+    Ok(bag.bag)
+}
 
-    let samples = align(&p, map, &topics)?;
-    let (Some(step_src), Some(freq_src)) = (&map.step, &map.frequency_hz) else {
-        // No labels: the run as one random step, then cut where the drive changes.
-        let one = vec![Some(0.0); samples.times.len()];
-        let mut bag = assemble(&p, map, &samples, &one, &one)?;
-        let run = bag.records.remove(0);
-        let t0 = samples.times.first().copied().unwrap_or(0);
-        let times_s: Vec<f64> = samples
-            .times
-            .iter()
-            .map(|&t| Time::from_nanos(t).secs_since(Time::from_nanos(t0)))
-            .collect();
-        let driven = setup_kind(&p, map)?.driven_channel();
-        bag.records = split_run(&run, driven, &times_s, &SegmentOptions::default())
-            .map_err(|e| ForeignBagError::Segment {
-                path: p.clone(),
-                problem: e.to_string(),
-            })?
-            .into_iter()
-            .map(|(mut r, frequency)| {
-                let level = r.channel(driven).map_or(f64::NAN, rms_about_mean);
-                r.excitation = estimated_excitation(frequency, level);
-                r
-            })
-            .collect();
-        return Ok(bag);
+/// An aligned sample: its time [ns], the channels' values in the map's order, its labels.
+type Sample = (i64, Vec<f64>, Option<SampleLabels>);
+
+/// Every mapped topic's messages, in log-time order, through the reader of foreign topics: the
+/// aligned (and labelled) samples; a message that breaks the rules is the error.
+fn read_samples(
+    p: &str,
+    reader: &BagReader,
+    map: &ChannelMap,
+    topics: Vec<LiveTopic>,
+) -> Result<Vec<Sample>, ForeignBagError> {
+    let mut live = ForeignTopics::of_topics(map, topics).recording_times();
+    let names: Vec<String> = live.topics().iter().map(|t| t.name.clone()).collect();
+    let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+    // Each channel's place in a sample: the reader gives them in its data topics' order.
+    let places: Vec<usize> = map
+        .channels
+        .iter()
+        .map(|(c, _)| live.channels().iter().position(|d| d == c).unwrap_or(0))
+        .collect();
+    let mut counts = vec![0usize; names.len()];
+    let mut samples = Vec::new();
+    let mut misaligned = None;
+    let mut out = Vec::new();
+    let mut take = |out: &mut Vec<Output>,
+                    samples: &mut Vec<Sample>,
+                    counts: &[usize]|
+     -> Result<(), ForeignBagError> {
+        for o in out.drain(..) {
+            match o {
+                Output::Sample {
+                    t_ns,
+                    values,
+                    labels,
+                } => samples.push((t_ns, places.iter().map(|&i| values[i].1).collect(), labels)),
+                Output::Malformed { topic, problem } => {
+                    let k = names.iter().position(|n| *n == topic).unwrap_or(0);
+                    return Err(ForeignBagError::Message {
+                        path: p.to_string(),
+                        topic,
+                        index: counts[k].saturating_sub(1),
+                        problem,
+                    });
+                }
+                Output::Misaligned(problem) => {
+                    misaligned.get_or_insert(problem);
+                }
+            }
+        }
+        Ok(())
     };
-    let steps = label(&topics, STEP_LABEL, step_src, &samples);
-    let freqs = label(&topics, FREQUENCY_LABEL, freq_src, &samples);
-    assemble(&p, map, &samples, &steps, &freqs)
+    for m in reader.messages_on(&refs)? {
+        let m = m?;
+        let k = names.iter().position(|n| *n == m.topic.name).unwrap_or(0);
+        counts[k] += 1;
+        let log_ns = i64::try_from(m.log_time).map_err(|_| ForeignBagError::Message {
+            path: p.to_string(),
+            topic: m.topic.name.clone(),
+            index: counts[k] - 1,
+            problem: "log time out of range".into(),
+        })?;
+        live.push(k, &m.data, log_ns, &mut out);
+        take(&mut out, &mut samples, &counts)?;
+    }
+    live.flush(&mut out);
+    take(&mut out, &mut samples, &counts)?;
+    check_rates(p, &live)?;
+    if let Some(problem) = misaligned {
+        return Err(ForeignBagError::Align {
+            path: p.to_string(),
+            problem,
+        });
+    }
+    Ok(samples)
+}
+
+/// The data topics' rates against the reference's: what a misalignment may come from, said
+/// first.
+fn check_rates(p: &str, live: &ForeignTopics) -> Result<(), ForeignBagError> {
+    let err = |problem: String| ForeignBagError::Align {
+        path: p.to_string(),
+        problem,
+    };
+    let Some(times) = live.times() else {
+        return Ok(());
+    };
+    let name = |k: usize| live.topics()[k].name.as_str();
+    let reference = &times[0];
+    if reference.len() < 2 {
+        return Err(err(format!(
+            "{} has {} messages: too few for a sample rate",
+            name(0),
+            reference.len()
+        )));
+    }
+    let interval = median_interval_ns(reference.iter().copied());
+    if interval <= 0.0 {
+        return Err(err(format!(
+            "{}: most messages share one stamp (a median interval of 0 ns)",
+            name(0)
+        )));
+    }
+    for (k, t) in times.iter().enumerate().skip(1) {
+        if t.len() < 2 {
+            return Err(err(format!(
+                "{} has {} messages where {} has {}",
+                name(k),
+                t.len(),
+                name(0),
+                reference.len()
+            )));
+        }
+        let other = median_interval_ns(t.iter().copied());
+        if (other / interval - 1.0).abs() > RATE_TOLERANCE {
+            return Err(err(format!(
+                "{} has a sample rate of {:.6} Hz where {} has {:.6} Hz: channels from different topics must share one rate (forcemap does not resample)",
+                name(k),
+                1e9 / other,
+                name(0),
+                1e9 / interval
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// The setup the map's channels make.
@@ -314,20 +381,6 @@ fn setup_kind(p: &str, map: &ChannelMap) -> Result<SetupKind, ForeignBagError> {
             problem: e.to_string(),
         }
     })
-}
-
-/// The aligned data: one time per sample (the reference topic's) and the channel values.
-struct Aligned {
-    times: Vec<i64>,
-    /// Per sample, the channels' values in the map's order.
-    values: Vec<Vec<f64>>,
-    /// How far stamps of one instant may differ [ns].
-    tolerance_ns: f64,
-}
-
-/// The median interval [ns] of a topic's times (0 with fewer than two).
-fn median_interval(rows: &[(i64, Vec<f64>)]) -> f64 {
-    median_interval_ns(rows.iter().map(|r| r.0))
 }
 
 /// The data topics in the map's channel order, the reference (whose times the samples take)
@@ -344,125 +397,21 @@ pub fn data_topic_order(map: &ChannelMap, stamped: impl Fn(&str) -> bool) -> Vec
     order
 }
 
-fn align(
-    p: &str,
-    map: &ChannelMap,
-    topics: &BTreeMap<&str, Topic>,
-) -> Result<Aligned, ForeignBagError> {
-    let err = |problem: String| ForeignBagError::Align {
-        path: p.to_string(),
-        problem,
-    };
-    let order = data_topic_order(map, |n| topics[n].stamped);
-    let reference = order[0];
-    let ref_rows = &topics[reference].rows;
-    if ref_rows.len() < 2 {
-        return Err(err(format!(
-            "{reference} has {} messages: too few for a sample rate",
-            ref_rows.len()
-        )));
-    }
-    let interval = median_interval(ref_rows);
-    if interval <= 0.0 {
-        return Err(err(format!(
-            "{reference}: most messages share one stamp (a median interval of 0 ns)"
-        )));
-    }
-    let tol = tolerance_ns(interval);
-    for name in &order[1..] {
-        let rows = &topics[name].rows;
-        if rows.len() < 2 {
-            return Err(err(format!(
-                "{name} has {} messages where {reference} has {}",
-                rows.len(),
-                ref_rows.len()
-            )));
-        }
-        let other = median_interval(rows);
-        if (other / interval - 1.0).abs() > RATE_TOLERANCE {
-            return Err(err(format!(
-                "{name} has a sample rate of {:.6} Hz where {reference} has {:.6} Hz: channels from different topics must share one rate (forcemap does not resample)",
-                1e9 / other,
-                1e9 / interval
-            )));
-        }
-    }
-    // Every topic's messages through the aligner, topic after topic; the first message that
-    // breaks the rule is the error.
-    let mut aligner = StampAligner::new(order.len(), tol, usize::MAX);
-    let mut out = Vec::new();
-    let mut times = Vec::new();
-    let mut rows: Vec<Vec<f64>> = Vec::new();
-    for (k, name) in order.iter().enumerate() {
-        for (t, v) in &topics[name].rows {
-            aligner.push(k, *t, v.clone(), &mut out);
-            for a in out.drain(..) {
-                match a {
-                    AlignedMessage::Sample { t_ns, values } => {
-                        times.push(t_ns);
-                        rows.push(values);
-                    }
-                    AlignedMessage::Misaligned(m) => return Err(err(m.describe(&order, tol))),
-                }
-            }
-        }
-    }
-    // Each channel's place in a row: the topics' values are concatenated in `order`.
-    let mut offset = 0usize;
-    let mut starts = BTreeMap::new();
-    for name in &order {
-        starts.insert(*name, offset);
-        offset += topics[name].entries.len();
-    }
-    let places: Vec<usize> = map
-        .channels
-        .iter()
-        .map(|(c, s)| starts[s.topic.as_str()] + topics[s.topic.as_str()].column(c.name()))
-        .collect();
-    let values = rows
-        .iter()
-        .map(|row| places.iter().map(|&i| row[i]).collect())
-        .collect();
-    Ok(Aligned {
-        times,
-        values,
-        tolerance_ns: tol,
-    })
+/// A bag's records and where each starts among the samples of its step.
+struct Assembled {
+    bag: RigBag,
+    first_samples: Vec<usize>,
 }
 
-/// The value of label `entry` at each sample time: that of its last message stamped at or
-/// before it, within the alignment tolerance (`None` before the first).
-fn label(
-    topics: &BTreeMap<&str, Topic>,
-    entry: &str,
-    src: &Source,
-    samples: &Aligned,
-) -> Vec<Option<f64>> {
-    let times = &samples.times;
-    let t = &topics[src.topic.as_str()];
-    let pos = t.column(entry);
-    let mut out = Vec::with_capacity(times.len());
-    let mut j = 0usize;
-    let mut current = None;
-    for &time in times {
-        while j < t.rows.len() && t.rows[j].0 as f64 <= time as f64 + samples.tolerance_ns {
-            current = Some(t.rows[j].1[pos]);
-            j += 1;
-        }
-        out.push(current);
-    }
-    out
-}
-
-/// The aligned, labelled samples through the step assembler, then each step's excitation
-/// level estimated from its driven channel (a bench's messages carry no amplitude).
+/// The labelled samples through the step assembler, then each step's excitation level
+/// estimated from its driven channel (a bench's messages carry no amplitude).
 fn assemble(
     p: &str,
     map: &ChannelMap,
-    samples: &Aligned,
-    steps: &[Option<f64>],
-    freqs: &[Option<f64>],
-) -> Result<RigBag, ForeignBagError> {
+    samples: &[Sample],
+    driven: forcemap_math::record::Channel,
+    mut timing: TimingReport,
+) -> Result<Assembled, ForeignBagError> {
     let step_src = map.step.as_ref().map_or("", |s| s.topic.as_str());
     let freq_src = map.frequency_hz.as_ref().map_or("", |s| s.topic.as_str());
     let label_err =
@@ -480,31 +429,21 @@ fn assemble(
     let mut assembler = StepAssembler::with_rules(StepRules::MESSAGES);
     let mut origin: Option<Time> = None;
     let mut plans: BTreeMap<usize, (Option<f64>, StepPlan)> = BTreeMap::new();
-    let mut assembled: Vec<(Option<f64>, Record)> = Vec::new();
+    let mut assembled: Vec<AssembledStep> = Vec::new();
     let mut left_before = 0usize;
-    for (k, (&t, values)) in samples.times.iter().zip(&samples.values).enumerate() {
-        let (Some(step), Some(freq)) = (steps[k], freqs[k]) else {
+    for (k, (t, values, labels)) in samples.iter().enumerate() {
+        let Some([Some(step), Some(freq)]) = labels else {
             left_before += 1;
             continue;
         };
-        if !(step.is_finite() && step >= 0.0 && step.fract() == 0.0 && step <= u32::MAX as f64) {
-            return Err(label_err(
-                step_src,
-                STEP_LABEL,
-                k,
-                format!("{step} is not a whole number from 0"),
-            ));
-        }
-        if !(freq.is_finite() && freq >= 0.0) {
-            return Err(label_err(
-                freq_src,
-                FREQUENCY_LABEL,
-                k,
-                format!("{freq} Hz is not a frequency (0 for random excitation)"),
-            ));
-        }
-        let step = step as usize;
-        let frequency = (freq > 0.0).then_some(freq);
+        let (step, frequency) = step_of_labels(*step, *freq).map_err(|(entry, problem)| {
+            let topic = if entry == STEP_LABEL {
+                step_src
+            } else {
+                freq_src
+            };
+            label_err(topic, entry, k, problem)
+        })?;
         let (f0, plan) = plans.entry(step).or_insert_with(|| {
             // The level is not known until the step is complete (estimated then).
             let excitation = estimated_excitation(frequency, f64::NAN);
@@ -526,7 +465,7 @@ fn assemble(
                 format!("step {step} changes frequency from {f0:?} Hz to {frequency:?} Hz"),
             ));
         }
-        let time = Time::from_nanos(t);
+        let time = Time::from_nanos(*t);
         let origin = *origin.get_or_insert(time);
         let sample = StepSample {
             t_s: time.secs_since(origin),
@@ -541,13 +480,11 @@ fn assemble(
         };
         let plan = plan.clone();
         for done in assembler.push_sample(&sample, Some(&plan)) {
-            let a = done.map_err(step_err)?;
-            assembled.push((frequency_of(&a.record), a.record));
+            assembled.push(done.map_err(step_err)?);
         }
     }
-    if let Some(done) = assembler.finish_step() {
-        let a = done.map_err(step_err)?;
-        assembled.push((frequency_of(&a.record), a.record));
+    for done in assembler.finish_step() {
+        assembled.push(done.map_err(step_err)?);
     }
     if assembled.is_empty() {
         let topics: Vec<&str> = map.channels.iter().map(|(_, s)| s.topic.as_str()).collect();
@@ -556,24 +493,27 @@ fn assemble(
             topics: topics.join(", "),
         });
     }
-    let driven = setup_kind(p, map)?.driven_channel();
+    let mut first_samples = Vec::new();
     let records = assembled
         .into_iter()
-        .map(|(frequency, mut r)| {
+        .map(|a| {
+            timing.add(&a);
+            first_samples.push(a.first_sample);
+            let mut r = a.record;
             let level = r.channel(driven).map_or(f64::NAN, rms_about_mean);
-            r.excitation = estimated_excitation(frequency, level);
+            r.excitation = estimated_excitation(r.excitation.frequency_hz(), level);
             r
         })
         .collect();
-    Ok(RigBag {
-        records,
-        parameters: BTreeMap::new(),
-        left_out: (left_before > 0)
-            .then(|| format!("{left_before} samples before the first step label left out")),
-        warnings: Vec::new(),
+    Ok(Assembled {
+        bag: RigBag {
+            records,
+            parameters: BTreeMap::new(),
+            left_out: (left_before > 0)
+                .then(|| format!("{left_before} samples before the first step label left out")),
+            warnings: Vec::new(),
+            notices: timing.notices(),
+        },
+        first_samples,
     })
-}
-
-fn frequency_of(r: &Record) -> Option<f64> {
-    r.excitation.frequency_hz()
 }

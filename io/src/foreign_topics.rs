@@ -1,38 +1,43 @@
-//! The live counterpart of [`crate::foreign_bag`]: the topics a [`ChannelMap`] names, decoded
-//! message by message from their CDR payloads with the dynamic decoder and aligned into samples
-//! by [`crate::stamp_align`] (the same rule as the bag, so the same messages give the same
-//! samples). No ROS runtime here: the `foreign` node subscribes and feeds the payloads in.
+//! The topics a [`ChannelMap`] names, decoded message by message from their CDR payloads with
+//! the dynamic decoder, aligned into samples by [`crate::stamp_align`] and labelled with the
+//! map's `step` and `frequency_hz`: the one reader of a bench's own messages, which the live
+//! `foreign` node feeds as they are received and [`crate::foreign_bag`] feeds from a bag in
+//! log-time order (a log time is a receive time), so that the same messages give the same
+//! samples. No ROS runtime here.
 //!
-//! Live, the map must name each topic's type (`type:` in one of its entries), as a subscriber
-//! needs it before any message comes. The reference topic and the tolerance are those of the
-//! bag (the first stamped data topic; 1 % of its median interval), the interval measured on
-//! its first [`LEARN_MESSAGES`] messages, which wait with the others' until then. The labels
-//! (`step`, `frequency_hz`) are not read: the harmonic node finds the steps itself.
+//! The reference topic is the first stamped data topic (the bag's rule,
+//! [`data_topic_order`]); its interval (the median over its first [`LEARN_MESSAGES`] messages)
+//! and its receive delay ([`ReceiveTiming`]) are measured first, the messages of every topic
+//! waiting until then. **A topic without a header** (e.g. `std_msgs/Float64MultiArray`) is timed
+//! by its receive time less the reference's delay and taken by the nearest reference message
+//! within half an interval; when the reference's delays spread over half an interval or more
+//! there is no consistent offset: reported, and the messages learnt from are dropped.
 //!
-//! **A topic without a header** (e.g. `std_msgs/Float64`) is timed by when its messages were
-//! received. Beside a stamped reference, receive times lag the stamps by the network and
-//! scheduling delay (milliseconds, with jitter), far more than the 1 % tolerance, so such a
-//! message is put on the reference's sample times ([`on_reference_times`]): its receive time
-//! less the reference's own delay (the median of receive time less stamp over the reference's
-//! first [`LEARN_MESSAGES`] messages), rounded to the nearest sample time (the latest reference
-//! stamp plus whole intervals). This assumes the headerless topic is published at the same
-//! instants as the reference and travels alike: a message whose delay differs from the
-//! reference's median by more than half a sample interval lands on a neighbouring sample. When
-//! the reference's delays spread over half an interval or more (interquartile range), no
-//! consistent offset exists: reported, and the messages learnt from are dropped. With an
-//! unstamped reference every topic is timed by receive times as they are.
+//! **Labels** (the map's `step` and `frequency_hz`, on any topic, stamped or not) are timed the
+//! same way and hold from the sample nearest their time until the next message ([`LabelTrack`]).
+//! A sample is handed out once the labels at its time are known: a later label message came,
+//! or the stream has gone [`LABEL_WAIT_NS`] past it (by the receive times, less the delay), or
+//! the stream ended ([`ForeignTopics::flush`]). Live, the map must name each topic's type
+//! (`type:` in one of its entries), as a subscriber needs it before any message comes.
+
+use std::collections::VecDeque;
 
 use forcemap_math::record::Channel;
 
-use crate::channel_map::{ChannelMap, Source};
+use crate::channel_map::{ChannelMap, FREQUENCY_LABEL, STEP_LABEL, Source};
 use crate::foreign_bag::{data_topic_order, registry_for};
 use crate::ros_msg::{Registry, decode, has_header, header_stamp_ns};
-use crate::stamp_align::{Aligned, StampAligner, median_interval_ns, tolerance_ns};
+use crate::stamp_align::{
+    Aligned, LabelTrack, ReceiveTiming, StampAligner, median_interval_ns, tolerance_ns,
+};
 
-/// Reference messages that measure the sample interval before the first sample is made.
-pub const LEARN_MESSAGES: usize = 16;
+pub use crate::stamp_align::LEARN_MESSAGES;
+
 /// Reference messages that may wait for a quiet topic before they count as lost.
 pub const MAX_PENDING: usize = 100_000;
+/// How long after a sample a label may still arrive and apply to it [ns of the stream]: a
+/// labelled sample waits this long unless a later label message comes first.
+pub const LABEL_WAIT_NS: i64 = 500_000_000;
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ForeignTopicsError {
@@ -63,9 +68,17 @@ pub enum ForeignTopicsError {
         entry: String,
         problem: String,
     },
+    #[error(
+        "{file}: the channel map gives {given} but no {missing} (map both step and frequency_hz, or neither)"
+    )]
+    OneLabel {
+        file: String,
+        given: &'static str,
+        missing: &'static str,
+    },
 }
 
-/// A subscribed topic: its type and the channels it supplies.
+/// A topic read: its type, and the channels and labels it supplies.
 #[derive(Debug, Clone)]
 pub struct LiveTopic {
     pub name: String,
@@ -74,50 +87,101 @@ pub struct LiveTopic {
     /// Times are header stamps (else receive times).
     pub stamped: bool,
     channels: Vec<(Channel, Source)>,
+    /// The labels it carries: 0 the step, 1 the frequency.
+    labels: Vec<(usize, Source)>,
+}
+
+impl LiveTopic {
+    /// The definitions its messages are decoded with.
+    pub fn registry(&self) -> &Registry {
+        &self.registry
+    }
+
+    /// A topic of `type_name`, decoded with `registry` (which must define it).
+    pub fn new(name: &str, type_name: &str, registry: Registry) -> LiveTopic {
+        LiveTopic {
+            name: name.to_string(),
+            stamped: has_header(&registry, type_name),
+            type_name: type_name.to_string(),
+            registry,
+            channels: Vec::new(),
+            labels: Vec::new(),
+        }
+    }
+}
+
+/// The labels of a sample: the step and the frequency, each `None` before its first message.
+pub type SampleLabels = [Option<f64>; 2];
+
+/// A sample's labels as its step and frequency (`None`: random excitation), or which label is
+/// wrong and why: a step is a whole number from 0, a frequency at least 0 (0 for random).
+pub fn step_of_labels(
+    step: f64,
+    frequency_hz: f64,
+) -> Result<(usize, Option<f64>), (&'static str, String)> {
+    if !(step.is_finite() && step >= 0.0 && step.fract() == 0.0 && step <= u32::MAX as f64) {
+        return Err((STEP_LABEL, format!("{step} is not a whole number from 0")));
+    }
+    if !(frequency_hz.is_finite() && frequency_hz >= 0.0) {
+        return Err((
+            FREQUENCY_LABEL,
+            format!("{frequency_hz} Hz is not a frequency (0 for random excitation)"),
+        ));
+    }
+    Ok((step as usize, (frequency_hz > 0.0).then_some(frequency_hz)))
 }
 
 /// What a payload gives.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Output {
-    /// An aligned sample: its time and the mapped channels' values (in forcemap's units).
+    /// An aligned sample: its time, the mapped channels' values (in forcemap's units) and,
+    /// when the map has labels, its labels.
     Sample {
         t_ns: i64,
         values: Vec<(Channel, f64)>,
+        labels: Option<SampleLabels>,
     },
     /// A message that did not decode, or lacks what the map reads: skipped.
     Malformed { topic: String, problem: String },
-    /// A message the alignment rule leaves out (lost, extra, out of order).
+    /// A message the alignment rule leaves out (lost, extra, out of order), or timing that
+    /// cannot be learnt.
     Misaligned(String),
 }
 
-/// The decoders and the aligner of a map's topics.
+/// A message decoded, waiting for the timing or for the aligner.
 #[derive(Debug, Clone)]
-pub struct ForeignTopics {
-    topics: Vec<LiveTopic>,
-    aligner: Option<StampAligner>,
-    /// Messages (topic, time, values) held while the interval is measured.
-    learning: Vec<(usize, i64, Vec<f64>)>,
-    /// Per sample row (the topics' values concatenated), the channels in map order.
-    channels: Vec<Channel>,
-    /// Receive time less stamp of the reference's messages while the interval is measured.
-    reference_delays_ns: Vec<i64>,
-    /// The reference's delay and interval [ns], once learnt with a stamped reference: for
-    /// the topics without a header.
-    receive_timing: Option<(i64, f64)>,
-    /// The latest reference stamp [ns].
-    last_reference_ns: Option<i64>,
+struct Message {
+    topic: usize,
+    /// Its stamp, else its receive time.
+    raw_ns: i64,
+    receive_ns: i64,
+    values: Vec<f64>,
+    labels: Vec<(usize, f64)>,
 }
 
-/// The time of a message received at `receive_ns` on the reference's sample times: the receive
-/// time less the reference's median delay `delay_ns`, rounded to the nearest of `anchor_ns`
-/// (a reference stamp) plus whole intervals of `interval_ns`.
-pub fn on_reference_times(receive_ns: i64, delay_ns: i64, anchor_ns: i64, interval_ns: f64) -> i64 {
-    let intervals = ((receive_ns - delay_ns - anchor_ns) as f64 / interval_ns).round();
-    anchor_ns + (intervals * interval_ns).round() as i64
+/// The decoders, the aligner and the labels of a map's topics.
+#[derive(Debug, Clone)]
+pub struct ForeignTopics {
+    /// The data topics (the reference first), then those that carry labels only.
+    topics: Vec<LiveTopic>,
+    data_topics: usize,
+    aligner: Option<StampAligner>,
+    /// Messages held while the timing is learnt.
+    learning: Vec<Message>,
+    /// Per sample row (the data topics' values concatenated), the channels in map order.
+    channels: Vec<Channel>,
+    timing: Option<ReceiveTiming>,
+    /// The step and the frequency, when the map has them.
+    labels: Option<[LabelTrack; 2]>,
+    /// Aligned samples waiting for their labels.
+    held: VecDeque<(i64, Vec<f64>)>,
+    newest_receive_ns: Option<i64>,
+    /// Each data topic's message times (stamp, else receive time), when recorded.
+    times: Option<Vec<Vec<i64>>>,
 }
 
 impl ForeignTopics {
-    /// Resolves every data topic of `map`: its type (named by the map), definitions and fields.
+    /// Resolves every topic of `map` by the type the map names: its definitions and fields.
     pub fn new(map: &ChannelMap) -> Result<ForeignTopics, ForeignTopicsError> {
         let file = map.file.clone();
         let mut resolved: Vec<LiveTopic> = Vec::new();
@@ -156,23 +220,41 @@ impl ForeignTopics {
                         problem: e.to_string(),
                     })?;
             }
-            resolved.push(LiveTopic {
-                name: name.to_string(),
-                stamped: has_header(&registry, &type_name),
-                type_name,
-                registry,
-                channels: Vec::new(),
-            });
+            resolved.push(LiveTopic::new(name, &type_name, registry));
         }
-        // The data topics in the bag's order (reference first); label-only topics are not read.
+        match (&map.step, &map.frequency_hz) {
+            (Some(_), None) => Err(ForeignTopicsError::OneLabel {
+                file,
+                given: STEP_LABEL,
+                missing: FREQUENCY_LABEL,
+            }),
+            (None, Some(_)) => Err(ForeignTopicsError::OneLabel {
+                file,
+                given: FREQUENCY_LABEL,
+                missing: STEP_LABEL,
+            }),
+            _ => Ok(ForeignTopics::of_topics(map, resolved)),
+        }
+    }
+
+    /// The reader of `map` over `resolved`, every topic the map names (types and fields
+    /// checked by the caller: a bag's reader checks them against the bag).
+    pub fn of_topics(map: &ChannelMap, resolved: Vec<LiveTopic>) -> ForeignTopics {
         let order: Vec<String> =
             data_topic_order(map, |n| resolved.iter().any(|t| t.name == n && t.stamped))
                 .into_iter()
                 .map(str::to_string)
                 .collect();
+        let data_topics = order.len();
         let mut topics = Vec::new();
         let mut channels = Vec::new();
-        for name in &order {
+        let names = order.iter().chain(
+            resolved
+                .iter()
+                .map(|t| &t.name)
+                .filter(|n| !order.contains(n)),
+        );
+        for name in names {
             let Some(mut t) = resolved.iter().find(|t| t.name == *name).cloned() else {
                 continue;
             };
@@ -182,23 +264,54 @@ impl ForeignTopics {
                 .filter(|(_, s)| s.topic == *name)
                 .cloned()
                 .collect();
+            t.labels = [&map.step, &map.frequency_hz]
+                .into_iter()
+                .enumerate()
+                .filter_map(|(k, s)| {
+                    s.as_ref()
+                        .filter(|s| s.topic == *name)
+                        .map(|s| (k, s.clone()))
+                })
+                .collect();
+            if t.channels.is_empty() && t.labels.is_empty() {
+                continue;
+            }
             channels.extend(t.channels.iter().map(|(c, _)| *c));
             topics.push(t);
         }
-        Ok(ForeignTopics {
+        let labelled = map.step.is_some() && map.frequency_hz.is_some();
+        ForeignTopics {
             topics,
+            data_topics,
             aligner: None,
             learning: Vec::new(),
             channels,
-            reference_delays_ns: Vec::new(),
-            receive_timing: None,
-            last_reference_ns: None,
-        })
+            timing: None,
+            labels: labelled.then(Default::default),
+            held: VecDeque::new(),
+            newest_receive_ns: None,
+            times: None,
+        }
     }
 
-    /// The topics to subscribe to, the reference first.
+    /// The same reader keeping every data topic's message times ([`ForeignTopics::times`]).
+    pub fn recording_times(self) -> ForeignTopics {
+        let n = self.data_topics;
+        ForeignTopics {
+            times: Some(vec![Vec::new(); n]),
+            ..self
+        }
+    }
+
+    /// The topics to read, the reference first, then the other data topics, then those that
+    /// carry labels only.
     pub fn topics(&self) -> &[LiveTopic] {
         &self.topics
+    }
+
+    /// How many of [`ForeignTopics::topics`] carry channels.
+    pub fn data_topics(&self) -> usize {
+        self.data_topics
     }
 
     /// The channels every sample carries.
@@ -206,9 +319,24 @@ impl ForeignTopics {
         &self.channels
     }
 
-    /// The alignment tolerance [ns], once the interval is measured.
+    /// Whether the samples carry labels.
+    pub fn labelled(&self) -> bool {
+        self.labels.is_some()
+    }
+
+    /// The stamps' alignment tolerance [ns], once the interval is measured.
     pub fn tolerance_ns(&self) -> Option<f64> {
         self.aligner.as_ref().map(StampAligner::tolerance_ns)
+    }
+
+    /// The receive timing, once learnt.
+    pub fn timing(&self) -> Option<ReceiveTiming> {
+        self.timing
+    }
+
+    /// Each data topic's message times (stamps, else receive times), when recorded.
+    pub fn times(&self) -> Option<&[Vec<i64>]> {
+        self.times.as_deref()
     }
 
     /// Takes the CDR payload (with its encapsulation header) of a message on topic `topic`
@@ -229,7 +357,7 @@ impl ForeignTopics {
                 return;
             }
         };
-        let t_ns = if t.stamped {
+        let raw_ns = if t.stamped {
             match header_stamp_ns(&value).and_then(|ns| i64::try_from(ns).ok()) {
                 Some(ns) => ns,
                 None => {
@@ -240,113 +368,166 @@ impl ForeignTopics {
         } else {
             receive_ns
         };
-        let reference_stamped = self.topics[0].stamped;
-        if topic == 0 && reference_stamped {
-            if self.aligner.is_none() {
-                self.reference_delays_ns.push(receive_ns - t_ns);
-            }
-            self.last_reference_ns = Some(t_ns);
-        }
-        // A headerless topic beside a stamped reference, once the delay is known (while it is
-        // learnt, its receive times wait in `learning` and are moved at the end).
-        let t_ns = match (t.stamped || !reference_stamped, self.receive_timing) {
-            (false, Some((delay_ns, interval_ns))) => on_reference_times(
-                t_ns,
-                delay_ns,
-                self.last_reference_ns.unwrap_or(t_ns - delay_ns),
-                interval_ns,
-            ),
-            _ => t_ns,
+        let field = |s: &Source, entry: &str| {
+            s.field
+                .get(&value)
+                .map(|raw| s.apply(raw))
+                .map_err(|e| malformed(format!("field {} (for {entry}): {e}", s.field.text)))
         };
         let mut values = Vec::with_capacity(t.channels.len());
         for (c, s) in &t.channels {
-            match s.field.get(&value) {
-                Ok(raw) => values.push(s.apply(raw)),
-                Err(e) => {
-                    out.push(malformed(format!(
-                        "field {} (for {}): {e}",
-                        s.field.text,
-                        c.name()
-                    )));
-                    return;
-                }
+            match field(s, c.name()) {
+                Ok(v) => values.push(v),
+                Err(m) => return out.push(m),
             }
         }
-        self.align(topic, t_ns, values, out);
+        let mut labels = Vec::with_capacity(t.labels.len());
+        for (k, s) in &t.labels {
+            match field(s, [STEP_LABEL, FREQUENCY_LABEL][*k]) {
+                Ok(v) => labels.push((*k, v)),
+                Err(m) => return out.push(m),
+            }
+        }
+        if let Some(times) = &mut self.times
+            && topic < times.len()
+        {
+            times[topic].push(raw_ns);
+        }
+        self.newest_receive_ns = Some(
+            self.newest_receive_ns
+                .map_or(receive_ns, |n| n.max(receive_ns)),
+        );
+        let m = Message {
+            topic,
+            raw_ns,
+            receive_ns,
+            values,
+            labels,
+        };
+        if self.timing.is_none() {
+            self.learning.push(m);
+            self.learn(false, out);
+        } else {
+            self.accept(m, out);
+        }
+        self.release(false, out);
     }
 
-    fn align(&mut self, topic: usize, t_ns: i64, values: Vec<f64>, out: &mut Vec<Output>) {
-        let mut aligned = Vec::new();
-        match &mut self.aligner {
-            Some(a) => a.push(topic, t_ns, values, &mut aligned),
-            None => {
-                self.learning.push((topic, t_ns, values));
-                let reference: Vec<i64> = self
-                    .learning
-                    .iter()
-                    .filter(|(k, _, _)| *k == 0)
-                    .map(|(_, t, _)| *t)
-                    .collect();
-                if reference.len() < LEARN_MESSAGES {
-                    return;
-                }
-                let interval = median_interval_ns(reference);
-                if interval <= 0.0 {
-                    self.reference_delays_ns.clear();
-                    out.push(Output::Misaligned(format!(
-                        "{}: most of its first {LEARN_MESSAGES} messages share one stamp: no sample interval; dropped them",
-                        self.topics[0].name
-                    )));
-                    self.learning.clear();
-                    return;
-                }
-                let delays = std::mem::take(&mut self.reference_delays_ns);
-                let headerless = self.topics[0].stamped && self.topics.iter().any(|t| !t.stamped);
-                if headerless {
-                    match receive_delay_ns(delays, interval) {
-                        Ok(delay_ns) => self.receive_timing = Some((delay_ns, interval)),
-                        Err(spread_ns) => {
-                            out.push(Output::Misaligned(format!(
-                                "{}: its receive times lag its stamps by amounts that spread over {:.6} s (interquartile range of its first {LEARN_MESSAGES} messages), half a sample interval ({:.6} s) or more: no consistent offset to time the topics without a header ({}) by; dropped them (publish a type with a header, stamped with the reference's clock)",
-                                self.topics[0].name,
-                                spread_ns as f64 * 1e-9,
-                                0.5 * interval * 1e-9,
-                                self.topics
-                                    .iter()
-                                    .filter(|t| !t.stamped)
-                                    .map(|t| t.name.as_str())
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            )));
-                            self.learning.clear();
-                            return;
-                        }
-                    }
-                }
-                let mut a =
-                    StampAligner::new(self.topics.len(), tolerance_ns(interval), MAX_PENDING);
-                // The learnt messages in arrival order, the headerless ones moved onto the
-                // reference's sample times as they would have been live.
-                let mut anchor = self.learning.iter().find(|(k, _, _)| *k == 0).map(|m| m.1);
-                for (k, t, v) in self.learning.drain(..) {
-                    let t = match (k, self.receive_timing) {
-                        (0, _) => {
-                            anchor = Some(t);
-                            t
-                        }
-                        (_, Some((delay_ns, interval_ns))) if !self.topics[k].stamped => {
-                            on_reference_times(t, delay_ns, anchor.unwrap_or(t), interval_ns)
-                        }
-                        _ => t,
-                    };
-                    a.push(k, t, v, &mut aligned);
-                }
-                self.aligner = Some(a);
+    /// The end of the stream: timing learnt from what came (at least two reference messages),
+    /// and every sample held for its labels handed out.
+    pub fn flush(&mut self, out: &mut Vec<Output>) {
+        if self.timing.is_none() {
+            self.learn(true, out);
+        }
+        self.release(true, out);
+    }
+
+    /// Learns the interval and the receive delay once [`LEARN_MESSAGES`] reference messages
+    /// have come (or, `now`, from those that came), then takes the messages held.
+    fn learn(&mut self, now: bool, out: &mut Vec<Output>) {
+        let reference: Vec<&Message> = self.learning.iter().filter(|m| m.topic == 0).collect();
+        if reference.len() < LEARN_MESSAGES && !(now && reference.len() >= 2) {
+            if now && !self.learning.is_empty() {
+                out.push(Output::Misaligned(format!(
+                    "{}: {} messages: too few for a sample rate; dropped the {} messages held",
+                    self.topics.first().map_or("", |t| t.name.as_str()),
+                    reference.len(),
+                    self.learning.len()
+                )));
+                self.learning.clear();
+            }
+            return;
+        }
+        let interval = median_interval_ns(reference.iter().map(|m| m.raw_ns));
+        let reference_name = self.topics[0].name.clone();
+        if interval <= 0.0 {
+            out.push(Output::Misaligned(format!(
+                "{reference_name}: most of its first {} messages share one stamp: no sample interval; dropped them",
+                reference.len()
+            )));
+            self.learning.clear();
+            return;
+        }
+        let timing = if self.topics[0].stamped {
+            ReceiveTiming::learn(
+                reference.iter().map(|m| m.receive_ns - m.raw_ns).collect(),
+                interval,
+            )
+        } else {
+            ReceiveTiming::unstamped(interval)
+        };
+        let headerless: Vec<&str> = self
+            .topics
+            .iter()
+            .filter(|t| !t.stamped)
+            .map(|t| t.name.as_str())
+            .collect();
+        if self.topics[0].stamped && !headerless.is_empty() && !timing.consistent() {
+            out.push(Output::Misaligned(format!(
+                "{}; dropped them",
+                timing.inconsistency(&reference_name, &headerless)
+            )));
+            self.learning.clear();
+            return;
+        }
+        let mut aligner = StampAligner::new(self.data_topics, tolerance_ns(interval), MAX_PENDING);
+        for (k, t) in self.topics.iter().enumerate().take(self.data_topics) {
+            if !t.stamped {
+                aligner = aligner.with_window(k, timing.window_ns());
             }
         }
-        // Topics named with the fields they supply, so a report says what it concerns.
-        let labels: Vec<String> = self
-            .topics
+        self.aligner = Some(aligner);
+        self.timing = Some(timing);
+        for m in std::mem::take(&mut self.learning) {
+            self.accept(m, out);
+        }
+    }
+
+    /// Times a message and takes its labels and values (timing learnt).
+    fn accept(&mut self, m: Message, out: &mut Vec<Output>) {
+        let (Some(timing), Some(aligner)) = (self.timing, &mut self.aligner) else {
+            return;
+        };
+        let t_ns = if self.topics[m.topic].stamped {
+            m.raw_ns
+        } else {
+            timing.time_ns(m.receive_ns)
+        };
+        if let Some(tracks) = &mut self.labels {
+            for (k, v) in &m.labels {
+                if let Err(newest) = tracks[*k].push(t_ns, *v) {
+                    out.push(Output::Misaligned(format!(
+                        "the {} message at {t_ns} ns on {} comes after one at {newest} ns (labels out of order): skipped",
+                        [STEP_LABEL, FREQUENCY_LABEL][*k],
+                        self.topics[m.topic].name
+                    )));
+                }
+            }
+        }
+        if m.topic >= self.data_topics {
+            return;
+        }
+        let mut aligned = Vec::new();
+        aligner.push(m.topic, t_ns, m.values, &mut aligned);
+        for a in aligned {
+            match a {
+                Aligned::Sample { t_ns, values } => self.held.push_back((t_ns, values)),
+                Aligned::Misaligned(x) => {
+                    let names = self.topic_labels();
+                    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+                    let text = self
+                        .aligner
+                        .as_ref()
+                        .map_or_else(String::new, |a| a.describe(&x, &names));
+                    out.push(Output::Misaligned(text));
+                }
+            }
+        }
+    }
+
+    /// The data topics named with the fields they supply, so a report says what it concerns.
+    fn topic_labels(&self) -> Vec<String> {
+        self.topics[..self.data_topics]
             .iter()
             .map(|t| {
                 let fields: Vec<&str> = t
@@ -356,32 +537,37 @@ impl ForeignTopics {
                     .collect();
                 format!("{} ({})", t.name, fields.join(", "))
             })
-            .collect();
-        let names: Vec<&str> = labels.iter().map(String::as_str).collect();
-        let tol = self.tolerance_ns().unwrap_or_default();
-        for a in aligned {
-            out.push(match a {
-                Aligned::Sample { t_ns, values } => Output::Sample {
-                    t_ns,
-                    values: self.channels.iter().copied().zip(values).collect(),
-                },
-                Aligned::Misaligned(m) => Output::Misaligned(m.describe(&names, tol)),
+            .collect()
+    }
+
+    /// Hands out the samples whose labels are known (all of them when `all`).
+    fn release(&mut self, all: bool, out: &mut Vec<Output>) {
+        let Some(timing) = self.timing else {
+            return;
+        };
+        let window = timing.window_ns();
+        let now = self.newest_receive_ns.map(|n| timing.time_ns(n));
+        while let Some(&(t_ns, _)) = self.held.front() {
+            let labels = match &mut self.labels {
+                None => None,
+                Some(tracks) => {
+                    let known = all
+                        || tracks.iter().all(|tr| tr.settled_at(t_ns, window))
+                        || now.is_some_and(|n| n >= t_ns + LABEL_WAIT_NS);
+                    if !known {
+                        return;
+                    }
+                    Some([tracks[0].at(t_ns, window), tracks[1].at(t_ns, window)])
+                }
+            };
+            let Some((t_ns, values)) = self.held.pop_front() else {
+                return;
+            };
+            out.push(Output::Sample {
+                t_ns,
+                values: self.channels.iter().copied().zip(values).collect(),
+                labels,
             });
         }
     }
-}
-
-/// The reference's delay [ns] (median of receive time less stamp), or the spread of the delays
-/// (interquartile range) when it is half of `interval_ns` or more.
-fn receive_delay_ns(mut delays_ns: Vec<i64>, interval_ns: f64) -> Result<i64, i64> {
-    delays_ns.sort_unstable();
-    let n = delays_ns.len();
-    if n == 0 {
-        return Err(0);
-    }
-    let spread = delays_ns[(3 * n) / 4] - delays_ns[n / 4];
-    if spread as f64 >= 0.5 * interval_ns {
-        return Err(spread);
-    }
-    Ok(delays_ns[n / 2])
 }

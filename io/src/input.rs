@@ -175,6 +175,9 @@ fn of_bag_of_kind(path: &Path, bag: RigBag, kind: SetupKind) -> anyhow::Result<L
     for w in crate::messages::grouped(&bag.warnings) {
         eprintln!("warning: {}: {w}", path.display());
     }
+    for n in &bag.notices {
+        eprintln!("notice: {}: {n}", path.display());
+    }
     Ok(Loaded {
         records: bag.records,
         kind,

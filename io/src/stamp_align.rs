@@ -12,6 +12,24 @@
 //! of another topic matches is lost (the report names the nearest), and a message of another
 //! topic that no reference message takes is extra; both are reported as [`Misalignment`]s, and
 //! the sample is not made.
+//!
+//! **Messages without a header** are timed by when they were received. Beside a stamped
+//! reference, receive times lag the stamps by the network's and the scheduler's delay
+//! (milliseconds, with jitter), far more than the 1 % tolerance: such a message is timed by its
+//! receive time less the reference's own delay ([`ReceiveTiming`]: the median of receive time
+//! less stamp over the reference's first [`LEARN_MESSAGES`] messages) and taken by the nearest
+//! reference message within half an interval ([`ReceiveTiming::window_ns`]), i.e. rounded to the
+//! nearest sample. This assumes the headerless topic is published at the instants of the
+//! reference and travels alike: a message whose delay differs from the reference's by more than
+//! half an interval lands on a neighbouring sample. When the reference's delays spread over
+//! half an interval or more (interquartile range) no consistent offset exists. With an
+//! unstamped reference every topic is timed by its receive times as they are, and the other
+//! topics are taken within half an interval too.
+//!
+//! **Labels** (a step's index, its frequency) hold from the sample nearest their message's time
+//! (its stamp, or its receive time less the reference's delay), within half an interval, until
+//! the next message ([`LabelTrack`]): a label published at a step's first sample and received a
+//! few milliseconds later still starts the step there.
 
 use std::collections::VecDeque;
 
@@ -22,9 +40,119 @@ pub const ALIGN_TOLERANCE: f64 = 0.01;
 /// How far (relative) the sample rates of the data topics may differ.
 pub const RATE_TOLERANCE: f64 = 1e-3;
 
+/// Reference messages that measure the sample interval and the receive delay before the first
+/// sample is made.
+pub const LEARN_MESSAGES: usize = 16;
+
 /// The tolerance [ns] for topics sampled every `interval_ns`.
 pub fn tolerance_ns(interval_ns: f64) -> f64 {
     (ALIGN_TOLERANCE * interval_ns).max(1.0)
+}
+
+/// How messages timed by their receive time are put on the reference's samples (see the
+/// module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReceiveTiming {
+    /// The reference's delay: the median of receive time less stamp [ns] (0 for an unstamped
+    /// reference, timed by its receive times itself).
+    pub delay_ns: i64,
+    /// The interquartile range of those delays [ns].
+    pub spread_ns: i64,
+    /// The reference's sample interval [ns].
+    pub interval_ns: f64,
+}
+
+impl ReceiveTiming {
+    /// The timing from the reference's delays (receive time less stamp, at least one) and
+    /// interval.
+    pub fn learn(mut delays_ns: Vec<i64>, interval_ns: f64) -> ReceiveTiming {
+        delays_ns.sort_unstable();
+        let n = delays_ns.len();
+        let (delay_ns, spread_ns) = match n {
+            0 => (0, 0),
+            _ => (delays_ns[n / 2], delays_ns[(3 * n) / 4] - delays_ns[n / 4]),
+        };
+        ReceiveTiming {
+            delay_ns,
+            spread_ns,
+            interval_ns,
+        }
+    }
+
+    /// The timing of an unstamped reference: receive times as they are.
+    pub fn unstamped(interval_ns: f64) -> ReceiveTiming {
+        ReceiveTiming::learn(Vec::new(), interval_ns)
+    }
+
+    /// Whether the delays agree well enough (spread under half an interval) to time messages
+    /// without a header by them.
+    pub fn consistent(&self) -> bool {
+        (self.spread_ns as f64) < 0.5 * self.interval_ns
+    }
+
+    /// The time a message received at `receive_ns` stands for: less the reference's delay.
+    pub fn time_ns(&self, receive_ns: i64) -> i64 {
+        receive_ns - self.delay_ns
+    }
+
+    /// How far from a sample a message timed by its receive time, or a label, may be and be
+    /// that sample's: half an interval (the nearest sample's).
+    pub fn window_ns(&self) -> f64 {
+        0.5 * self.interval_ns
+    }
+
+    /// Why the topics `headerless` cannot be timed (when not [`consistent`](Self::consistent)).
+    pub fn inconsistency(&self, reference: &str, headerless: &[&str]) -> String {
+        format!(
+            "{reference}: its receive times lag its stamps by amounts that spread over {:.6} s (interquartile range of its first {LEARN_MESSAGES} messages), half a sample interval ({:.6} s) or more: no consistent offset to time the topics without a header ({}) by (publish a type with a header, stamped with the reference's clock)",
+            self.spread_ns as f64 * 1e-9,
+            0.5 * self.interval_ns * 1e-9,
+            headerless.join(", ")
+        )
+    }
+}
+
+/// A label over the samples: each message's value holds from the sample nearest its time
+/// (within half an interval: the first sample at or after its time less the window) until the
+/// next message's (see the module docs).
+#[derive(Debug, Clone, Default)]
+pub struct LabelTrack {
+    queue: VecDeque<(i64, f64)>,
+    current: Option<f64>,
+    newest_ns: Option<i64>,
+}
+
+impl LabelTrack {
+    /// Adds a message at `t_ns`; one before the newest so far is refused (`Err` with it).
+    pub fn push(&mut self, t_ns: i64, value: f64) -> Result<(), i64> {
+        if let Some(newest) = self.newest_ns
+            && t_ns < newest
+        {
+            return Err(newest);
+        }
+        self.newest_ns = Some(t_ns);
+        self.queue.push_back((t_ns, value));
+        Ok(())
+    }
+
+    /// Whether the value at the sample at `t_ns` is known: a message past its window came.
+    pub fn settled_at(&self, t_ns: i64, window_ns: f64) -> bool {
+        self.newest_ns
+            .is_some_and(|n| n as f64 > t_ns as f64 + window_ns)
+    }
+
+    /// The value at the sample at `t_ns` (`None` before the first message); samples are asked
+    /// in time order.
+    pub fn at(&mut self, t_ns: i64, window_ns: f64) -> Option<f64> {
+        while let Some(&(u, v)) = self.queue.front() {
+            if u as f64 > t_ns as f64 + window_ns {
+                break;
+            }
+            self.current = Some(v);
+            self.queue.pop_front();
+        }
+        self.current
+    }
 }
 
 /// The median interval [ns] of times in order (0 with fewer than two).
@@ -60,8 +188,9 @@ pub enum Misalignment {
 }
 
 impl Misalignment {
-    /// What went wrong, with the topics' names (`names[0]` is the reference).
-    pub fn describe(&self, names: &[&str], tolerance_ns: f64) -> String {
+    /// What went wrong, with the topics' names (`names[0]` is the reference) and the tolerance
+    /// of the topic concerned; `received` when that topic is timed by its receive times.
+    pub fn describe(&self, names: &[&str], tolerance_ns: f64, received: bool) -> String {
         match *self {
             Misalignment::Lost {
                 sample,
@@ -77,11 +206,19 @@ impl Misalignment {
                     ),
                     None => format!("no {} message came", names[topic]),
                 };
-                format!(
-                    "sample {sample} ({} at {t_ns} ns): {nearest}; stamps must agree within {:.3e} s (a lost message, or clocks that differ)",
-                    names[0],
-                    tolerance_ns * 1e-9
-                )
+                if received {
+                    format!(
+                        "sample {sample} ({} at {t_ns} ns): {nearest} (timed by its receive time less the reference's delay); it must be within half an interval ({:.3e} s) of a sample (a lost message, or a delay unlike the reference's)",
+                        names[0],
+                        tolerance_ns * 1e-9
+                    )
+                } else {
+                    format!(
+                        "sample {sample} ({} at {t_ns} ns): {nearest}; stamps must agree within {:.3e} s (a lost message, or clocks that differ)",
+                        names[0],
+                        tolerance_ns * 1e-9
+                    )
+                }
             }
             Misalignment::Extra { topic, t_ns } => format!(
                 "the {} message at {t_ns} ns matches no {} message (duplicated or extra messages)",
@@ -115,6 +252,8 @@ pub enum Aligned {
 #[derive(Debug, Clone)]
 pub struct StampAligner {
     tolerance_ns: f64,
+    /// Per topic: how far from a reference message its messages may be.
+    tolerances_ns: Vec<f64>,
     queues: Vec<VecDeque<(i64, Vec<f64>)>>,
     first_ns: Vec<Option<i64>>,
     last_pushed_ns: Vec<Option<i64>>,
@@ -131,6 +270,7 @@ impl StampAligner {
     pub fn new(topics: usize, tolerance_ns: f64, max_pending: usize) -> StampAligner {
         StampAligner {
             tolerance_ns,
+            tolerances_ns: vec![tolerance_ns; topics],
             queues: vec![VecDeque::new(); topics],
             first_ns: vec![None; topics],
             last_pushed_ns: vec![None; topics],
@@ -144,13 +284,32 @@ impl StampAligner {
         self.tolerance_ns
     }
 
+    /// The same aligner taking `topic`'s messages within `window_ns` of a reference message (a
+    /// topic timed by its receive times: [`ReceiveTiming::window_ns`]).
+    pub fn with_window(mut self, topic: usize, window_ns: f64) -> StampAligner {
+        self.tolerances_ns[topic] = window_ns;
+        self
+    }
+
+    /// A misalignment in words, with the topics' names (`names[0]` is the reference) and the
+    /// tolerance of the topic concerned.
+    pub fn describe(&self, m: &Misalignment, names: &[&str]) -> String {
+        let topic = match *m {
+            Misalignment::Lost { topic, .. }
+            | Misalignment::Extra { topic, .. }
+            | Misalignment::OutOfOrder { topic, .. } => topic,
+        };
+        let tol = self.tolerances_ns[topic];
+        m.describe(names, tol, tol > self.tolerance_ns)
+    }
+
     /// The span's start, once every topic has had a message.
     fn span_start(&self) -> Option<f64> {
-        let mut start = i64::MIN;
-        for f in &self.first_ns {
-            start = start.max((*f)?);
+        let mut start = f64::NEG_INFINITY;
+        for (f, tol) in self.first_ns.iter().zip(&self.tolerances_ns) {
+            start = start.max((*f)? as f64 - tol);
         }
-        Some(start as f64 - self.tolerance_ns)
+        Some(start)
     }
 
     /// Adds a message of `topic` and appends what it completes to `out`.
@@ -175,7 +334,6 @@ impl StampAligner {
         let Some(span_start) = self.span_start() else {
             return;
         };
-        let tol = self.tolerance_ns;
         'reference: while let Some(&(t, _)) = self.queues[0].front() {
             let in_span = t as f64 >= span_start;
             // Per other topic: how many messages are too old for t, and whether the next one
@@ -184,6 +342,7 @@ impl StampAligner {
             let mut lost: Option<(usize, Option<i64>)> = None;
             let mut waiting = false;
             for (j, (q, skip)) in self.queues.iter().zip(skips.iter_mut()).enumerate().skip(1) {
+                let tol = self.tolerances_ns[j];
                 let skipped = q
                     .iter()
                     .take_while(|(u, _)| (*u as f64) < t as f64 - tol)

@@ -440,7 +440,7 @@ fn stamps_that_do_not_align_are_refused() {
     assert!(
         e.contains("cannot align")
             && e.contains(
-                "the nearest /b message is 0.001000000 s away; stamps must agree within 1.000e-4 s"
+                "the nearest /b (value) message is 0.001000000 s away; stamps must agree within 1.000e-4 s"
             ),
         "{e}"
     );
@@ -448,7 +448,7 @@ fn stamps_that_do_not_align_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let e = error(&small_bag(dir.path(), 1, 0, Some(50)), GOOD);
     assert!(
-        e.contains("sample 50 (/a at 1767225600500000000 ns): the nearest /b message is -0.010000000 s away"),
+        e.contains("sample 50 (/a (value, value) at 1767225600500000000 ns): the nearest /b (value) message is -0.010000000 s away"),
         "{e}"
     );
     // Within the tolerance (1 % of the interval), /b aligns.

@@ -120,7 +120,7 @@ fn samples_are_the_values_written_at_their_stamps() {
     let samples: Vec<(i64, Vec<(Channel, f64)>)> = out
         .into_iter()
         .map(|o| match o {
-            Output::Sample { t_ns, values } => (t_ns, values),
+            Output::Sample { t_ns, values, .. } => (t_ns, values),
             other => panic!("{other:?}"),
         })
         .collect();
@@ -317,7 +317,7 @@ fn a_headerless_topic_received_late_aligns_with_the_stamped_one() {
     let out = feed_received(200, 4_000_000, 3_000_000);
     let mut samples = 0;
     for o in &out {
-        let Output::Sample { t_ns, values } = o else {
+        let Output::Sample { t_ns, values, .. } = o else {
             panic!("{o:?}");
         };
         let i = (t_ns - T0) / DT;
@@ -341,4 +341,101 @@ fn a_headerless_topic_received_late_aligns_with_the_stamped_one() {
             && m.contains("no consistent offset to time the topics without a header (/bench/load)"),
         "{m}"
     );
+}
+
+#[derive(Serialize)]
+struct UInt32 {
+    data: u32,
+}
+
+/// The headerless map with the step and frequency labels, each a headerless topic of its own.
+fn labelled_map() -> String {
+    format!(
+        "{HEADERLESS_MAP}  step: {{topic: /bench/step, type: std_msgs/msg/UInt32, field: data}}
+  frequency_hz: {{topic: /bench/frequency, type: std_msgs/msg/Float64, field: data}}
+"
+    )
+}
+
+/// A bench as `ros2 bag record` or the live node sees it: samples every 10 ms, the joints
+/// stamped, the load without a header, and the step and frequency labels published once per
+/// step (30 samples) at its first sample; each message received its topic's delay (joints
+/// 1.2 ms, load 2.6 ms, labels 1.8 ms) plus a jitter uniform in +-0.5 ms after its sample.
+/// Every sample carries its own step's labels, the first of each step too (its label is
+/// received after it), and the values of its own sample.
+#[test]
+fn labels_received_after_a_steps_first_sample_start_the_step_there() {
+    let mut f = topics(&labelled_map()).unwrap();
+    let index = |name: &str| f.topics().iter().position(|t| t.name == name).unwrap();
+    let (joints_k, load_k, step_k, freq_k) = (
+        index("/bench/joints"),
+        index("/bench/load"),
+        index("/bench/step"),
+        index("/bench/frequency"),
+    );
+    let mut state = 5u64;
+    let mut jitter = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * 500_000.0
+    };
+    let n = 300;
+    let frequency = |step: i64| 1.5 + step as f64;
+    let mut messages: Vec<(i64, usize, Vec<u8>)> = Vec::new();
+    for i in 0..n {
+        let sampled = T0 + i * DT;
+        let mut at = |delay: i64| sampled + delay + jitter() as i64;
+        messages.push((at(1_200_000), joints_k, joints(i, 0)));
+        let load = forcemap_msgs::encode(&Float64 {
+            data: 0.25 * i as f64,
+        });
+        messages.push((at(2_600_000), load_k, load));
+        if i % 30 == 0 {
+            let step = forcemap_msgs::encode(&UInt32 {
+                data: (i / 30) as u32,
+            });
+            messages.push((at(1_800_000), step_k, step));
+            let f = forcemap_msgs::encode(&Float64 {
+                data: frequency(i / 30),
+            });
+            messages.push((at(1_800_000), freq_k, f));
+        }
+    }
+    messages.sort_by_key(|m| m.0);
+    let mut out = Vec::new();
+    for (receive_ns, k, payload) in messages {
+        f.push(k, &payload, receive_ns, &mut out);
+    }
+    // The samples wait for their labels at most half a second of the stream.
+    let before_flush = out.len();
+    f.flush(&mut out);
+    assert!(
+        before_flush >= (n - 52) as usize && before_flush < n as usize,
+        "{before_flush} samples before the stream ended"
+    );
+    let mut samples = 0;
+    for o in &out {
+        let Output::Sample {
+            t_ns,
+            values,
+            labels,
+        } = o
+        else {
+            panic!("{o:?}");
+        };
+        let i = (t_ns - T0) / DT;
+        assert_eq!(*t_ns, T0 + i * DT);
+        let value = |c: Channel| values.iter().find(|(d, _)| *d == c).unwrap().1;
+        assert_eq!(value(Channel::BaseDisplacementM), i as f64);
+        assert_eq!(value(Channel::MassAccelerationMps2), i as f64);
+        let step = i / 30;
+        assert_eq!(
+            *labels,
+            Some([Some(step as f64), Some(frequency(step))]),
+            "sample {i}"
+        );
+        samples += 1;
+    }
+    assert!(samples >= n - 2, "{samples} of {n}");
 }

@@ -17,8 +17,8 @@ pub const TIME_COLUMN: &str = "time_s";
 pub const STEP_COLUMN: &str = "step";
 pub const FREQUENCY_COLUMN: &str = "frequency_hz";
 
-/// Relative tolerance on the sampling interval (uniformity and consistency across steps): the
-/// step assembler's rule for written data.
+/// Relative tolerance on the sampling interval within which written times are exact: the step
+/// assembler's rule for written data (beyond it, its timing rule reads breaks and jitter).
 pub const SAMPLE_INTERVAL_REL_TOL: f64 = WRITTEN_INTERVAL_REL_TOL;
 
 /// The label columns: optional, but both or neither (without them the steps are found in the

@@ -184,7 +184,9 @@ pub enum CsvError {
     },
     #[error(
         "{}: line {line}, column 'time_s': non-uniform sampling in step {step}: interval \
-         {} s from line {prev_line} differs from the step's typical interval {} s",
+         {} s from line {prev_line} where the rows around are {} s apart (a duplicated row, or \
+         a time off its sample by more than a tenth of an interval: correct or remove the row; \
+         a pause or lost rows only end a record)",
         path.display(), fmt_sig(*interval), fmt_sig(*expected)
     )]
     NonUniformSampling {
@@ -194,22 +196,6 @@ pub enum CsvError {
         line: u64,
         interval: f64,
         expected: f64,
-    },
-    #[error(
-        "{}: lines {first_line}-{last_line}, column 'time_s': step {step} is sampled at \
-         {} Hz but step {reference_step} (from line {reference_line}) at {} Hz; all steps \
-         must have the same sample rate",
-        path.display(), fmt_sig(*rate_hz), fmt_sig(*reference_rate_hz)
-    )]
-    InconsistentSampleRate {
-        path: PathBuf,
-        step: usize,
-        first_line: u64,
-        last_line: u64,
-        rate_hz: f64,
-        reference_step: usize,
-        reference_line: u64,
-        reference_rate_hz: f64,
     },
     #[error(
         "{}: line {first_line}, column 'step': step {step} has only {rows} row(s); at least 3 \

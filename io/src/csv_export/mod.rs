@@ -27,8 +27,11 @@
 //! they include the transient. Steps must be contiguous (each new step is the previous one
 //! plus one; the first may be any non-negative integer) and each step must have at least 3
 //! rows. Time must increase strictly over the whole file (it counts from the start of the
-//! run). The sampling must be uniform within a step, and all steps must have the same sample
-//! rate; the tolerance is 1e-6 relative plus the rounding of the time column when the file
+//! run). Times are read by the assembler's timing rule ([`crate::steps::timing`]): each record
+//! has its own sample rate; a pause or lost rows end a record (the step goes on in another,
+//! with a notice naming the line); times that jitter about a uniform grid by up to a tenth of
+//! an interval are read as uniform (one notice per file); a time off by more is refused.
+//! Times are exact within 1e-6 relative plus the rounding of the time column when the file
 //! writes time with a fixed number of decimals (e.g. `0.000100`).
 //!
 //! The excitation amplitude is not part of the export, so it is *estimated* on import: for a
@@ -47,7 +50,7 @@
 //!
 //! Files: `contract` (column names, required columns, the header's layout), `dialect`,
 //! `multisine` (the multisine label columns), `sweep` (the sweep label columns), `read`,
-//! `write`, `error`.
+//! `label_runs` (the label check over records of several rates), `write`, `error`.
 //!
 //! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
 //! [`SetupKind::DrivePoint`]: forcemap_math::recipe::SetupKind::DrivePoint
@@ -56,6 +59,7 @@
 mod contract;
 pub mod dialect;
 mod error;
+mod label_runs;
 pub mod multisine;
 mod read;
 pub mod sweep;

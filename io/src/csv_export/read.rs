@@ -1,27 +1,28 @@
 //! Reading the CSV contract: rows parsed here (the rules of cells, lines and columns), grouped
 //! into records by the step assembler of [`crate::steps`] (the rules a step's samples share
-//! with bag and live samples), then the rules only an export has: one sample rate for the
-//! whole file, and the excitation amplitude estimated from the data since the export carries
+//! with bag and live samples, their timing among them: each record its own sample rate, a
+//! pause or lost rows ending a record, jittered times read as uniform), then what only an
+//! export needs: the excitation amplitude estimated from the data since the export carries
 //! none.
 
 use std::fs::File;
 use std::io;
 use std::path::Path;
 
-use super::contract::{
-    CsvImport, FREQUENCY_COLUMN, Layout, SAMPLE_INTERVAL_REL_TOL, STEP_COLUMN, TIME_COLUMN,
-};
+use super::contract::{CsvImport, FREQUENCY_COLUMN, Layout, STEP_COLUMN, TIME_COLUMN};
 use super::dialect;
 use super::error::{CsvError, csv_error};
+use super::label_runs::label_warnings;
 use super::multisine::{self, MultisineLabel};
 use super::sweep::{self, SweepLabel};
-use crate::steps::unlabelled::{StepWithFrequency, check_labels, split_run};
+use crate::steps::timing::{JitterSummary, TimingNote};
+use crate::steps::unlabelled::{StepWithFrequency, split_parts};
 use crate::steps::{
     AssembledStep, StepAssembler, StepError, StepFault, StepPlan, StepRules, StepSample,
     estimated_excitation, rms_about_mean, sine_amplitude_from_rms,
 };
 use forcemap_math::phasor::SweepLaw;
-use forcemap_math::record::{Channel, Excitation};
+use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_math::segment::SegmentOptions;
 
 /// Reads a test-bench CSV export (see the module documentation for the contract).
@@ -165,7 +166,7 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
             }
             if let Some(done) = current.take() {
                 let result = assembler.finish_step();
-                steps.extend(done.completed(path, result)?);
+                steps.extend(done.completed(path, result, labelled)?);
             }
             current = Some(StepRows::new(step, freq, multisine.clone(), swept));
         }
@@ -228,15 +229,14 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
             step,
             values: std::mem::take(&mut values),
         };
-        for result in assembler.push_sample(&sample, Some(&cur.plan)) {
-            steps.extend(cur.completed(path, Some(result))?);
-        }
+        let done = assembler.push_sample(&sample, Some(&cur.plan));
+        steps.extend(cur.completed(path, done, labelled)?);
         values = sample.values;
     }
     match current {
         Some(done) => {
             let result = assembler.finish_step();
-            steps.extend(done.completed(path, result)?);
+            steps.extend(done.completed(path, result, labelled)?);
         }
         None => return Err(CsvError::HeaderOnly { path: p() }),
     }
@@ -244,38 +244,45 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
         return Err(CsvError::HeaderOnly { path: p() });
     }
 
-    let sample_rate_hz = common_sample_rate(path, &steps)?;
+    // What the timing rule did: each break and rows left out, and one notice of the jitter.
+    let mut notices = prepared.notices;
+    let mut jitter = JitterSummary::default();
+    for s in &steps {
+        jitter.add(s.assembled.timing.jitter.as_ref());
+        notices.extend(s.notices.iter().cloned());
+    }
+    if let Some(n) = jitter.notice() {
+        notices.push(format!("{}: column '{TIME_COLUMN}': {n}", path.display()));
+    }
     let driven = layout.profile.driven_channel();
     let multisines: Vec<Option<MultisineLabel>> =
         steps.iter().map(|s| s.multisine.clone()).collect();
     let sweeps: Vec<Option<SweepLabel>> = steps.iter().map(|s| s.sweep).collect();
+    let first_samples: Vec<usize> = steps.iter().map(|s| s.assembled.first_sample).collect();
+    let labels: Vec<usize> = steps.iter().map(|s| s.assembled.label).collect();
     let mut found: Vec<StepWithFrequency> = steps
         .into_iter()
         .map(|s| (s.assembled.record, s.frequency))
         .collect();
-    for (record, _) in &mut found {
-        record.sample_rate_hz = sample_rate_hz;
-    }
     let options = SegmentOptions::default();
     let warnings = if labelled {
         // The segmenter knows sines and the rest: a multisine or sweep label is not checked by
         // it.
-        let checkable: Vec<StepWithFrequency> = found
-            .iter()
-            .zip(multisines.iter().zip(&sweeps))
-            .filter(|(_, (m, s))| m.is_none() && s.is_none())
-            .map(|(s, _)| s.clone())
-            .collect();
-        check_labels(&checkable, driven, &options)
+        let checked = |k: usize| multisines[k].is_none() && sweeps[k].is_none();
+        label_warnings(&found, &labels, checked, driven, &options)
     } else {
-        let (run, _) = &found[0];
-        found = split_run(run, driven, &unlabelled_times, &options).map_err(|e| {
-            CsvError::Unlabelled {
-                path: p(),
-                first_s: unlabelled_times.first().copied().unwrap_or(0.0),
-                last_s: unlabelled_times.last().copied().unwrap_or(0.0),
-                message: e.to_string(),
-            }
+        // Every row is of one step; a pause or lost rows cut it in parts, each cut into steps
+        // where its drive changes, the records numbered in order.
+        let parts: Vec<(&Record, &[f64])> = found
+            .iter()
+            .zip(first_samples)
+            .map(|((run, _), first)| (run, &unlabelled_times[first..first + run.len()]))
+            .collect();
+        found = split_parts(&parts, driven, &options).map_err(|e| CsvError::Unlabelled {
+            path: p(),
+            first_s: unlabelled_times.first().copied().unwrap_or(0.0),
+            last_s: unlabelled_times.last().copied().unwrap_or(0.0),
+            message: e.to_string(),
         })?;
         Vec::new()
     };
@@ -309,7 +316,7 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
         ignored_columns: layout.ignored_columns,
         kind: layout.profile,
         warnings,
-        notices: prepared.notices,
+        notices,
     })
 }
 
@@ -325,15 +332,14 @@ struct StepRows {
     plan: StepPlan,
 }
 
-/// A step read and assembled, with where it is in the file.
+/// A record read and assembled (a step, or a part of a step its timing cut).
 struct ReadStep {
-    step: usize,
     frequency: Option<f64>,
     multisine: Option<MultisineLabel>,
     sweep: Option<SweepLabel>,
-    first_line: u64,
-    last_line: u64,
     assembled: AssembledStep,
+    /// What the timing rule did to the step before the record's end, naming the lines.
+    notices: Vec<String>,
 }
 
 impl StepRows {
@@ -343,16 +349,25 @@ impl StepRows {
         multisine: Option<MultisineLabel>,
         sweep: Option<SweepLabel>,
     ) -> StepRows {
-        // The export carries no amplitude: it is estimated once the step is complete.
-        let excitation = match &multisine {
-            Some(m) => Excitation::Multisine {
+        // The export carries no amplitude: it is estimated once the step is complete (a
+        // sweep's duration too, by the assembler).
+        let excitation = match (&multisine, sweep) {
+            (Some(m), _) => Excitation::Multisine {
                 base_frequency_hz: m.base_frequency_hz,
                 lines: m.lines.clone(),
                 rms: f64::NAN,
             },
-            None => estimated_excitation(frequency, f64::NAN),
+            (None, Some(s)) => Excitation::Sweep {
+                law: SweepLaw {
+                    kind: s.kind,
+                    amplitude: f64::NAN,
+                    start_frequency_hz: s.start_frequency_hz,
+                    end_frequency_hz: s.end_frequency_hz,
+                    duration_s: f64::NAN,
+                },
+            },
+            (None, None) => estimated_excitation(frequency, f64::NAN),
         };
-        // A sweep step is planned as random until its length (and so its law) is known.
         StepRows {
             step,
             frequency,
@@ -376,24 +391,60 @@ impl StepRows {
         self.lines.get(sample).copied().unwrap_or(0)
     }
 
-    /// The assembler's verdict on this step, with the step's lines.
+    /// The assembler's verdict on this step (its records, or why it has none), with the
+    /// step's lines; `labelled`: the file labels its steps (else this is the whole run).
     fn completed(
         &self,
         path: &Path,
-        result: Option<Result<AssembledStep, StepError>>,
-    ) -> Result<Option<ReadStep>, CsvError> {
-        match result {
-            None => Ok(None),
-            Some(Ok(assembled)) => Ok(Some(ReadStep {
-                step: self.step,
-                frequency: self.frequency,
-                multisine: self.multisine.clone(),
-                sweep: self.sweep,
-                first_line: self.line(0),
-                last_line: self.last_line(),
-                assembled,
-            })),
-            Some(Err(e)) => Err(self.error(path, e)),
+        results: Vec<Result<AssembledStep, StepError>>,
+        labelled: bool,
+    ) -> Result<Vec<ReadStep>, CsvError> {
+        results
+            .into_iter()
+            .map(|r| {
+                let assembled = r.map_err(|e| self.error(path, e))?;
+                let notices = assembled
+                    .notes
+                    .iter()
+                    .map(|n| self.notice(path, n, assembled.record.step, labelled))
+                    .collect();
+                Ok(ReadStep {
+                    frequency: self.frequency,
+                    multisine: self.multisine.clone(),
+                    sweep: self.sweep,
+                    assembled,
+                    notices,
+                })
+            })
+            .collect()
+    }
+
+    /// What the timing rule did to this step, naming its lines; `record` is the number of the
+    /// record the note comes with.
+    fn notice(&self, path: &Path, note: &TimingNote, record: usize, labelled: bool) -> String {
+        let at = match labelled {
+            true => format!("{}: step {}", path.display(), self.step),
+            false => path.display().to_string(),
+        };
+        match note {
+            TimingNote::Break(b) => format!(
+                "{at}, line {}, column '{TIME_COLUMN}': {} after line {}: {}",
+                self.line(b.sample),
+                b.describe(),
+                self.line(b.sample - 1),
+                match labelled {
+                    true => format!(
+                        "the step goes on in another record from here (record {record} or after)"
+                    ),
+                    false => "the run is cut here, each part searched for steps apart".to_string(),
+                }
+            ),
+            TimingNote::LeftOut { first, count } => format!(
+                "{at}, lines {}-{}: {count} row{} between breaks of the sampling, too few for a record: left out",
+                self.line(*first),
+                self.line(first + count - 1),
+                if *count == 1 { "" } else { "s" }
+            ),
         }
     }
 
@@ -410,7 +461,6 @@ impl StepRows {
                 sample,
                 interval,
                 reference,
-                ..
             } => CsvError::NonUniformSampling {
                 path: path.to_path_buf(),
                 step: e.step,
@@ -418,6 +468,14 @@ impl StepRows {
                 line: self.line(sample),
                 interval,
                 expected: reference,
+            },
+            StepFault::SweepBroken { at } => CsvError::Malformed {
+                path: path.to_path_buf(),
+                line: Some(self.line(at.sample)),
+                message: format!(
+                    "step {}: {} (remove the step, or export the sweep without a gap)",
+                    e.step, e.problem
+                ),
             },
             // Parsing refuses what the other faults stand for (a step out of order, a
             // non-finite value, a missing plan, a changed set of channels) before the
@@ -429,45 +487,6 @@ impl StepRows {
             },
         }
     }
-}
-
-/// The file's one sample rate: every step's rate agrees with the first step's within the
-/// tolerance plus the rounding of the written times; the rate is the mean over all intervals,
-/// snapped to a whole number of Hz when within the uncertainty of the estimate.
-fn common_sample_rate(path: &Path, steps: &[ReadStep]) -> Result<f64, CsvError> {
-    let reference = &steps[0];
-    let (ref_rate, ref_rel_unc) = reference.assembled.timing.rate();
-    let mut intervals = 0.0;
-    let mut elapsed = 0.0;
-    let mut res_sum = 0.0;
-    for s in steps {
-        let timing = &s.assembled.timing;
-        let (rate, rel_unc) = timing.rate();
-        let tol = SAMPLE_INTERVAL_REL_TOL + rel_unc + ref_rel_unc;
-        if (rate - ref_rate).abs() > tol * ref_rate {
-            return Err(CsvError::InconsistentSampleRate {
-                path: path.to_path_buf(),
-                step: s.step,
-                first_line: s.first_line,
-                last_line: s.last_line,
-                rate_hz: rate,
-                reference_step: reference.step,
-                reference_line: reference.first_line,
-                reference_rate_hz: ref_rate,
-            });
-        }
-        intervals += (timing.samples - 1) as f64;
-        elapsed += timing.elapsed_s();
-        res_sum += timing.rounding_s();
-    }
-    let mut sample_rate_hz = intervals / elapsed;
-    // Snap to an integer rate when it is within the uncertainty of the estimate.
-    let snapped = sample_rate_hz.round();
-    let rel_unc = res_sum / elapsed + 1e-9;
-    if snapped > 0.0 && (sample_rate_hz - snapped).abs() <= rel_unc * sample_rate_hz {
-        sample_rate_hz = snapped;
-    }
-    Ok(sample_rate_hz)
 }
 
 /// A row that is not UTF-8 refused as the `csv` crate's string records refuse it.

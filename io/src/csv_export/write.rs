@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::{Channel, Excitation, Record};
 
-use super::contract::{FREQUENCY_COLUMN, SAMPLE_INTERVAL_REL_TOL, STEP_COLUMN, TIME_COLUMN};
+use super::contract::{FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN};
 use super::error::{CsvError, csv_error};
 use super::multisine::{MULTISINE_COLUMNS, format_lines, lines_fault};
 use super::sweep::{SWEEP_COLUMNS, law_name};
@@ -24,8 +24,8 @@ use super::sweep::{SWEEP_COLUMNS, law_name};
 /// gives the same f64 values bit for bit.
 ///
 /// Everything is checked before the file system is touched (all records with the same
-/// channels, the profile's channels present, at least 3 finite samples per channel, the same
-/// positive sample rate, contiguous steps, increasing time, sine frequencies finite and
+/// channels, the profile's channels present, at least 3 finite samples per channel, a
+/// positive sample rate (each record its own), contiguous steps, increasing time, sine frequencies finite and
 /// positive, multisine base frequencies positive with ascending lines). The data
 /// go to a temporary file in the target directory which is renamed over `path` at the end; on
 /// any error the temporary file is removed and `path` is untouched.
@@ -150,7 +150,6 @@ fn validate_for_write(
             Channel::BaseDisplacementM.name()
         )));
     }
-    let rate = first.sample_rate_hz;
     let mut prev_time: Option<f64> = None;
     for (k, r) in records.iter().enumerate() {
         let what = format!("record {k} (step {})", r.step);
@@ -209,12 +208,6 @@ fn validate_for_write(
                 r.sample_rate_hz
             )));
         }
-        if (r.sample_rate_hz - rate).abs() > SAMPLE_INTERVAL_REL_TOL * rate {
-            return Err(bad(format!(
-                "{what}: sample rate {} Hz differs from record 0's {rate} Hz",
-                r.sample_rate_hz
-            )));
-        }
         if !r.start_time_s.is_finite() {
             return Err(bad(format!(
                 "{what}: start time {} is not finite",
@@ -232,6 +225,7 @@ fn validate_for_write(
             Excitation::Random { .. } => {}
             Excitation::Sweep { law } => {
                 let ok = |f: f64| f.is_finite() && f > 0.0;
+                let rate = r.sample_rate_hz;
                 let duration = n as f64 / rate;
                 if !(ok(law.start_frequency_hz) && ok(law.end_frequency_hz)) {
                     return Err(bad(format!(

@@ -20,6 +20,7 @@ use forcemap_msgs::std_msgs::Header;
 use super::{RigBagError, check_topic};
 use crate::bag::BagReader;
 use crate::rig_messages::RigMessage;
+use crate::steps::timing::TimingReport;
 use crate::steps::{AssembledStep, StepAssembler, StepError, StepPlan};
 use crate::topics;
 
@@ -213,6 +214,9 @@ pub struct RigBag {
     /// What the steps' data say against their labels, each naming its step
     /// ([`crate::steps::AssembledStep::warnings`]).
     pub warnings: Vec<String>,
+    /// What the timing rule did ([`crate::steps::timing`]): a step split at a pause or lost
+    /// samples, samples left out, the jitter of the stamps.
+    pub notices: Vec<String>,
 }
 
 /// Reads the records of a rig run from a bag directory or a bare .mcap.
@@ -276,9 +280,11 @@ impl RigBagReader {
         }
         let mut records: Vec<Record> = Vec::new();
         let mut warnings = Vec::new();
+        let mut timing = TimingReport::default();
         let mut complete = 0usize;
         let mut take = |a: AssembledStep| {
             complete += 1;
+            timing.add(&a);
             warnings.extend(a.warnings);
             records.extend(keep(a.record));
         };
@@ -295,16 +301,20 @@ impl RigBagReader {
                 take(done.map_err(step_err)?);
             }
         }
-        let mut left_out = None;
-        match assembler.finish_step() {
-            Some(Ok(r)) => take(r),
-            // The recording stopped in the middle of the last step: keep the complete ones.
-            Some(Err(e)) if e.truncated && complete > 0 => {
-                left_out = Some(format!("step {} left out: {}", e.step, e.problem));
+        let mut truncated = None;
+        for done in assembler.finish_step() {
+            match done {
+                Ok(r) => take(r),
+                Err(e) if e.truncated => truncated = Some(e),
+                Err(e) => return Err(step_err(e)),
             }
-            Some(Err(e)) => return Err(step_err(e)),
-            None => {}
         }
+        // The recording stopped in the middle of the last step: keep the complete ones.
+        let left_out = match truncated {
+            Some(e) if complete > 0 => Some(format!("step {} left out: {}", e.step, e.problem)),
+            Some(e) => return Err(step_err(e)),
+            None => None,
+        };
         if complete == 0 {
             return Err(RigBagError::Empty {
                 path: p.clone(),
@@ -316,6 +326,7 @@ impl RigBagReader {
             parameters,
             left_out,
             warnings,
+            notices: timing.notices(),
         })
     }
 

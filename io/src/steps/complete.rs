@@ -1,16 +1,23 @@
-//! A step's completion: its samples' timing and intervals checked, a sweep's duration, a
-//! multisine's lines found (and checked against its labelled band), the assembled record.
+//! A step's completion: its samples' timing read ([`super::timing`]: one record, or one per
+//! part between breaks), a sweep's duration, a multisine's lines found (and checked against its
+//! labelled band), the assembled records.
 
 use forcemap_math::phasor::{MultisineOptions, band_disagreement, find_multisine_lines};
 use forcemap_math::record::{Channel, Excitation, Record};
 
+use super::timing::{self, Jitter, TimingNote};
 use super::{
     AssembledStep, Building, IntervalRule, MIN_STEP_SAMPLES, StepError, StepFault, StepTiming,
 };
 
-pub(super) fn complete(b: Building, interval: IntervalRule) -> Result<AssembledStep, StepError> {
+/// The records of a completed step, numbered from `first_record`.
+pub(super) fn complete(
+    b: Building,
+    interval: IntervalRule,
+    first_record: usize,
+) -> Result<Vec<AssembledStep>, StepError> {
     let Building {
-        mut record,
+        record,
         stamps,
         resolution,
         expected,
@@ -18,69 +25,163 @@ pub(super) fn complete(b: Building, interval: IntervalRule) -> Result<AssembledS
         multisine_band_hz,
         problem,
     } = b;
-    let err = |fault: StepFault| StepError::new(record.step, fault);
+    let label = record.step;
+    let err = |fault: StepFault| StepError::new(label, fault);
     if let Some(p) = problem {
         return Err(err(p));
     }
     let n = stamps.len();
-    if expected > 0 && n != expected {
-        return Err(StepError {
-            truncated: n < expected,
-            ..err(StepFault::Lost {
-                arrived: n,
-                expected,
-            })
+    let lost = |n: usize| StepError {
+        truncated: n < expected,
+        ..err(StepFault::Lost {
+            arrived: n,
+            expected,
+        })
+    };
+    if n < MIN_STEP_SAMPLES {
+        return Err(if expected > 0 && n != expected {
+            lost(n)
+        } else {
+            err(StepFault::TooFew { samples: n })
         });
     }
-    if n < MIN_STEP_SAMPLES {
-        return Err(err(StepFault::TooFew { samples: n }));
+    let (parts, notes) = read_timing(&stamps, resolution, interval).map_err(err)?;
+    let broken = notes.iter().any(|n| matches!(n, TimingNote::Break(_)));
+    if !broken && expected > 0 && n != expected {
+        return Err(lost(n));
     }
-    let timing = StepTiming {
-        samples: n,
-        first_s: stamps[0],
-        last_s: stamps[n - 1],
-        resolution_s: resolution,
-    };
-    if let Some(fault) = interval_fault(&stamps, &timing, interval) {
-        return Err(err(fault));
+    if let (Excitation::Sweep { .. }, Some(TimingNote::Break(at))) = (
+        &record.excitation,
+        notes.iter().find(|n| matches!(n, TimingNote::Break(_))),
+    ) {
+        return Err(err(StepFault::SweepBroken { at: *at }));
     }
-    // Stamps are whole nanoseconds: snap a rate within that rounding of a whole number of Hz to
-    // it, as the CSV reader does, so both forms of the same data give the same rate.
-    let rate = 1.0 / timing.mean_interval_s();
-    let snapped = rate.round();
-    record.sample_rate_hz = if (rate - snapped).abs() < 1e-6 * rate {
-        snapped
-    } else {
-        rate
-    };
-    // A sweep lasts its step: its samples over the sample rate, as the CSV reader has it.
-    let duration_s = record.len() as f64 / record.sample_rate_hz;
-    if let Excitation::Sweep { law } = &mut record.excitation {
-        law.duration_s = duration_s;
+    let mut out = Vec::with_capacity(parts.len());
+    let mut from = 0;
+    for (k, (first, timing)) in parts.iter().enumerate() {
+        let range = *first..*first + timing.samples;
+        let mut part = Record {
+            step: first_record + k,
+            excitation: record.excitation.clone(),
+            sample_rate_hz: timing.sample_rate_hz(),
+            start_time_s: timing.first_s,
+            channels: record
+                .channels
+                .iter()
+                .map(|(c, x)| (*c, x[range.clone()].to_vec()))
+                .collect(),
+        };
+        // A sweep lasts its step: its samples over the sample rate, as the CSV reader has it.
+        let duration_s = part.len() as f64 / part.sample_rate_hz;
+        if let Excitation::Sweep { law } = &mut part.excitation {
+            law.duration_s = duration_s;
+        }
+        let found = fill_multisine_lines(&mut part, driven).map_err(err)?;
+        // Lines found in the data are checked against the band the step is labelled with.
+        let step = part.step;
+        let warnings = match (&part.excitation, multisine_band_hz, driven) {
+            (
+                Excitation::Multisine {
+                    base_frequency_hz,
+                    lines,
+                    ..
+                },
+                Some(band),
+                Some(driven),
+            ) if found => band_disagreement(lines, *base_frequency_hz, band)
+                .map(|why| format!("step {step}: multisine lines on {}: {why}", driven.name()))
+                .into_iter()
+                .collect(),
+            _ => Vec::new(),
+        };
+        // Each note goes with the first record that ends after it (the last takes the rest).
+        let end = if k + 1 == parts.len() {
+            usize::MAX
+        } else {
+            range.end
+        };
+        let notes = notes
+            .iter()
+            .filter(|n| (from..end).contains(&note_sample(n)))
+            .cloned()
+            .collect();
+        from = end;
+        out.push(AssembledStep {
+            record: part,
+            timing: *timing,
+            warnings,
+            label,
+            first_sample: *first,
+            notes,
+        });
     }
-    let step = record.step;
-    let found = fill_multisine_lines(&mut record, driven).map_err(|f| StepError::new(step, f))?;
-    // Lines found in the data are checked against the band the step is labelled with.
-    let warnings = match (&record.excitation, multisine_band_hz, driven) {
-        (
-            Excitation::Multisine {
-                base_frequency_hz,
-                lines,
-                ..
-            },
-            Some(band),
-            Some(driven),
-        ) if found => band_disagreement(lines, *base_frequency_hz, band)
-            .map(|why| format!("step {step}: multisine lines on {}: {why}", driven.name()))
-            .into_iter()
-            .collect(),
-        _ => Vec::new(),
+    Ok(out)
+}
+
+fn note_sample(n: &TimingNote) -> usize {
+    match n {
+        TimingNote::Break(b) => b.sample,
+        TimingNote::LeftOut { first, .. } => *first,
+    }
+}
+
+/// A record of a step: where it starts among the step's samples, and its timing.
+type Part = (usize, StepTiming);
+
+/// The step's samples (at least [`MIN_STEP_SAMPLES`]) as records: where each starts among them
+/// and its timing, and what was done to the step. Exact stamps under `rule` are one record;
+/// otherwise the step is cut at its breaks, and each part's stamps must lie on a grid within
+/// the jitter ([`timing`]).
+fn read_timing(
+    stamps: &[f64],
+    resolution_s: f64,
+    rule: IntervalRule,
+) -> Result<(Vec<Part>, Vec<TimingNote>), StepFault> {
+    let timing_of = |s: &[f64]| StepTiming {
+        samples: s.len(),
+        first_s: s[0],
+        last_s: s[s.len() - 1],
+        resolution_s,
+        jitter: None,
     };
-    Ok(AssembledStep {
-        record,
-        timing,
-        warnings,
-    })
+    let whole = timing_of(stamps);
+    if interval_fault(stamps, &whole, rule).is_none() {
+        return Ok((vec![(0, whole)], Vec::new()));
+    }
+    let breaks = timing::find_breaks(stamps);
+    let mut notes: Vec<TimingNote> = Vec::new();
+    let mut parts = Vec::new();
+    let mut longest = 0;
+    let bounds: Vec<usize> = std::iter::once(0)
+        .chain(breaks.iter().map(|b| b.sample))
+        .chain(std::iter::once(stamps.len()))
+        .collect();
+    for (k, w) in bounds.windows(2).enumerate() {
+        if k > 0 {
+            notes.push(TimingNote::Break(breaks[k - 1]));
+        }
+        let s = &stamps[w[0]..w[1]];
+        longest = longest.max(s.len());
+        if s.len() < MIN_STEP_SAMPLES {
+            notes.push(TimingNote::LeftOut {
+                first: w[0],
+                count: s.len(),
+            });
+            continue;
+        }
+        let mut t = timing_of(s);
+        if let Some(fault) = timing::jitter_fault(s, t.rounding_s(), w[0]) {
+            return Err(fault);
+        }
+        if interval_fault(s, &t, rule).is_some() {
+            t.jitter = Some(Jitter::of(s));
+        }
+        parts.push((w[0], t));
+    }
+    if parts.is_empty() {
+        return Err(StepFault::TooFew { samples: longest });
+    }
+    Ok((parts, notes))
 }
 
 /// A multisine planned without its lines (an `ExcitationState` does not carry them) gets the
@@ -121,33 +222,22 @@ fn fill_multisine_lines(record: &mut Record, driven: Option<Channel>) -> Result<
     Ok(true)
 }
 
-/// The first interval of a step (at least 2 samples) that breaks `rule`.
-fn interval_fault(stamps: &[f64], timing: &StepTiming, rule: IntervalRule) -> Option<StepFault> {
+/// Whether the stamps are not exact under `rule`: the first interval beyond it.
+fn interval_fault(stamps: &[f64], timing: &StepTiming, rule: IntervalRule) -> Option<usize> {
     // The intervals are not collected for the mean rule: this runs on a live step's path to
     // its phasors (a 10 kHz step has 130 000).
-    let dts = || stamps.windows(2).map(|w| w[1] - w[0]);
-    let first_beyond = |reference: f64, median: bool, beyond: &dyn Fn(f64) -> bool| {
-        dts()
-            .enumerate()
-            .find(|(_, d)| beyond(*d))
-            .map(|(i, d)| StepFault::NotUniform {
-                sample: i + 1,
-                interval: d,
-                reference,
-                median,
-            })
-    };
+    let mut dts = stamps.windows(2).map(|w| w[1] - w[0]);
     match rule {
         IntervalRule::Mean { rel_tol } => {
             let dt = timing.mean_interval_s();
-            first_beyond(dt, false, &|d| (d / dt - 1.0).abs() > rel_tol)
+            dts.position(|d| (d / dt - 1.0).abs() > rel_tol)
         }
         IntervalRule::Median { rel_tol } => {
-            let mut sorted: Vec<f64> = dts().collect();
+            let mut sorted: Vec<f64> = dts.clone().collect();
             sorted.sort_by(f64::total_cmp);
             let typical = sorted[sorted.len() / 2];
             let tol = rel_tol * typical + timing.rounding_s();
-            first_beyond(typical, true, &|d| (d - typical).abs() > tol)
+            dts.position(|d| (d - typical).abs() > tol)
         }
     }
 }

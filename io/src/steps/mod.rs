@@ -2,14 +2,21 @@
 //! and the CSV reader all do, in one place, so that a step replayed through the node graph
 //! becomes exactly the record `forcemap identify` reads from the same bag, and a CSV row and a
 //! rig sample go through the same rules (contiguous samples per step, at least
-//! [`MIN_STEP_SAMPLES`], finite values, a consistent sample interval).
+//! [`MIN_STEP_SAMPLES`], finite values, uniform sampling within a record).
 //!
 //! Where the sources differ, [`StepRules`] says how: messages carry exact stamps and may lose
 //! steps ([`StepRules::MESSAGES`]); a written export has rounded times and no gaps between
 //! steps ([`StepRules::WRITTEN`]).
+//!
+//! The times are read by one rule ([`timing`]): a pause or a lost sample ends a record (the
+//! step goes on in another record), and stamps that jitter about a uniform grid are read as
+//! uniform. Each record has its own sample rate. Records are numbered in order from the first
+//! step's label: a step split in two makes the records after it one more than their labels
+//! ([`AssembledStep::label`] keeps the label).
 
 mod complete;
 use complete::complete;
+pub mod timing;
 pub mod unlabelled;
 
 use forcemap_math::record::{Channel, Excitation, Record};
@@ -29,7 +36,9 @@ pub enum StepOrder {
     Consecutive,
 }
 
-/// How the intervals between a step's samples are checked.
+/// Which intervals between a step's samples make exact stamps: within the rule a step is one
+/// record as it is; beyond it the samples go through the timing rule ([`timing`]: breaks and
+/// jitter).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum IntervalRule {
     /// Every interval within `rel_tol` (relative) of the step's mean interval: exact stamps.
@@ -114,18 +123,21 @@ pub enum StepFault {
     Lost { arrived: usize, expected: usize },
     #[error("{samples} samples; a step needs at least {MIN_STEP_SAMPLES}")]
     TooFew { samples: usize },
-    /// Sample `sample` follows the previous one after `interval` where the step's reference
-    /// interval (mean or median, per [`IntervalRule`]) is `reference`.
+    /// Sample `sample` follows the previous one after `interval` where the record's samples are
+    /// `reference` apart, and is further from their uniform grid than jitter (and no break:
+    /// see [`timing`]).
     #[error(
-        "samples are not uniform: sample {sample} follows the previous after {interval:.6} s where {reference:.6} s is the step's {} interval (a gap or a duplicate)",
-        if *median { "median" } else { "mean" }
+        "samples are not uniform: sample {sample} follows the previous after {interval:.6} s where the samples around are {reference:.6} s apart (a duplicate, or a sample off its time by more than {} of an interval)",
+        timing::JITTER_MAX_INTERVALS
     )]
     NotUniform {
         sample: usize,
         interval: f64,
         reference: f64,
-        median: bool,
     },
+    /// A sweep's samples break ([`timing::Break`]): a sweep is one record from its start.
+    #[error("a sweep's samples break at sample {}: {}; a sweep is analysed whole, from its first sample", at.sample, at.describe())]
+    SweepBroken { at: timing::Break },
     #[error("{why} after {samples} samples")]
     Abandoned { why: String, samples: usize },
     /// The multisine's excited lines could not be found on its driven channel.
@@ -199,7 +211,7 @@ impl StepPlan {
     }
 }
 
-/// The times of a step's samples, as far as its sampling interval is concerned.
+/// The times of a record's samples, as far as its sampling interval is concerned.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepTiming {
     pub samples: usize,
@@ -208,6 +220,9 @@ pub struct StepTiming {
     pub last_s: f64,
     /// The finest rounding of the step's times as written (0 for exact stamps).
     pub resolution_s: f64,
+    /// How far the times scatter about a uniform grid when they are not exact (per the
+    /// source's [`IntervalRule`]); `None` for exact times.
+    pub jitter: Option<timing::Jitter>,
 }
 
 impl StepTiming {
@@ -227,17 +242,22 @@ impl StepTiming {
         self.resolution_s.min(0.25 * self.mean_interval_s()) + 4.0 * f64::EPSILON * t_max
     }
 
-    /// Sample rate (Hz) and its relative uncertainty from the rounding of the times.
-    pub fn rate(&self) -> (f64, f64) {
+    /// The sample rate [Hz]: the mean over the record's intervals (of jittered times, the
+    /// interval of their least-squares grid), snapped to a whole number of Hz within the
+    /// uncertainty of its first and last time (their rounding and jitter;
+    /// [`timing::snap_rate`]).
+    pub fn sample_rate_hz(&self) -> f64 {
         let elapsed = self.elapsed_s();
-        (
-            (self.samples - 1) as f64 / elapsed,
-            self.rounding_s() / elapsed,
-        )
+        let (rate, jitter) = match self.jitter {
+            Some(j) => (1.0 / j.interval_s, 2.0 * j.max_s),
+            None => ((self.samples - 1) as f64 / elapsed, 0.0),
+        };
+        timing::snap_rate(rate, (self.rounding_s() + jitter) / elapsed)
     }
 }
 
-/// A completed step: its record and the timing its sample rate came from.
+/// A record of a completed step (a step split by a break gives several): its record and the
+/// timing its sample rate came from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AssembledStep {
     pub record: Record,
@@ -245,6 +265,28 @@ pub struct AssembledStep {
     /// What a user should know about the step, each naming it (a multisine's labelled band
     /// that disagrees with the lines found in its data).
     pub warnings: Vec<String>,
+    /// The step's label (`record.step` is the record's number, larger after a split step).
+    pub label: usize,
+    /// Where the record starts among the step's samples (0 unless the step was split).
+    pub first_sample: usize,
+    /// What the timing rule did before this record's end: the break it starts after, samples
+    /// left out, each at a sample counted in the step.
+    pub notes: Vec<timing::TimingNote>,
+}
+
+impl AssembledStep {
+    /// What a user should know about the record, each naming its step (its label): its
+    /// warnings, the timing rule's notes (a step split at a pause or lost samples) and its
+    /// times' jitter, if any. (A file's readers say the jitter once, [`timing::TimingReport`].)
+    pub fn messages(&self) -> impl Iterator<Item = String> + '_ {
+        let mut jitter = timing::JitterSummary::default();
+        jitter.add(self.timing.jitter.as_ref());
+        self.warnings
+            .iter()
+            .cloned()
+            .chain(self.notes.iter().map(|n| n.describe(Some(self.label))))
+            .chain(jitter.notice().map(|n| format!("step {}: {n}", self.label)))
+    }
 }
 
 struct Building {
@@ -269,6 +311,8 @@ pub struct StepAssembler {
     building: Option<Building>,
     /// The last completed (or dropped) step, so that a step cannot come back.
     last_step: Option<usize>,
+    /// Records beyond one per step so far (steps split by breaks): added to the labels.
+    extra_records: usize,
 }
 
 impl Default for StepAssembler {
@@ -289,6 +333,7 @@ impl StepAssembler {
             origin: None,
             building: None,
             last_step: None,
+            extra_records: 0,
         }
     }
 
@@ -331,8 +376,8 @@ impl StepAssembler {
     }
 
     /// Adds one rig sample. `plan` is the plan of the sample's step (`None`: no excitation
-    /// state was seen for it). Returns the steps this sample completed: the previous one when
-    /// the step changes, and this one when it reaches its planned count.
+    /// state was seen for it). Returns the records this sample completed: those of the previous
+    /// step when the step changes, and this one's when it reaches its planned count.
     pub fn push(
         &mut self,
         sample: &RigSample,
@@ -425,17 +470,28 @@ impl StepAssembler {
         done
     }
 
-    /// Completes the step in progress, if any.
-    pub fn finish(&mut self) -> Option<Result<Record, StepError>> {
-        self.finish_step().map(|r| r.map(|a| a.record))
+    /// Completes the step in progress, if any: its records, or why it makes none.
+    pub fn finish(&mut self) -> Vec<Result<Record, StepError>> {
+        self.finish_step()
+            .into_iter()
+            .map(|r| r.map(|a| a.record))
+            .collect()
     }
 
-    /// Completes the step in progress, if any, with its timing.
-    pub fn finish_step(&mut self) -> Option<Result<AssembledStep, StepError>> {
-        let b = self.building.take()?;
+    /// Completes the step in progress, if any, with the timing of each of its records.
+    pub fn finish_step(&mut self) -> Vec<Result<AssembledStep, StepError>> {
+        let Some(b) = self.building.take() else {
+            return Vec::new();
+        };
         let step = b.record.step;
         self.last_step = Some(self.last_step.map_or(step, |l| l.max(step)));
-        Some(complete(b, self.rules.interval))
+        match complete(b, self.rules.interval, step + self.extra_records) {
+            Ok(parts) => {
+                self.extra_records += parts.len().saturating_sub(1);
+                parts.into_iter().map(Ok).collect()
+            }
+            Err(e) => vec![Err(e)],
+        }
     }
 
     /// Drops the step in progress (e.g. when its excitation state says it was replaced).

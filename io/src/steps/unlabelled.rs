@@ -33,6 +33,16 @@ pub enum UnlabelledError {
     },
     #[error("the run has no channel {channel}")]
     NoDrivenChannel { channel: &'static str },
+    /// A part of a run cut at a pause or lost samples ([`super::timing`]) gives no steps.
+    #[error(
+        "samples at {first_s:.3}-{last_s:.3} s (a part of the run between breaks of its sampling): {source}"
+    )]
+    InPart {
+        first_s: f64,
+        last_s: f64,
+        #[source]
+        source: Box<UnlabelledError>,
+    },
 }
 
 /// Cuts `run` (one record holding a whole unlabelled run) into one record per step its
@@ -46,20 +56,54 @@ pub fn split_run(
     times_s: &[f64],
     options: &SegmentOptions,
 ) -> Result<Vec<StepWithFrequency>, UnlabelledError> {
-    let seg = segment_run(run, driven, options)?;
-    if !seg.steps.iter().any(|s| frequency(s).is_some()) {
+    split_parts(&[(run, times_s)], driven, options)
+}
+
+/// [`split_run`] of a run that its sampling cut in parts (at pauses or lost samples:
+/// [`super::timing`]), each part with its times: every part is cut where its drive changes, the
+/// records numbered in order from the first part's `step`. Fails when no part shows a sine
+/// step, or a part cannot be segmented (naming its span).
+pub fn split_parts(
+    parts: &[(&Record, &[f64])],
+    driven: Channel,
+    options: &SegmentOptions,
+) -> Result<Vec<StepWithFrequency>, UnlabelledError> {
+    let whole = parts.len() == 1;
+    let segs = parts
+        .iter()
+        .map(|(run, times)| {
+            segment_run(run, driven, options).map_err(|e| match e {
+                e if whole => e,
+                e => UnlabelledError::InPart {
+                    first_s: times.first().copied().unwrap_or(run.start_time_s),
+                    last_s: times.last().copied().unwrap_or(run.start_time_s),
+                    source: Box::new(e),
+                },
+            })
+        })
+        .collect::<Result<Vec<Segmentation>, _>>()?;
+    if !segs
+        .iter()
+        .flat_map(|s| &s.steps)
+        .any(|s| frequency(s).is_some())
+    {
+        let found: Vec<String> = segs
+            .iter()
+            .zip(parts)
+            .map(|(seg, (run, _))| describe(seg, run))
+            .collect();
         return Err(UnlabelledError::NoSineSteps {
             channel: driven.name(),
-            found: describe(&seg, run),
+            found: found.join("; "),
         });
     }
-    let out = seg
-        .steps
-        .iter()
-        .filter(|s| is_record(s))
-        .enumerate()
-        .map(|(k, s)| step_record(run, s, times_s, run.step + k))
-        .collect();
+    let first = parts.first().map_or(0, |(run, _)| run.step);
+    let mut out = Vec::new();
+    for (seg, (run, times)) in segs.iter().zip(parts) {
+        for s in seg.steps.iter().filter(|s| is_record(s)) {
+            out.push(step_record(run, s, times, first + out.len()));
+        }
+    }
     Ok(out)
 }
 

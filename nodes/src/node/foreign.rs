@@ -1,10 +1,15 @@
 //! The foreign node: the live source of a bench's own topics. It subscribes to the topics a
 //! channel map names, with the types the map gives (std_msgs/msg/Float64, Float64MultiArray,
 //! sensor_msgs/msg/JointState, geometry_msgs/msg/WrenchStamped built in; any other from a
-//! `.msg` file the map lists), takes each message's raw CDR payload, and hands it to
-//! [`ForeignTopics`] (io: the dynamic decoder and the same stamp alignment as a foreign bag),
-//! publishing the aligned samples as forcemap `RigSample`s on `samples`. It publishes no
-//! `ExcitationState`: run the harmonic node with `find_steps:=true`.
+//! `.msg` file the map lists), takes each message's raw CDR payload with its receive time, and
+//! hands it to [`ForeignTopics`] (io: the one reader of a bench's messages, which a foreign bag
+//! is read through too: decoding, alignment, a headerless topic timed by its receive time less
+//! the reference's delay, the labels), publishing the aligned samples as forcemap `RigSample`s
+//! on `samples`. With the map's `step` and `frequency_hz` labels, each sample carries its step
+//! and each step's first sample follows an `ExcitationState` (a sine at the labelled frequency,
+//! or random for 0; its amplitude unknown, NaN), and an IDLE state ends the run once no message
+//! has come for [`RUN_END_SILENCE`]: run the harmonic node as for the rig's own sensor. Without
+//! labels it publishes no `ExcitationState`: run the harmonic node with `find_steps:=true`.
 //!
 //! Parameters:
 //! - the map, either `channels.NAME.{topic,type,field,scale,offset}` in the node's own
@@ -24,10 +29,13 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use forcemap_io::channel_map::{CHANNELS_KEY, ChannelMap};
-use forcemap_io::foreign_topics::{ForeignTopics, Output};
+use forcemap_io::foreign_topics::{ForeignTopics, Output, SampleLabels, step_of_labels};
+use forcemap_io::steps::estimated_excitation;
 use forcemap_io::topics;
+use forcemap_math::recipe::SetupKind;
+use forcemap_math::record::Channel;
 use forcemap_msgs::builtin_interfaces::Time;
-use forcemap_msgs::msg::RigSample;
+use forcemap_msgs::msg::{ExcitationState, RigSample};
 use forcemap_msgs::std_msgs::Header;
 use futures::StreamExt as _;
 use ros2_client::{MessageTypeName, Name, QosProfile, qos::WhenFull};
@@ -35,6 +43,7 @@ use serde::de::{DeserializeSeed, Deserializer, SeqAccess, Visitor};
 use tokio::sync::mpsc;
 
 use crate::log_line;
+use crate::node::harmonic::RUN_END_SILENCE;
 use crate::ros::{NodeSetup, RosNode, publish_blocking, qos};
 
 /// A message's payload as it came: the CDR encapsulation header and the bytes after it.
@@ -105,11 +114,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     let p = &setup.params;
     let map = channel_map(&setup)?;
     let mut foreign = ForeignTopics::new(&map)?;
-    if map.step.is_some() || map.frequency_hz.is_some() {
-        log_line!(
-            "note: the map's step and frequency_hz labels are not read live: the harmonic node finds the steps (find_steps:=true)"
-        );
-    }
+    let labelled = foreign.labelled();
+    let driven = SetupKind::of_channels(|c| foreign.channels().contains(&c))?.driven_channel();
     let reliable = match p.opt_str("reliability")?.unwrap_or("reliable") {
         "reliable" => true,
         "best_effort" => false,
@@ -121,6 +127,10 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
 
     let mut ros = RosNode::start(setup.clone())?;
     let samples_pub = ros.publisher::<RigSample>(topics::SAMPLES, qos::samples())?;
+    let excitation_pub = match labelled {
+        true => Some(ros.publisher::<ExcitationState>(topics::EXCITATION, qos::excitation())?),
+        false => None,
+    };
     let out_topic = setup.absolute_topic(topics::SAMPLES);
     let deadline = Instant::now() + Duration::from_secs_f64(startup_timeout);
     if !crate::ros::wait_for_subscribers(
@@ -166,8 +176,13 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
             futures::pin_mut!(stream);
             while let Some(m) = stream.next().await {
                 match m {
-                    Ok((RawCdr(bytes), _info)) => {
-                        let received = crate::ros::now_time().as_nanos();
+                    Ok((RawCdr(bytes), info)) => {
+                        // When the DDS reader received it (RustDDS stamps each incoming
+                        // sample), not when this task ran: under load the task runs
+                        // milliseconds late, and a topic without a header is timed by it.
+                        let received = info
+                            .received_timestamp()
+                            .map_or_else(|| crate::ros::now_time().as_nanos(), |t| t.to_nanos());
                         if tx.send((k, bytes, received)).is_err() {
                             break;
                         }
@@ -194,35 +209,71 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     }
     drop(tx);
     log_line!(
-        "publishing aligned samples ({}) on {out_topic}",
+        "publishing aligned samples ({}) on {out_topic}{}",
         foreign
             .channels()
             .iter()
             .map(|c| c.name())
             .collect::<Vec<_>>()
-            .join(", ")
+            .join(", "),
+        if labelled {
+            ", each step's ExcitationState from the step and frequency_hz labels"
+        } else {
+            " (no labels: no ExcitationState)"
+        }
     );
 
     let (mut published, mut malformed, mut misaligned) = (0u64, 0u64, 0u64);
+    let mut steps = Steps::new(driven, frame.clone());
     let mut last_report = Instant::now();
     let mut out = Vec::new();
+    // Once the stream has been quiet for the silence, the samples held for their labels are
+    // handed out and the run ends (IDLE), once.
+    let mut quiet_at: Option<tokio::time::Instant> = None;
     loop {
+        let quiet = async {
+            match quiet_at {
+                Some(t) => tokio::time::sleep_until(t).await,
+                None => std::future::pending().await,
+            }
+        };
         let received = tokio::select! {
-            m = rx.recv() => m,
+            m = rx.recv() => m.map(Some),
+            () = quiet => Some(None),
             () = crate::ros::shutdown_signal() => None,
         };
-        let Some((k, bytes, receive_ns)) = received else {
+        let Some(received) = received else {
             break;
         };
-        foreign.push(k, &bytes, receive_ns, &mut out);
+        let ended = received.is_none();
+        match received {
+            Some((k, bytes, receive_ns)) => {
+                foreign.push(k, &bytes, receive_ns, &mut out);
+                quiet_at = Some(tokio::time::Instant::now() + RUN_END_SILENCE);
+            }
+            None => {
+                foreign.flush(&mut out);
+                quiet_at = None;
+            }
+        }
         for o in out.drain(..) {
             match o {
-                Output::Sample { t_ns, values } => {
+                Output::Sample {
+                    t_ns,
+                    values,
+                    labels,
+                } => {
+                    let Some(step) = steps.of_sample(t_ns, labels) else {
+                        continue;
+                    };
+                    if let (Some(state), Some(p)) = (step.starts, &excitation_pub) {
+                        publish_blocking(p, state).await?;
+                    }
                     let header = Header {
                         stamp: Time::from_nanos(t_ns),
                         frame_id: frame.clone(),
                     };
-                    let mut s = RigSample::new(header, 0);
+                    let mut s = RigSample::new(header, step.step);
                     for (c, v) in values {
                         s = s.with(c, v);
                     }
@@ -245,6 +296,10 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
                 }
             }
         }
+        if ended && let (Some(idle), Some(p)) = (steps.idle(), &excitation_pub) {
+            log_line!("no message for {RUN_END_SILENCE:?}: the run ended (IDLE)");
+            publish_blocking(p, idle).await?;
+        }
         if last_report.elapsed() > Duration::from_secs(5) {
             log_line!(
                 "{published} samples published, {malformed} malformed and {misaligned} misaligned messages skipped"
@@ -256,6 +311,102 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         "stopped: {published} samples published, {malformed} malformed and {misaligned} misaligned messages skipped"
     );
     Ok(())
+}
+
+/// A labelled sample's step, and the state to publish first when it starts one.
+struct SampleStep {
+    step: u32,
+    starts: Option<ExcitationState>,
+}
+
+/// The steps the labels make: the state of each step as its first sample comes, and IDLE at
+/// the end.
+struct Steps {
+    driven: Channel,
+    frame: String,
+    /// The step in progress and its last sample's time [ns].
+    current: Option<(u32, i64)>,
+    /// The interval between the last two samples [ns].
+    interval_ns: i64,
+    /// Samples skipped for want of labels or with labels that are not a step.
+    skipped: u64,
+}
+
+impl Steps {
+    fn new(driven: Channel, frame: String) -> Steps {
+        Steps {
+            driven,
+            frame,
+            current: None,
+            interval_ns: 0,
+            skipped: 0,
+        }
+    }
+
+    /// The step of the sample at `t_ns` with `labels` (`None`: not labelled, step 0); `None`
+    /// when the sample is to be skipped (before the first labels, or labels that are not a
+    /// step index and a frequency), said in the log.
+    fn of_sample(&mut self, t_ns: i64, labels: Option<SampleLabels>) -> Option<SampleStep> {
+        let Some(labels) = labels else {
+            return Some(SampleStep {
+                step: 0,
+                starts: None,
+            });
+        };
+        let [Some(step), Some(frequency)] = labels else {
+            self.skip(t_ns, "before the first step and frequency_hz labels");
+            return None;
+        };
+        let (step, frequency) = match step_of_labels(step, frequency) {
+            Ok((step, frequency)) => (step as u32, frequency),
+            Err((label, problem)) => {
+                self.skip(t_ns, &format!("{label}: {problem}"));
+                return None;
+            }
+        };
+        let starts = match self.current {
+            Some((s, last)) if s == step => {
+                self.interval_ns = t_ns - last;
+                None
+            }
+            _ => {
+                let excitation = estimated_excitation(frequency, f64::NAN);
+                let time = Time::from_nanos(t_ns);
+                Some(ExcitationState::from_excitation(
+                    Header::new(time, &self.frame),
+                    step as usize,
+                    time,
+                    &excitation,
+                    self.driven,
+                    0,
+                ))
+            }
+        };
+        self.current = Some((step, t_ns));
+        Some(SampleStep { step, starts })
+    }
+
+    fn skip(&mut self, t_ns: i64, why: &str) {
+        self.skipped += 1;
+        if worth_logging(self.skipped) {
+            log_line!(
+                "skipped the sample at {t_ns} ns ({} so far): {why}",
+                self.skipped
+            );
+        }
+    }
+
+    /// The state that ends the run after its last step, once.
+    fn idle(&mut self) -> Option<ExcitationState> {
+        let (step, last) = self.current.take()?;
+        let end = Time::from_nanos(last + self.interval_ns);
+        Some(ExcitationState::idle(
+            Header::new(end, &self.frame),
+            step as usize + 1,
+            end,
+            self.driven,
+        ))
+    }
 }
 
 #[cfg(test)]

@@ -3,10 +3,11 @@
 //! Subscribes to the samples and the excitation state, assembles each step (the same
 //! [`StepAssembler`] that reads bags, so a replayed step is the record `forcemap identify`
 //! reads), finds its settled part and publishes the phasors of every harmonic once the step is
-//! complete. Steps with gaps, lost samples or non-finite values are dropped and reported on
-//! /diagnostics, never used. Random (validation) records and sweeps give no phasors. A periodic
-//! multisine step (`ExcitationState` MULTISINE, its lines found from the driven channel when
-//! the step is assembled) is analysed whole at its end (`analyse_multisine`) and published as
+//! complete; a pause or lost samples split a step in records (warned about). Steps with
+//! non-finite values are dropped and reported on /diagnostics. Random (validation) records and
+//! sweeps give no phasors. A periodic multisine step (`ExcitationState` MULTISINE, its lines
+//! found from the driven channel when the step is assembled) is analysed whole at its end
+//! (`analyse_multisine`) and published as
 //! the bins of its averaged period, harmonics of the base frequency, with `harmonic_cap`
 //! [`HarmonicPhasors::MULTISINE_CAP`] (the identifier does not take them yet).
 //!
@@ -257,12 +258,12 @@ impl HarmonicState {
                 {
                     self.idle_since = None;
                     self.flush_pending(&mut done, true);
-                    if let Some(r) = self.assembler.finish_step() {
+                    let mut stream = self.stream.take();
+                    for r in self.assembler.finish_step() {
                         if let Ok(a) = &r {
-                            done.extend(a.warnings.iter().cloned().map(Outcome::Warning));
+                            done.extend(a.messages().map(Outcome::Warning));
                         }
-                        let stream = self.stream.take();
-                        done.push(self.outcome(r.map(|a| a.record), stream));
+                        done.push(self.outcome(r.map(|a| a.record), stream.take()));
                     }
                 }
             }
@@ -301,7 +302,7 @@ impl HarmonicState {
         let mut previous = previous;
         for r in self.assembler.push_sample(&sample, plan.as_ref()) {
             if let Ok(a) = &r {
-                done.extend(a.warnings.iter().cloned().map(Outcome::Warning));
+                done.extend(a.messages().map(Outcome::Warning));
             }
             let r = r.map(|a| a.record);
             let step_of = r.as_ref().map_or_else(|e| e.step, |rec| rec.step);

@@ -8,7 +8,9 @@
 //! buffer. The buffer is searched again when it has grown by a quarter (at least
 //! [`MIN_SEARCH_SAMPLES`]), so the work per sample stays bounded while a step is reported at
 //! most a quarter of the buffer late. At the end of a run (no sample for a while) every step
-//! left is complete.
+//! left is complete, and so is every step before a pause or lost samples (the timing rule of
+//! [`forcemap_io::steps::timing`]: the run is cut there and each part segmented, as an
+//! unlabelled export is read).
 //!
 //! With updates ([`StepFinder::with_updates`]), the step in progress also gives provisional
 //! phasors every `update_period_s` of its samples, from the samples known to be its own
@@ -188,9 +190,10 @@ impl StepFinder {
         e
     }
 
-    /// The buffer as one record (the assembler's checks: uniform stamps, finite values, the
-    /// same channels throughout).
-    fn run_record(&self) -> Result<Record, StepError> {
+    /// The buffer as records, each with where it starts in the buffer (the assembler's checks:
+    /// finite values, the same channels throughout, and its timing rule: one record, or one
+    /// per part between pauses or lost samples).
+    fn run_records(&self) -> Result<Vec<(usize, Record)>, StepError> {
         let plan = StepPlan {
             excitation: Excitation::UNKNOWN,
             sample_count: 0,
@@ -202,20 +205,28 @@ impl StepFinder {
             // One step, no planned count: nothing completes before `finish`.
             let _ = assembler.push_sample(s, Some(&plan));
         }
-        match assembler.finish() {
-            Some(r) => r.map(|mut rec| {
-                rec.step = self.next_step;
-                rec
-            }),
-            None => Err(step_error(self.next_step, StepFault::TooFew { samples: 0 })),
+        let parts = assembler.finish_step();
+        if parts.is_empty() {
+            return Err(step_error(self.next_step, StepFault::TooFew { samples: 0 }));
         }
+        parts
+            .into_iter()
+            .map(|r| {
+                r.map(|a| {
+                    let mut rec = a.record;
+                    rec.step = self.next_step;
+                    (a.first_sample, rec)
+                })
+            })
+            .collect()
     }
 
-    /// Segments the buffer and hands out its complete steps (all of them when `all`).
+    /// Segments the buffer and hands out its complete steps (all of them when `all`). A pause
+    /// or lost samples end the run before them: its steps are all complete.
     fn search(&mut self, all: bool) -> Vec<Found> {
         self.searched_len = self.buffer.len();
-        let run = match self.run_record() {
-            Ok(run) => run,
+        let mut parts = match self.run_records() {
+            Ok(parts) => parts,
             Err(e) => {
                 return vec![Found::Step(Err(self.drop_buffer(format!(
                     "the samples since the last step do not make a record ({})",
@@ -223,6 +234,20 @@ impl StepFinder {
                 ))))];
             }
         };
+        // Samples before the first record (too few between breaks) are dropped.
+        if parts[0].0 > 0 {
+            self.buffer.drain(..parts[0].0);
+            return self.search(all);
+        }
+        if let Some(&(next, _)) = parts.get(1) {
+            let rest = self.buffer.split_off(next);
+            let mut out = self.search(true);
+            self.buffer = rest;
+            self.checked_len = 0;
+            out.extend(self.search(all));
+            return out;
+        }
+        let (_, run) = parts.remove(0);
         let driven = match SetupKind::of_channels(|c| run.channel(c).is_some()) {
             Ok(kind) => kind.driven_channel(),
             Err(e) => return vec![Found::Step(Err(self.drop_buffer(e.to_string())))],
