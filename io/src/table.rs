@@ -4,15 +4,16 @@
 //!
 //! The table is handed over as CSV text in memory, each number in shortest round-trip form
 //! (the form [`write_csv`](crate::csv_export::write_csv) writes), so no value changes on the
-//! way. A row error names a line as the CSV reader does: line `k + 2` is sample `k` (the
-//! header is line 1).
+//! way. What the reader says of a row (errors, warnings, notices) names the row's line in the
+//! file where the file has lines (text), else its sample: `line k + 2` of the CSV text is
+//! sample `k` (the header is line 1).
 
 use std::path::{Path, PathBuf};
 
 use forcemap_math::record::Channel;
 
 use crate::csv_export::{
-    CsvError, CsvImport, FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN, fmt_f64, read_csv_from,
+    CsvImport, FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN, fmt_f64, read_csv_from,
 };
 
 /// The contract column a channel of a measurement file stands for, by its name: a forcemap
@@ -49,13 +50,78 @@ pub enum TableError {
         format: &'static str,
         message: String,
     },
-    /// The samples, by the rules of the CSV contract.
-    #[error("{source} ({format} data: line k + 2 is sample k of the channels)")]
+    /// The samples, by the rules of the CSV contract, named by the file's lines or samples.
+    #[error("{message} ({format} data)")]
     Rows {
         format: &'static str,
-        #[source]
-        source: CsvError,
+        message: String,
     },
+}
+
+/// Where a table's rows are in its file: the file's line of each sample, or none (binary
+/// formats, whose rows are named as samples).
+#[derive(Debug, Clone, Copy)]
+pub enum RowPlaces<'a> {
+    Lines(&'a [u64]),
+    Samples,
+}
+
+impl RowPlaces<'_> {
+    /// `text` with each `line N` (and `lines N-M`) of the CSV text (N >= 2: sample N - 2)
+    /// named as its place in the file: `line L` of the file, or `sample N - 2`.
+    pub fn rename(self, text: &str) -> String {
+        let place = |n: u64| -> Option<(String, u64)> {
+            let sample = n.checked_sub(2)?;
+            Some(match self {
+                RowPlaces::Lines(lines) => match lines.get(sample as usize) {
+                    Some(l) => ("line".into(), *l),
+                    None => ("sample".into(), sample),
+                },
+                RowPlaces::Samples => ("sample".into(), sample),
+            })
+        };
+        let number = |s: &str| {
+            let digits = s.bytes().take_while(u8::is_ascii_digit).count();
+            s[..digits].parse::<u64>().ok().map(|n| (n, digits))
+        };
+        let mut out = String::with_capacity(text.len());
+        let mut rest = text;
+        while let Some(at) = rest.find("line") {
+            out.push_str(&rest[..at]);
+            let (plural, after) = match &rest[at + 4..] {
+                a if a.starts_with("s ") => (true, &a[2..]),
+                a if a.starts_with(' ') => (false, &a[1..]),
+                a => {
+                    out.push_str("line");
+                    rest = a;
+                    continue;
+                }
+            };
+            let first = number(after).and_then(|(n, d)| place(n).map(|p| (p, d)));
+            let second = plural
+                .then(|| first.as_ref().map(|(_, d)| &after[*d..]))
+                .flatten()
+                .and_then(|a| a.strip_prefix('-'))
+                .and_then(|a| number(a).and_then(|(n, d)| place(n).map(|p| (p, d))));
+            match (first, second) {
+                (Some(((word, a), _)), Some(((_, b), d2))) if plural => {
+                    let used = after.find('-').map_or(0, |i| i + 1) + d2;
+                    out.push_str(&format!("{word}s {a}-{b}"));
+                    rest = &after[used..];
+                }
+                (Some(((word, a), d)), None) if !plural => {
+                    out.push_str(&format!("{word} {a}"));
+                    rest = &after[d..];
+                }
+                _ => {
+                    out.push_str(if plural { "lines " } else { "line " });
+                    rest = after;
+                }
+            }
+        }
+        out.push_str(rest);
+        out
+    }
 }
 
 impl SampleTable {
@@ -78,9 +144,14 @@ impl SampleTable {
         Ok(())
     }
 
-    /// The records of the table, through the CSV contract's reader. Every column must have as
-    /// many samples as the first.
-    pub fn into_import(self, path: &Path, format: &'static str) -> Result<CsvImport, TableError> {
+    /// The records of the table, through the CSV contract's reader, what it says of rows named
+    /// by `places`. Every column must have as many samples as the first.
+    pub fn into_import(
+        self,
+        path: &Path,
+        format: &'static str,
+        places: RowPlaces,
+    ) -> Result<CsvImport, TableError> {
         let Some((first, first_values)) = self.columns.first() else {
             return Err(TableError::Format {
                 path: path.to_path_buf(),
@@ -120,7 +191,18 @@ impl SampleTable {
             }
             text.push('\n');
         }
-        read_csv_from(text.as_bytes(), path).map_err(|source| TableError::Rows { format, source })
+        match read_csv_from(text.as_bytes(), path) {
+            Ok(mut import) => {
+                for m in import.warnings.iter_mut().chain(import.notices.iter_mut()) {
+                    *m = places.rename(m);
+                }
+                Ok(import)
+            }
+            Err(e) => Err(TableError::Rows {
+                format,
+                message: places.rename(&e.to_string()),
+            }),
+        }
     }
 }
 
@@ -141,10 +223,33 @@ mod tests {
         let mut t = SampleTable::default();
         t.push("time_s", vec![0.0, 1.0, 2.0], p, "TDMS").unwrap();
         t.push("force_n", vec![0.0, 1.0], p, "TDMS").unwrap();
-        let e = t.into_import(p, "TDMS").unwrap_err().to_string();
+        let e = t
+            .into_import(p, "TDMS", RowPlaces::Samples)
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("'force_n' has 2 samples but 'time_s' has 3"),
             "{e}"
+        );
+    }
+
+    #[test]
+    fn rows_are_named_by_their_place_in_the_file() {
+        let lines = [7, 8, 10];
+        let text = RowPlaces::Lines(&lines).rename(
+            "f.txt: line 4, column 'time_s': time 1 s does not increase (line 3 has 2 s); line 1",
+        );
+        assert_eq!(
+            text,
+            "f.txt: line 10, column 'time_s': time 1 s does not increase (line 8 has 2 s); line 1"
+        );
+        assert_eq!(
+            RowPlaces::Samples.rename("line 2 and line 12: breaks; lines 3; multiline"),
+            "sample 0 and sample 10: breaks; lines 3; multiline"
+        );
+        assert_eq!(
+            RowPlaces::Lines(&lines).rename("f.txt: step 2, lines 3-4: 2 rows left out"),
+            "f.txt: step 2, lines 8-10: 2 rows left out"
         );
     }
 }

@@ -224,6 +224,26 @@ fn a_maps_mistakes_are_named_with_file_and_channel() {
         e.contains("bad.csv: text: line 12: 'Time [s]': '0.01x' is not a number"),
         "{e}"
     );
+
+    // What the contract's rules find in the rows names the file's own lines (a preamble and a
+    // comment line put row k elsewhere than line k + 2).
+    let mut text = String::from("# dyno export\n# operator: x\n");
+    for (k, (t, x, f)) in s.iter().take(400).enumerate() {
+        let t = if k == 300 { t - 0.01 } else { *t };
+        if k == 100 {
+            text.push_str("% a comment\n");
+        }
+        writeln!(text, "{t} {x} {f}").unwrap();
+    }
+    let back = write(dir.path(), "back.txt", &text);
+    let map = write(
+        dir.path(),
+        "back.yaml",
+        "channels:\n  time_s: {channel: 1, unit: s}\n  relative_displacement_m: {channel: 2, unit: m}\n  force_n: {channel: 3, unit: N}\n",
+    );
+    let e = format!("{:#}", load_mapped(&back, Some(&map)).unwrap_err());
+    // Row 300 is on line 2 + 1 + 300 + 1 = 304; the row before it on line 303.
+    assert!(e.contains("line 304") && e.contains("line 303"), "{e}");
 }
 
 fn python_with_writers() -> Option<String> {

@@ -9,7 +9,7 @@ use super::datetime::{Instant, parse_instant, seconds_since_first};
 use super::{ColumnFile, ColumnInfo, RawValues, TimeBase};
 use crate::channel_map::{FREQUENCY_LABEL, STEP_LABEL, TIME_LABEL};
 use crate::csv_export::{CsvImport, FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN};
-use crate::table::{SampleTable, TableError, contract_column};
+use crate::table::{RowPlaces, SampleTable, TableError, contract_column};
 use crate::table_map::{ColumnRef, ColumnSource, TableMap, TextOptions, TimeSource};
 use crate::units::{Quantity, parse_unit, unit_in_name};
 
@@ -523,7 +523,11 @@ pub fn read_through(
             ),
         );
     }
-    let mut import = table.into_import(path, file.format())?;
+    let places = match file.row_lines() {
+        Some(lines) => RowPlaces::Lines(lines),
+        None => RowPlaces::Samples,
+    };
+    let mut import = table.into_import(path, file.format(), places)?;
     let mut notices = file.notices();
     notices.push(format!(
         "{}: read through the map {}: {}",
