@@ -19,6 +19,7 @@ use crate::report::{HtmlReport, parameters_text};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
 use forcemap_io::input::{Loaded, Measured};
 use forcemap_io::params::{Params, read_params};
+use forcemap_io::steps::unlabelled::frequencies_from_data;
 use forcemap_math::recipe::SetupKind;
 use plots::{svg_harmonics, svg_heldout, svg_state_plane};
 
@@ -36,8 +37,16 @@ struct Data {
     source: String,
 }
 
-fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data> {
+fn load(args: &DiagnoseArgs, path: &Path, mut import: Loaded) -> anyhow::Result<Data> {
     let file = path.display().to_string();
+    super::identify::check_frequency_tolerance(args.frequency_tolerance)?;
+    for w in frequencies_from_data(
+        &mut import.records,
+        import.kind.driven_channel(),
+        args.frequency_tolerance,
+    ) {
+        eprintln!("warning: {file}: {w}");
+    }
     if import.kind == SetupKind::DrivePoint {
         bail!(
             "{file}: the diagnosis needs the base-excited rig channels (base and relative displacement, mass acceleration) or an element test's (relative displacement, force); this is a {} export",
@@ -58,18 +67,12 @@ fn load(args: &DiagnoseArgs, path: &Path, import: Loaded) -> anyhow::Result<Data
     )?
     .setup()?;
     let validation = match &args.validate {
-        Some(v) => {
-            let vi = forcemap_io::input::load_mapped(v, args.channels.as_deref())?;
-            if vi.kind != import.kind {
-                bail!(
-                    "{}: validation data must hold the channels of the data's {} setup; these are a {} setup's",
-                    v.display(),
-                    import.kind,
-                    vi.kind
-                );
-            }
-            vi.records
-        }
+        Some(v) => super::identify::held_out_records(
+            v,
+            args.channels.as_deref(),
+            import.kind,
+            args.frequency_tolerance,
+        )?,
         None => Vec::new(),
     };
     Ok(Data {
