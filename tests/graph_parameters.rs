@@ -244,7 +244,7 @@ fn parameters_are_listed_described_and_a_model_set_live_gives_its_theta_at_once(
             .collect();
         assert_eq!(
             values,
-            ["coulomb", "fd-multi", "noise"].map(|s| ParamValue::String(s.into()))
+            ["coulomb", "fd-multi", "robust"].map(|s| ParamValue::String(s.into()))
         );
         let desc = call(
             &describe,

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use forcemap_io::steps::unlabelled::DEFAULT_FREQUENCY_TOLERANCE;
 use forcemap_math::identify::{Method, Weighting};
 
 #[derive(Debug, Parser)]
@@ -205,9 +206,10 @@ pub struct IdentifyArgs {
     /// Time points per step for --method td ("all" for every settled sample; default 20).
     #[arg(long)]
     pub td_points: Option<String>,
-    /// How fd-multi weights its equations: noise (each harmonic by its measured noise) or
-    /// uniform.
-    #[arg(long, default_value = "noise")]
+    /// How fd-multi weights its equations: robust (each harmonic by its measured noise plus
+    /// the step's form error, estimated from the residual), noise (by its measured noise alone)
+    /// or uniform.
+    #[arg(long, default_value_t = Weighting::default())]
     pub weighting: Weighting,
     /// Track drifting parameters: weigh the steps so far by this factor each time a step is
     /// added (0 < F < 1; 0.8 is a window of about 4 steps); prints theta after every step.
@@ -240,6 +242,16 @@ pub struct IdentifyArgs {
     /// harmonics that do not stand out of their noise are dropped by the improved method).
     #[arg(long)]
     pub max_harmonic: Option<usize>,
+    /// A sine step's labelled frequency stands within this relative difference of the
+    /// frequency its driven channel shows, and within 5 standard deviations of that estimate;
+    /// beyond both, the step is analysed at the estimate (with a warning naming both).
+    #[arg(long, value_name = "REL", default_value_t = DEFAULT_FREQUENCY_TOLERANCE)]
+    pub frequency_tolerance: f64,
+    /// Held-out element-test records (a CSV export or a bag of the same setup; repeatable):
+    /// the identified force law, and the moving mass times the acceleration, predicted along
+    /// each record's measured motion; prints each record's force NMSE [%] and RMS error [N].
+    #[arg(long, value_name = "FILE")]
+    pub validate: Vec<PathBuf>,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -452,6 +464,10 @@ pub struct DiagnoseArgs {
     /// Slope M [s/m] of the atan friction term (coulomb-atan baselines).
     #[arg(long)]
     pub atan_m: Option<f64>,
+    /// A sine step's labelled frequency stands within this relative difference of the
+    /// frequency its driven channel shows (see `forcemap identify --frequency-tolerance`).
+    #[arg(long, value_name = "REL", default_value_t = DEFAULT_FREQUENCY_TOLERANCE)]
+    pub frequency_tolerance: f64,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,

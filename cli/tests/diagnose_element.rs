@@ -151,11 +151,11 @@ fn a_held_out_sweep_is_predicted_better_with_the_top_effect() {
 }
 
 #[test]
-fn held_out_sine_steps_and_rig_data_are_refused_for_an_element_test() {
+fn held_out_sine_steps_are_predicted_and_rig_data_refused_for_an_element_test() {
     let dir = tempfile::tempdir().unwrap();
     let csv = mount_csv(dir.path(), "plain.csv", mount());
-    let refused = |validate: &Path| {
-        let o = common::forcemap(&[
+    let diagnose = |validate: &Path| {
+        common::forcemap(&[
             "diagnose",
             csv.to_str().unwrap(),
             "--model",
@@ -164,17 +164,22 @@ fn held_out_sine_steps_and_rig_data_are_refused_for_an_element_test() {
             "0.5",
             "--validate",
             validate.to_str().unwrap(),
-        ]);
-        assert_eq!(o.status.code(), Some(1));
-        String::from_utf8_lossy(&o.stderr).to_string()
+            "--json",
+        ])
     };
-    // Sine steps have no band to differentiate a held-out displacement in.
-    let e = refused(&csv);
-    assert!(e.contains("a sine record has no band"), "{e}");
+    // Sine steps held out are predicted along their measured motion, one result per step.
+    let o = diagnose(&csv);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let held = v["heldout"].as_array().expect("heldout");
+    assert!(!held.is_empty(), "{v}");
+    assert!(held.iter().all(|h| h["excitation"] == "sine"), "{v}");
     let rig = dir.path().join("rig.csv");
     let records = RunSpec::paper_rig(Some(40.0), 1).simulate().unwrap();
     write_csv(&rig, &records, SetupKind::BaseExcited).unwrap();
-    let e = refused(&rig);
+    let o = diagnose(&rig);
+    assert_eq!(o.status.code(), Some(1));
+    let e = common::stderr(&o);
     assert!(
         e.contains("validation data must hold the channels of the data's element setup"),
         "{e}"

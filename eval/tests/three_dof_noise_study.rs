@@ -2,9 +2,10 @@
 //! `cargo test -p forcemap_eval --test three_dof_noise_study -- --ignored --nocapture NAME`):
 //!
 //! - `seed_scan`: parameter errors over noise seeds 0..SEEDS (default 10), with mean, std and
-//!   worst. Environment: CASE=I|II (default II), SNR (dB, 0 = noise-free; default 40), OE=1 for
+//!   worst. Environment: CASE=I|II (default II), SNR (dB, 0 = noise-free; default 40), NOISE=1
+//!   or UNIFORM=1 for those weightings of fd-multi (default robust), OE=1 for
 //!   `Method::OutputError` (default fd-multi), QUIET=x,xd,f to leave channels noise-free, and
-//!   fd-multi's knobs JM, SVF, SFD, GUARD, UNIFORM=1.
+//!   fd-multi's knobs JM, SVF, SFD, GUARD.
 //! - `case_ii_crb`: the Cramer-Rao bound of k, c, F_d, S from the settled samples of x, x_d
 //!   (and F) with the exact model.
 //! - `case_ii_noise_budget`: where the first-harmonic force noise comes from, per step.
@@ -60,6 +61,9 @@ fn seed_scan() {
     opts.guard_harmonic_periods = env("GUARD", opts.guard_harmonic_periods);
     if env("UNIFORM", 0.0) > 0.0 {
         opts.weighting = forcemap_math::identify::Weighting::Uniform;
+    }
+    if env("NOISE", 0.0) > 0.0 {
+        opts.weighting = forcemap_math::identify::Weighting::Noise;
     }
     let mut errs = vec![];
     for seed in 0..n {

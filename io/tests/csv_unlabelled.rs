@@ -10,13 +10,14 @@
 use std::path::{Path, PathBuf};
 
 use forcemap_io::csv_export::{CsvError, read_csv, write_csv};
+use forcemap_io::steps::unlabelled::{DEFAULT_FREQUENCY_TOLERANCE, frequencies_from_data};
 use forcemap_math::identify::{FdMultiOptions, Method};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::PhasorOptions;
 use forcemap_math::pipeline::identify_records;
 use forcemap_math::recipe::Setup;
 use forcemap_math::recipe::SubstructureSpec;
-use forcemap_math::record::Record;
+use forcemap_math::record::{Channel, Record};
 use forcemap_math::sim::{RunSpec, ThreeDofCase};
 
 /// `path` rewritten without the columns named `drop` (and `edit` applied to each kept row's
@@ -159,9 +160,30 @@ fn labels_that_disagree_with_the_drive_are_warned_about() {
             cells[f] = "2.3".to_string();
         }
     });
-    let w = read_csv(&wrong_frequency).unwrap().warnings;
+    // The reader keeps the label; the frequency is checked where the steps are analysed
+    // (`frequency_from_data`), which analyses the step at its drive's frequency.
+    let mut csv = read_csv(&wrong_frequency).unwrap();
+    assert!(csv.warnings.is_empty(), "{:?}", csv.warnings);
+    let w = frequencies_from_data(
+        &mut csv.records,
+        Channel::BaseDisplacementM,
+        DEFAULT_FREQUENCY_TOLERANCE,
+    );
     assert_eq!(w.len(), 1, "{w:?}");
-    assert!(w[0].contains("step 3 is labelled 2.3 Hz"), "{w:?}");
+    assert!(
+        w[0].contains("step 3 is labelled 2.3 Hz, but base_displacement_m is at 2.19"),
+        "{w:?}"
+    );
+    // Step 3 at 2.2 Hz; every other step keeps its label exactly.
+    let as_read = read_csv(&wrong_frequency).unwrap().records;
+    for (r, read) in csv.records.iter().zip(&as_read) {
+        let f = r.excitation.frequency_hz().unwrap();
+        if r.step == 3 {
+            assert!((f / 2.2 - 1.0).abs() < 1e-4, "{f}");
+        } else {
+            assert_eq!(r.excitation, read.excitation, "step {}", r.step);
+        }
+    }
     // Step 5's first 200 rows labelled step 4: step 5 starts 2 s late.
     let late = dir.path().join("late_start.csv");
     rewrite(&labelled, &late, &[], |row, cells, header| {

@@ -15,7 +15,9 @@ use crate::record::{Channel, Excitation, Record};
 use crate::sim::{ReplayOptions, RigInitial, SimError, ZeroPhaseLowpass, simulate_on_sampled_base};
 
 mod broadband;
+mod element;
 pub use broadband::{SWEEP_TRANSIENT_WINDOWS, analyse_sweep_records, identify_random_records};
+pub use element::{ElementValidation, validate_element};
 
 #[derive(Debug, Error)]
 pub enum PipelineError {
@@ -29,6 +31,8 @@ pub enum PipelineError {
     Simulation { step: usize, source: SimError },
     #[error("validation of record {step}: channel {channel} is missing")]
     MissingChannel { step: usize, channel: &'static str },
+    #[error(transparent)]
+    HeldOut(#[from] crate::diagnose::element_heldout::HeldOutError),
 }
 
 /// Harmonic analyses of the sine steps; steps that never settled are kept but noted.
@@ -58,8 +62,10 @@ pub fn analyse_sine_step(
     let an = analyse_record(record, options)?;
     let note = (!an.settled).then(|| {
         format!(
-            "step {}: no settled part of {} periods found; phasors from the last periods anyway",
-            an.step, options.min_periods
+            "step {}: no settled part of {} periods found; phasors from {} periods anyway",
+            an.step,
+            options.min_periods.max(2),
+            an.periods_used
         )
     });
     Ok((an, note))

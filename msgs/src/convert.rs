@@ -378,6 +378,8 @@ impl IdentifiedParameters {
                 .zip(self.r_percent.iter().copied())
                 .collect(),
             residual_rms: self.residual_rms,
+            // Not on the wire (its warning is, among the warnings).
+            fit_quality: None,
             steps_used: self.steps_used.iter().map(|s| *s as usize).collect(),
             warnings: self.warnings.clone(),
         })

@@ -293,6 +293,7 @@ fn identification() -> Identification {
         residual_rms: 0.5,
         steps_used: vec![0, 2, 3],
         warnings: vec!["few equations".into()],
+        fit_quality: None,
     }
 }
 

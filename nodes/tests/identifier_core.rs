@@ -63,7 +63,7 @@ fn live_theta_equals_the_offline_identification() {
     assert_eq!(recipe.setup, SetupSpec::BaseExcited { mass_kg: 36.0 });
     assert_eq!(recipe.model.name, "coulomb");
     assert_eq!(recipe.method, Method::FdMulti);
-    assert_eq!(recipe.weighting, Weighting::Noise);
+    assert_eq!(recipe.weighting, Weighting::Robust);
     assert_eq!(c.recipe(), Some(&recipe));
 }
 
@@ -101,7 +101,7 @@ fn what_the_identifier_cannot_run_is_refused_with_the_reason() {
         ("method", "td", "never keeps"),
         ("method", "output-error", "never keeps"),
         ("method", "fd-mult", "expected fd, fd-multi"),
-        ("weighting", "equal", "expected noise or uniform"),
+        ("weighting", "equal", "expected robust, noise or uniform"),
         ("model", "quadratic", "unknown model 'quadratic'"),
         ("model", "coulomb-atan", "atan slope M"),
     ] {

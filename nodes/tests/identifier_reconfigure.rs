@@ -61,7 +61,14 @@ fn reconfigure_equals_a_fresh_identifier_with_the_new_values() {
         assert_eq!(th.len(), 1, "{settings:?}: theta at once: {out:?}");
         assert!(out.contains(&Output::Persist));
         let status = statuses(&out).last().copied().unwrap();
-        assert_eq!(status.level, DiagnosticStatus::OK, "{status:?}");
+        // OK, or the wrong-form warning where the new model is not the rig's (linear).
+        assert!(
+            status.level == DiagnosticStatus::OK
+                || status
+                    .message
+                    .contains("the model explains the data far worse than its noise allows"),
+            "{status:?}"
+        );
         let mut fresh = core(&rig_params(&fresh_params));
         let expected = fed(&mut fresh, &messages).unwrap();
         assert_same_values(th[0], &expected, 1e-12);

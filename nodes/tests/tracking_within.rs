@@ -98,10 +98,15 @@ fn fading_run_at(snr_db: f64) -> Vec<Record> {
 }
 
 fn identifier(factor: f64) -> IdentifierCore {
+    identifier_weighted(factor, "robust")
+}
+
+fn identifier_weighted(factor: f64, weighting: &str) -> IdentifierCore {
     core(&params(&[
         ("model", ParamValue::String("damper".into())),
         ("mass_kg", ParamValue::Double(MOVING_MASS_KG)),
         ("forgetting_per_step", ParamValue::Double(factor)),
+        ("weighting", ParamValue::String(weighting.into())),
     ]))
 }
 
@@ -481,6 +486,11 @@ const FOUND_END_SAMPLES: usize = 2;
 /// determined parameter); a third of the 3 % the track keeps to the truth. With every end
 /// exact, the steps are the labelled records and the track is theirs to rounding (1e-9).
 const FOUND_TRACK_REL: f64 = 1e-2;
+/// The same with the default robust weighting: a step's form-error variance is estimated from
+/// its own residual against the scatter of its periods, so a step cut a period short (or
+/// holding two samples of the next) is weighted anew, and the forgetting carries that on.
+/// Measured 4.5e-2 at 30 dB (`fd`); every end exact, the track is the labelled one to rounding.
+const FOUND_TRACK_REL_ROBUST: f64 = 6e-2;
 
 /// The fading run (40 long steps at 1, 2, 4, 8 Hz, back to back, no rest between) streamed
 /// without excitation states: the harmonic node finding the steps cuts it into exactly its 40
@@ -511,76 +521,80 @@ fn the_fading_run_without_states_is_cut_into_its_labelled_steps() {
             labelled_ends,
             "{snr_db} dB offline"
         );
-        let (factor, update_period_s) = (0.8, Some(2.0));
-        let labelled = fed_track(
-            &records,
-            &mut identifier(factor),
-            driven,
-            update_period_s,
-            false,
-        );
-        let found = fed_track(
-            &records,
-            &mut identifier(factor),
-            driven,
-            update_period_s,
-            true,
-        );
-        let found_ends = ends(&mut found.step_samples.iter().map(|(_, n)| *n));
-        assert_eq!(found_ends.len(), STEPS, "{snr_db} dB: {found_ends:?}");
-        let worst_end = found_ends
-            .iter()
-            .zip(&labelled_ends)
-            .map(|(a, b)| a.abs_diff(*b))
-            .max()
-            .unwrap();
-        assert!(
-            worst_end <= FOUND_END_SAMPLES,
-            "{snr_db} dB: ends {found_ends:?}"
-        );
-        assert!(
-            snr_db < 40.0 || worst_end == 0,
-            "{snr_db} dB: {found_ends:?}"
-        );
-        let finals = |f: &Fed| f.thetas.iter().filter(|(p, _)| !p).count();
-        assert_eq!(finals(&found), STEPS, "{snr_db} dB");
-        // Per step, its provisional thetas then its final one. A found step a sample or two
-        // longer than its label may reach one more update (at 8000 samples) than the labelled
-        // step: the only theta without a counterpart.
-        let per_step = |f: &Fed, step: usize| -> Vec<(bool, IdentifiedParameters)> {
-            f.thetas
+        for (weighting, track_rel) in [
+            ("noise", FOUND_TRACK_REL),
+            ("robust", FOUND_TRACK_REL_ROBUST),
+        ] {
+            let (factor, update_period_s) = (0.8, Some(2.0));
+            let labelled = fed_track(
+                &records,
+                &mut identifier_weighted(factor, weighting),
+                driven,
+                update_period_s,
+                false,
+            );
+            let found = fed_track(
+                &records,
+                &mut identifier_weighted(factor, weighting),
+                driven,
+                update_period_s,
+                true,
+            );
+            let found_ends = ends(&mut found.step_samples.iter().map(|(_, n)| *n));
+            assert_eq!(found_ends.len(), STEPS, "{snr_db} dB: {found_ends:?}");
+            let worst_end = found_ends
                 .iter()
-                .filter(|(_, t)| *t.steps_used.last().unwrap() as usize == step)
-                .cloned()
-                .collect()
-        };
-        let mut worst = 0.0_f64;
-        let mut extra = 0;
-        for (step, &(_, samples)) in found.step_samples.iter().enumerate() {
-            let (mut a, mut b) = (per_step(&found, step), per_step(&labelled, step));
-            let (final_a, final_b) = (a.pop().unwrap(), b.pop().unwrap());
-            assert!(!final_a.0 && !final_b.0, "{snr_db} dB step {step}");
-            if a.len() == b.len() + 1 && samples > STEP_SAMPLES {
-                a.pop();
-                extra += 1;
-            }
-            assert_eq!(a.len(), b.len(), "{snr_db} dB step {step}");
-            for ((_, x), (_, y)) in a.iter().chain([&final_a]).zip(b.iter().chain([&final_b])) {
-                for (u, v) in x.values.iter().zip(&y.values) {
-                    worst = worst.max((u / v - 1.0).abs());
+                .zip(&labelled_ends)
+                .map(|(a, b)| a.abs_diff(*b))
+                .max()
+                .unwrap();
+            assert!(
+                worst_end <= FOUND_END_SAMPLES,
+                "{snr_db} dB: ends {found_ends:?}"
+            );
+            assert!(
+                snr_db < 40.0 || worst_end == 0,
+                "{snr_db} dB: {found_ends:?}"
+            );
+            let finals = |f: &Fed| f.thetas.iter().filter(|(p, _)| !p).count();
+            assert_eq!(finals(&found), STEPS, "{snr_db} dB");
+            // Per step, its provisional thetas then its final one. A found step a sample or two
+            // longer than its label may reach one more update (at 8000 samples) than the labelled
+            // step: the only theta without a counterpart.
+            let per_step = |f: &Fed, step: usize| -> Vec<(bool, IdentifiedParameters)> {
+                f.thetas
+                    .iter()
+                    .filter(|(_, t)| *t.steps_used.last().unwrap() as usize == step)
+                    .cloned()
+                    .collect()
+            };
+            let mut worst = 0.0_f64;
+            let mut extra = 0;
+            for (step, &(_, samples)) in found.step_samples.iter().enumerate() {
+                let (mut a, mut b) = (per_step(&found, step), per_step(&labelled, step));
+                let (final_a, final_b) = (a.pop().unwrap(), b.pop().unwrap());
+                assert!(!final_a.0 && !final_b.0, "{snr_db} dB step {step}");
+                if a.len() == b.len() + 1 && samples > STEP_SAMPLES {
+                    a.pop();
+                    extra += 1;
+                }
+                assert_eq!(a.len(), b.len(), "{snr_db} dB step {step}");
+                for ((_, x), (_, y)) in a.iter().chain([&final_a]).zip(b.iter().chain([&final_b])) {
+                    for (u, v) in x.values.iter().zip(&y.values) {
+                        worst = worst.max((u / v - 1.0).abs());
+                    }
                 }
             }
+            let tolerance = if worst_end == 0 { 1e-9 } else { track_rel };
+            assert!(
+                worst < tolerance,
+                "{snr_db} dB, {weighting} weighting: {worst:e}"
+            );
+            println!(
+                "{snr_db} dB, {weighting} weighting: {} steps, worst end {worst_end} samples off; {} thetas ({extra} provisional ones past 8000 samples), largest relative difference from the labelled track {worst:e}",
+                found_ends.len(),
+                found.thetas.len()
+            );
         }
-        let tolerance = if worst_end == 0 {
-            1e-9
-        } else {
-            FOUND_TRACK_REL
-        };
-        assert!(worst < tolerance, "{snr_db} dB: {worst:e}");
-        println!(
-            "{snr_db} dB: {} steps, worst end {worst_end} samples off; {} thetas ({extra} provisional ones past 8000 samples), largest relative difference from the labelled track {worst:e}",
-            found_ends.len(),
-            found.thetas.len()
-        );
     }
 }

@@ -16,6 +16,7 @@ use super::element_outputs;
 use crate::cli::IdentifyArgs;
 use crate::plot::{self, ForceStateStep};
 use forcemap_io::params::{Params, read_params};
+use forcemap_io::steps::unlabelled::{frequencies_from_data, frequency_from_data};
 
 /// The method asked for: `--method`, with `--td-points` (a number or `all`) for td.
 fn method(args: &IdentifyArgs) -> anyhow::Result<Method> {
@@ -72,36 +73,57 @@ fn phasor_options(args: &IdentifyArgs) -> PhasorOptions {
 /// The sine steps of a bag analysed as they are read (`Err`: the first analysis that failed).
 type Streamed = Result<(Vec<HarmonicAnalysis>, Vec<String>), pipeline::PipelineError>;
 
-/// Reads `args.files`. A rig's or drive-point bag identified by fd or fd-multi, converged and
-/// without plots, is streamed: each sine step is analysed into its phasors as soon as it is
-/// complete and dropped, so that memory does not grow with the bag (the other records are
-/// kept, for validation); the analyses are returned with it.
-fn load(
-    args: &IdentifyArgs,
-    files: &[std::path::PathBuf],
-) -> anyhow::Result<(forcemap_io::input::Loaded, Option<Streamed>)> {
+/// What `load` read: the data, the sine steps analysed as they were read (a streamed bag), and
+/// the warnings of the labels the data corrected ([`frequency_from_data`]).
+struct Read {
+    import: forcemap_io::input::Loaded,
+    streamed: Option<Streamed>,
+    frequency_warnings: Vec<String>,
+}
+
+/// Reads `files`, each sine step at the frequency its driven channel shows
+/// ([`frequency_from_data`]). A rig's or drive-point bag identified by fd or fd-multi,
+/// converged and without plots, is streamed: each sine step is analysed into its phasors as
+/// soon as it is complete and dropped, so that memory does not grow with the bag (the other
+/// records are kept, for validation); the analyses are returned with it.
+fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow::Result<Read> {
+    check_frequency_tolerance(args.frequency_tolerance)?;
     let single_bag = match files {
         [f] => forcemap_io::input::is_bag(f).then_some(f),
         _ => None,
     };
-    let Some(bag) = single_bag.filter(|_| args.channels.is_none()) else {
-        let import = forcemap_io::input::load_files(files, args.channels.as_deref())?;
-        return Ok((import, None));
-    };
-    let streams = args.plot.is_none()
+    let bag = single_bag.filter(|_| args.channels.is_none());
+    let streams = bag.is_some()
         && args.plot.is_none()
         && matches!(method(args)?, Method::Fd | Method::FdMulti)
         && Tracking::from_factor(args.forgetting_per_step)? == Tracking::Converged
         && args.update_period_s.is_none();
     if !streams {
-        return Ok((forcemap_io::input::load(bag)?, None));
+        let mut import = forcemap_io::input::load_files(files, args.channels.as_deref())?;
+        let frequency_warnings = frequencies_from_data(
+            &mut import.records,
+            import.kind.driven_channel(),
+            args.frequency_tolerance,
+        );
+        return Ok(Read {
+            import,
+            streamed: None,
+            frequency_warnings,
+        });
     }
     let phasor = phasor_options(args);
     let mut streamed: Streamed = Ok((Vec::new(), Vec::new()));
+    let mut frequency_warnings = Vec::new();
     // An element test's outputs need its sine steps' samples: kept whole.
     let mut element = false;
-    let import = forcemap_io::input::load_bag_reduced(bag, |kind, r| {
+    let bag = bag.expect("streams only a single bag");
+    let import = forcemap_io::input::load_bag_reduced(bag, |kind, mut r| {
         element = kind == SetupKind::Element;
+        frequency_warnings.extend(frequency_from_data(
+            &mut r,
+            kind.driven_channel(),
+            args.frequency_tolerance,
+        ));
         let Ok((analyses, notes)) = &mut streamed else {
             return Some(r);
         };
@@ -120,7 +142,123 @@ fn load(
             }
         }
     })?;
-    Ok((import, (!element).then_some(streamed)))
+    Ok(Read {
+        import,
+        streamed: (!element).then_some(streamed),
+        frequency_warnings,
+    })
+}
+
+/// The records of a held-out file (`--validate` of identify and diagnose): a CSV export or a
+/// bag (through the channel map `channels`, if any) of the same `kind` of setup as the data,
+/// each sine step at the frequency its driven channel shows (the warnings printed).
+pub fn held_out_records(
+    path: &std::path::Path,
+    channels: Option<&std::path::Path>,
+    kind: SetupKind,
+    frequency_tolerance: f64,
+) -> anyhow::Result<Vec<forcemap_math::record::Record>> {
+    let mut held = forcemap_io::input::load_mapped(path, channels)?;
+    if held.kind != kind {
+        anyhow::bail!(
+            "{}: validation data must hold the channels of the data's {} setup; these are a {} setup's",
+            path.display(),
+            kind,
+            held.kind
+        );
+    }
+    for w in frequencies_from_data(
+        &mut held.records,
+        kind.driven_channel(),
+        frequency_tolerance,
+    ) {
+        eprintln!("warning: {}: {w}", path.display());
+    }
+    Ok(held.records)
+}
+
+/// One held-out record's prediction (`--validate`).
+#[derive(Debug, Clone, serde::Serialize)]
+struct HeldOut {
+    file: String,
+    step: usize,
+    /// NMSE of the element force (element test) or of the mass acceleration (rig) [%].
+    nmse_percent: f64,
+    /// RMS error of the element force [N] (element tests).
+    rms_error_n: Option<f64>,
+}
+
+/// The identified model on every record of the `--validate` files: an element test's force
+/// predicted along each record's measured motion ([`pipeline::validate_element`], with the
+/// moving mass of `setup`), a rig's simulated on each record's base ([`pipeline::validate_rig`]).
+fn held_out_validations(
+    args: &IdentifyArgs,
+    kind: SetupKind,
+    setup: &Setup,
+    model: &Model,
+    theta: &[f64],
+) -> anyhow::Result<Vec<HeldOut>> {
+    let fitted = IdentifiedModel::new(model.clone(), theta[..model.terms.len()].to_vec());
+    let mut out = Vec::new();
+    for path in &forcemap_io::input::expand_paths(&args.validate)? {
+        let file = path.display().to_string();
+        let records = held_out_records(
+            path,
+            args.channels.as_deref(),
+            kind,
+            args.frequency_tolerance,
+        )?;
+        for r in &records {
+            let context = || format!("{file}: validating on record {}", r.step);
+            let held = match setup {
+                Setup::Element { moving_mass_kg } => {
+                    let v = pipeline::validate_element(&fitted, moving_mass_kg.unwrap_or(0.0), r)
+                        .with_context(context)?;
+                    (v.nmse_percent, Some(v.rms_error_n))
+                }
+                Setup::BaseExcited { mass_kg } => {
+                    let v = pipeline::validate_rig(&fitted, *mass_kg, r).with_context(context)?;
+                    (v.nmse_percent, None)
+                }
+                Setup::DrivePoint { .. } => anyhow::bail!(
+                    "{file}: --validate predicts element tests and base-excited rigs; a drive-point setup's held-out records are not predicted"
+                ),
+            };
+            out.push(HeldOut {
+                file: file.clone(),
+                step: r.step,
+                nmse_percent: held.0,
+                rms_error_n: held.1,
+            });
+        }
+    }
+    Ok(out)
+}
+
+fn print_held_out(held: &[HeldOut]) {
+    for h in held {
+        match h.rms_error_n {
+            Some(rms) => println!(
+                "held out: {} record {}: force NMSE {:.2} %, RMS error {:.3e} N",
+                h.file, h.step, h.nmse_percent, rms
+            ),
+            None => println!(
+                "held out: {} record {}: NMSE of mass acceleration {:.2} % (eq. 27)",
+                h.file, h.step, h.nmse_percent
+            ),
+        }
+    }
+}
+
+/// Refuses a relative frequency tolerance that is negative or not finite.
+pub fn check_frequency_tolerance(relative: f64) -> anyhow::Result<()> {
+    if relative.is_finite() && relative >= 0.0 {
+        Ok(())
+    } else {
+        Err(anyhow!(
+            "--frequency-tolerance {relative}: a relative tolerance is a finite number >= 0"
+        ))
+    }
 }
 
 /// How the data are named in messages: the file, or the first and how many more.
@@ -135,7 +273,11 @@ pub fn data_name(files: &[std::path::PathBuf]) -> String {
 pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     let files = forcemap_io::input::expand_paths(&args.files)?;
     let file = data_name(&files);
-    let (import, mut streamed) = load(args, &files)?;
+    let Read {
+        import,
+        mut streamed,
+        frequency_warnings,
+    } = load(args, &files)?;
     if !import.ignored_columns.is_empty() {
         eprintln!(
             "notice: {file}: ignored columns not in the contract: {}",
@@ -155,7 +297,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     };
     // Tracking: theta after every step, as the live identifier publishes it; the last is the
     // current one. Converged: one theta from every step.
-    let (id, track, analyses) = match (recipe.tracking, args.update_period_s) {
+    let (mut id, track, analyses) = match (recipe.tracking, args.update_period_s) {
         (Tracking::Converged, None) => {
             let (id, analyses) = match streamed.take() {
                 Some(analysed) => analysed.and_then(|(analyses, notes)| {
@@ -200,6 +342,8 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
             (id, track, analyses)
         }
     };
+    // The labels the data corrected come first, as the reader's notes do.
+    id.warnings.splice(0..0, frequency_warnings);
 
     // Validation on the random records (rig only: the model is simulated on the measured base).
     let validations = match setup {
@@ -213,6 +357,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     // The element force with the parameters the setup added (an identified moving mass).
     let theta = id.theta();
     let element_setup = setup.with_extra_values(&id.extra_values(&setup));
+    let held_out = held_out_validations(args, import.kind, &element_setup, &model, &theta)?;
     let element_steps = if setup.kind() == SetupKind::Element {
         element_outputs::element_steps(&element_setup, &model, &theta, &analyses, &import.records)
             .with_context(|| format!("{file}: the dynamic stiffness table"))?
@@ -235,6 +380,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     }
     if args.json {
         let mut json = identification_json(&recipe, &id, &validations, &import.ignored_columns);
+        json["held_out"] = serde_json::to_value(&held_out)?;
         if !track.is_empty() {
             json["track"] = track
                 .iter()
@@ -256,6 +402,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         println!("{json}");
     } else {
         print_identification(&file, &id, &validations);
+        print_held_out(&held_out);
         print_track(&track);
         if !element_steps.is_empty() {
             element_outputs::print_table(&element_steps);
@@ -344,6 +491,7 @@ pub fn identification_json(
         "r": id.r.iter().map(|(n, x)| (n.clone(), json!(x))).collect::<serde_json::Map<_, _>>(),
         "covariance": id.covariance,
         "residual_rms": id.residual_rms,
+        "fit_quality": id.fit_quality,
         "steps_used": id.steps_used,
         "validation": validations.iter().map(|v| json!({"step": v.step, "nmse_percent": v.nmse_percent})).collect::<Vec<_>>(),
         "warnings": id.warnings,
@@ -405,6 +553,9 @@ fn print_identification(file: &str, id: &Identification, validations: &[Validati
         "condition number {:.3e}, residual RMS {:.3e}",
         id.condition_number, id.residual_rms
     );
+    if let Some(q) = &id.fit_quality {
+        println!("fit against the noise: {}", q.summary());
+    }
     for v in validations {
         println!(
             "validation on random record {}: NMSE of mass acceleration {:.2} % (eq. 27)",

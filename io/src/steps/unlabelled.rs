@@ -2,9 +2,12 @@
 //! the run as one record is cut where its driven channel changes
 //! ([`forcemap_math::segment`]), each piece a record with the frequency found, as a labelled
 //! source would have given them. And labels, when a source has them, checked against what the
-//! driven channel shows.
+//! driven channel shows: where the steps change ([`check_labels`]) and at which frequency a
+//! sine step really is ([`frequency_from_data`]: a label is a hint, the data decide).
 
-use forcemap_math::record::{Channel, Record};
+use forcemap_math::phasor::drive_frequency;
+use forcemap_math::recipe::SetupKind;
+use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_math::segment::{
     DetectedKind, DetectedStep, SegmentError, SegmentOptions, Segmentation, detect_steps,
 };
@@ -183,10 +186,91 @@ pub fn describe(seg: &Segmentation, run: &Record) -> String {
     )
 }
 
+/// Relative difference between a sine step's label and its frequency estimate below which the
+/// label stands whatever the estimate's uncertainty: 1 ppm, above the rounding of a noise-free
+/// estimate (1e-13) and below any clock a test bench keeps.
+pub const DEFAULT_FREQUENCY_TOLERANCE: f64 = 1e-6;
+/// A label stands while it is within this many standard deviations of the estimate.
+pub const FREQUENCY_SIGMAS: f64 = 5.0;
+/// The fundamental must explain at least this share of the driven channel's variance (period
+/// by period) for the step to be a sine near its label.
+const SINE_EXPLAINED: f64 = 0.5;
+
+/// Checks a sine step's labelled frequency against its `driven` channel
+/// ([`drive_frequency`]): where they differ by more than [`FREQUENCY_SIGMAS`] standard
+/// deviations of the estimate and by more than `relative_tolerance` of the label, the record
+/// takes the estimate and the one warning naming the step and both values is returned. A step
+/// whose driven channel is no sine near its label keeps its label and gets a warning saying so;
+/// a step too short for an estimate (fewer than three periods), a record that is not a sine, or
+/// one without the channel, is left as it is.
+pub fn frequency_from_data(
+    record: &mut Record,
+    driven: Channel,
+    relative_tolerance: f64,
+) -> Option<String> {
+    let Excitation::Sine { frequency_hz, .. } = &mut record.excitation else {
+        return None;
+    };
+    let label = *frequency_hz;
+    let x = record.channels.iter().find(|(c, _)| *c == driven)?;
+    let e = drive_frequency(&x.1, record.sample_rate_hz, label)?;
+    let (step, name) = (record.step, driven.name());
+    if e.unexplained > 1.0 - SINE_EXPLAINED {
+        return Some(format!(
+            "step {step} is labelled a sine of {label} Hz, but {name} is no sine near it (the fundamental leaves {:.0} % of its variance); analysed at the label",
+            100.0 * e.unexplained
+        ));
+    }
+    let diff = (e.frequency_hz - label).abs();
+    if diff <= FREQUENCY_SIGMAS * e.std_hz || diff <= relative_tolerance * label {
+        return None;
+    }
+    *frequency_hz = e.frequency_hz;
+    Some(format!(
+        "step {step} is labelled {label} Hz, but {name} is at {:.7} Hz (standard deviation {:.1e} Hz): analysed at {:.7} Hz",
+        e.frequency_hz, e.std_hz, e.frequency_hz
+    ))
+}
+
+/// The driven channel of a record by the setup its channels are
+/// ([`SetupKind::of_channels`]); `None` for channels of no setup.
+pub fn driven_channel_of(record: &Record) -> Option<Channel> {
+    SetupKind::of_channels(|c| record.channel(c).is_some())
+        .ok()
+        .map(SetupKind::driven_channel)
+}
+
+/// [`frequency_from_data`] on every record, the warnings in record order.
+pub fn frequencies_from_data(
+    records: &mut [Record],
+    driven: Channel,
+    relative_tolerance: f64,
+) -> Vec<String> {
+    records
+        .iter_mut()
+        .filter_map(|r| frequency_from_data(r, driven, relative_tolerance))
+        .collect()
+}
+
+/// What a label check found, one kind per warning line a record may get.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum LabelFinding {
+    /// A labelled start where the drive does not change.
+    Start,
+    /// The drive changes inside the step.
+    Change,
+    /// The step is labelled another kind of excitation than the drive shows.
+    Kind,
+}
+
 /// Where labelled steps disagree with what their `driven` channel shows: a labelled start
-/// where the drive does not change, a change inside a labelled step, a labelled frequency
-/// the drive is not at (beyond 5 standard deviations of the estimate). The steps must be
-/// contiguous (as an export's are). One line per disagreement; empty when they agree.
+/// where the drive does not change, a change inside a labelled sine step, a sine labelled
+/// random or the reverse (the frequency of a sine step is [`frequency_from_data`]'s). The steps
+/// must be contiguous (as an export's are). Only what the segmentation can see is checked: a
+/// change inside a random record is no disagreement, and a step shorter than the three
+/// detection windows a found step needs (about six periods of the run's lowest frequency), or
+/// a boundary next to one, is not checked. At most one line per record and kind; empty when
+/// they agree.
 pub fn check_labels(
     steps: &[StepWithFrequency],
     driven: Channel,
@@ -210,14 +294,28 @@ pub fn check_labels(
         Ok(seg) => seg,
         Err(e) => return vec![format!("labels not checked against {}: {e}", driven.name())],
     };
+    // Three windows at a hop of a quarter (1.5 windows): the shortest step the segmentation
+    // finds.
+    let checkable = |k: usize| 2 * steps[k].0.len() >= 3 * seg.window_samples;
     // A labelled and a found start agree within the found start's interval plus a few samples
     // (a label may be written a sample or two off the change).
     let slack = (seg.window_samples / 16).max(2);
     let near = |label: usize, s: &DetectedStep| {
         label + slack >= s.start_interval.0 && label <= s.start_interval.1 + slack
     };
-    let mut out = Vec::new();
+    // (record index, finding) -> the first line and how many more there were.
+    let mut found: std::collections::BTreeMap<(usize, LabelFinding), (String, usize)> =
+        std::collections::BTreeMap::new();
+    let mut note = |k: usize, what: LabelFinding, line: String| {
+        found
+            .entry((k, what))
+            .and_modify(|(_, more)| *more += 1)
+            .or_insert((line, 0));
+    };
     for (k, &b) in starts.iter().enumerate().skip(1) {
+        if !(checkable(k - 1) && checkable(k)) {
+            continue;
+        }
         // Consecutive broadband records are one found step (their bands are not told apart).
         let both_random = steps[k - 1].1.is_none() && steps[k].1.is_none();
         let inside_broadband = seg
@@ -228,66 +326,82 @@ pub fn check_labels(
             continue;
         }
         if !seg.steps.iter().skip(1).any(|s| near(b, s)) {
-            out.push(format!(
-                "step {} is labelled to start at {:.3} s, but {} does not change there",
-                steps[k].0.step,
-                steps[k].0.start_time_s,
-                driven.name()
-            ));
+            note(
+                k,
+                LabelFinding::Start,
+                format!(
+                    "step {} is labelled to start at {:.3} s, but {} does not change there",
+                    steps[k].0.step,
+                    steps[k].0.start_time_s,
+                    driven.name()
+                ),
+            );
         }
     }
     for s in seg.steps.iter().skip(1) {
-        if !starts.iter().skip(1).any(|&b| near(b, s)) {
-            let k = starts.partition_point(|&b| b <= s.start).saturating_sub(1);
-            out.push(format!(
+        if starts.iter().skip(1).any(|&b| near(b, s)) {
+            continue;
+        }
+        let k = starts.partition_point(|&b| b <= s.start).saturating_sub(1);
+        // A random record's drive changes all the time: nothing to report inside it.
+        if steps[k].1.is_none() || !checkable(k) {
+            continue;
+        }
+        note(
+            k,
+            LabelFinding::Change,
+            format!(
                 "{} changes at {:.3} s (to {}) inside labelled step {}",
                 driven.name(),
                 t(s.start),
                 s.kind.name(),
                 steps[k].0.step
-            ));
-        }
+            ),
+        );
     }
     for (k, (r, label)) in steps.iter().enumerate() {
+        if !checkable(k) {
+            continue;
+        }
         let (a, b) = (starts[k], starts[k] + r.len());
         // The found step that overlaps the labelled one most.
-        let Some(found) = seg
+        let Some(most) = seg
             .steps
             .iter()
             .max_by_key(|s| s.end.min(b).saturating_sub(s.start.max(a)))
         else {
             continue;
         };
-        match (label, &found.kind) {
-            (
-                Some(f),
-                DetectedKind::Sine {
-                    estimated_frequency_hz: e,
-                    frequency_std_hz: sd,
-                    ..
-                },
-            ) => {
-                if (f - e).abs() > 5.0 * sd + 1e-9 * f {
-                    out.push(format!(
-                        "step {} is labelled {f} Hz, but {} is at {e:.7} Hz (standard deviation {sd:.1e} Hz)",
-                        r.step,
-                        driven.name()
-                    ));
-                }
-            }
-            (Some(f), kind) => out.push(format!(
-                "step {} is labelled a sine of {f} Hz, but {} is {} there",
-                r.step,
-                driven.name(),
-                kind.name()
-            )),
-            (None, DetectedKind::Sine { frequency_hz, .. }) => out.push(format!(
-                "step {} is labelled random (frequency 0 or empty), but {} is a sine of {frequency_hz} Hz there",
-                r.step,
-                driven.name()
-            )),
-            (None, _) => {}
+        match (label, &most.kind) {
+            (Some(_), DetectedKind::Sine { .. }) | (None, DetectedKind::Broadband { .. }) => {}
+            (Some(f), kind) => note(
+                k,
+                LabelFinding::Kind,
+                format!(
+                    "step {} is labelled a sine of {f} Hz, but {} is {} there",
+                    r.step,
+                    driven.name(),
+                    kind.name()
+                ),
+            ),
+            (None, DetectedKind::Sine { frequency_hz, .. }) => note(
+                k,
+                LabelFinding::Kind,
+                format!(
+                    "step {} is labelled random (frequency 0 or empty), but {} is a sine of {frequency_hz} Hz there",
+                    r.step,
+                    driven.name()
+                ),
+            ),
+            (None, DetectedKind::Rest { .. }) => {}
         }
     }
-    out
+    found
+        .into_values()
+        .map(|(line, more)| match more {
+            0 => line,
+            1 => format!("{line} (and once more)"),
+            n => format!("{line} (and {n} more times)"),
+        })
+        .collect()
 }

@@ -1,7 +1,7 @@
-//! Held-out records of an element test (a sweep or a band-random record the diagnosis was not
-//! fitted on): the measured force predicted from the measured motion by the baseline and by
-//! the model with the top effect, F = m x'' + f(x, x'), and the NMSE of the force before and
-//! after.
+//! Held-out records of an element test (a sine step, a sweep or a band-random record the
+//! diagnosis, or an identification, was not fitted on): the measured force predicted from the
+//! measured motion by the baseline and by the model with the top effect, F = m x'' + f(x, x'),
+//! and the NMSE of the force before and after.
 //!
 //! No simulation: the element sits between the measured displacement and the measured force
 //! whatever drives it (a displacement-controlled dyno or a force-driven shaker), so the force
@@ -34,7 +34,7 @@ pub enum HeldOutError {
     )]
     MissingChannel { step: usize, channel: &'static str },
     #[error(
-        "held-out record {step}: a {kind} record has no band to differentiate the displacement in; give a sweep or a band-random record with its band"
+        "held-out record {step}: a {kind} record has no band to differentiate the displacement in; give a sine, a sweep or a band-random record with its band"
     )]
     NoBand { step: usize, kind: &'static str },
     #[error("held-out record {step}: too short ({samples} samples)")]
@@ -91,6 +91,7 @@ pub fn excitation_kind(e: &Excitation) -> &'static str {
 /// Highest excitation frequency of a held-out record [Hz].
 fn top_frequency_hz(r: &Record) -> Result<f64, HeldOutError> {
     match &r.excitation {
+        Excitation::Sine { frequency_hz, .. } => Ok(*frequency_hz),
         Excitation::Random {
             band_hz: Some([_, hi]),
             ..

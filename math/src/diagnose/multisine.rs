@@ -26,7 +26,7 @@ use super::locate::{Located, StatePlane};
 use super::multisine_state;
 use super::search::POSITIVE_SYMBOLS;
 use crate::identify::{
-    EquationAccumulator, FdMultiOptions, Identification, Method, StepEquations, TermLag,
+    EquationAccumulator, FdMultiOptions, Identification, Method, StepEquations, TermLag, Weighting,
     accumulate_multisines_lagged, multisine_equations_about_lagged, step_equations,
 };
 use crate::model::Model;
@@ -252,7 +252,12 @@ pub fn search_blocks(
         setup,
         sines: Cow::Borrowed(sines),
         multisines: Cow::Borrowed(multisines),
-        options: FdMultiOptions::default(),
+        // The diagnosis scores residuals in units of the noise: noise weights, whatever the
+        // form error.
+        options: FdMultiOptions {
+            weighting: Weighting::Noise,
+            ..FdMultiOptions::default()
+        },
         lag: None,
     };
     if steps.len() < MIN_BLOCKS {

@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::quality::{FitQuality, QualitySums};
 use super::{Identification, IdentifyError, IdentifyWarning, Method, Parameter, StepEquations};
 use crate::lstsq::{QrAccumulator, WARN_CONDITION_NUMBER};
 use crate::model::Model;
@@ -33,6 +34,10 @@ pub struct EquationAccumulator {
     /// converged mode, and in states saved before tracking existed).
     #[serde(default)]
     forgotten_blocks: f64,
+    /// The residual sums by band of harmonics, for the fit's quality against the noise
+    /// (empty in states saved before they existed).
+    #[serde(default)]
+    quality: QualitySums,
 }
 
 impl EquationAccumulator {
@@ -54,6 +59,7 @@ impl EquationAccumulator {
             notes: Vec::new(),
             notes_dropped: 0,
             forgotten_blocks: 0.0,
+            quality: QualitySums::default(),
         }
     }
 
@@ -67,6 +73,7 @@ impl EquationAccumulator {
             return;
         }
         self.qr.forget(factor);
+        self.quality.forget(factor);
         self.term_ms_sum.iter_mut().for_each(|s| *s *= factor);
         self.independent_equations *= factor;
         self.forgotten_blocks += (1.0 - factor) * (self.blocks as f64 - self.forgotten_blocks);
@@ -111,6 +118,7 @@ impl EquationAccumulator {
     /// Adds one step's block of equations.
     pub fn add(&mut self, blk: &StepEquations) -> Result<(), IdentifyError> {
         self.qr.add_rows(&blk.a, &blk.b)?;
+        self.quality.add(blk);
         for (s, t) in self.term_ms_sum.iter_mut().zip(&blk.term_rms) {
             *s += t * t;
         }
@@ -183,6 +191,11 @@ impl EquationAccumulator {
             warnings.push(few.to_string());
             flags.push(few);
         }
+        let fit_quality = self.quality.quality(&sol.theta);
+        if let Some(wrong) = fit_quality.as_ref().and_then(FitQuality::warning) {
+            warnings.push(wrong.to_string());
+            flags.push(wrong);
+        }
         let id = Identification {
             model: self.model.clone(),
             method: self.method.clone(),
@@ -208,6 +221,7 @@ impl EquationAccumulator {
                 .collect(),
             residual_rms: sol.residual_rms,
             steps_used: self.steps_used.clone(),
+            fit_quality,
             warnings,
         };
         Ok((id, flags))
@@ -229,6 +243,8 @@ mod tests {
             independent_equations: independent,
             term_rms: vec![1.0; 2],
             notes: vec![],
+            row_noise: vec![],
+            form_variance: 0.0,
         }
     }
 

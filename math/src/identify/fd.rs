@@ -6,7 +6,9 @@ use std::f64::consts::TAU;
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
-use super::{FdMultiOptions, IdentifyError, Method, StepEquations, Weighting};
+use super::stick::{circular_runs, legendre};
+use super::weights::{RowNoise, StepRows, weigh};
+use super::{FdMultiOptions, IdentifyError, Method, StepEquations};
 use crate::model::Model;
 use crate::phasor::{ChannelPhasors, HarmonicAnalysis, acceleration_phasors, velocity_phasors};
 use crate::recipe::Setup;
@@ -304,44 +306,6 @@ pub(crate) fn grid_harmonics(h: &[f64], n: usize, fft: &dyn rustfft::Fft<f64>) -
         .collect()
 }
 
-/// Runs of `false` in a circular mask, as (start, length); a mask that is all `false` is one
-/// run starting at 0.
-fn circular_runs(keep: &[bool]) -> Vec<(usize, usize)> {
-    let l = keep.len();
-    let Some(first_kept) = keep.iter().position(|k| *k) else {
-        return vec![(0, l)];
-    };
-    let mut runs = Vec::new();
-    let mut i = 0;
-    while i < l {
-        let idx = (first_kept + i) % l;
-        if keep[idx] {
-            i += 1;
-            continue;
-        }
-        let start = idx;
-        let mut len = 0;
-        while i < l && !keep[(first_kept + i) % l] {
-            len += 1;
-            i += 1;
-        }
-        runs.push((start, len));
-    }
-    runs
-}
-
-/// Legendre polynomials P_0..P_d at t in [-1, 1].
-fn legendre(t: f64, d: usize) -> Vec<f64> {
-    let mut p = vec![1.0; d + 1];
-    if d >= 1 {
-        p[1] = t;
-    }
-    for k in 2..=d {
-        p[k] = ((2 * k - 1) as f64 * t * p[k - 1] - (k - 1) as f64 * p[k - 2]) / k as f64;
-    }
-    p
-}
-
 /// The improved equations, a weighted harmonic balance of every measured harmonic (eq. 11 for
 /// n = 0..N). One period of the state is rebuilt from the displacement's significant harmonics;
 /// for models with a friction term the cycle is split into slip samples (where g = theta^T h holds) and
@@ -367,6 +331,8 @@ fn fd_multi_equations(
         independent_equations: 0.0,
         term_rms,
         notes,
+        row_noise: Vec::new(),
+        form_variance: 0.0,
     };
     let amp = eh.displacement.get(1).map_or(0.0, |c| c.norm());
     let amp_noise = eh.displacement_noise.get(1).copied().unwrap_or(0.0);
@@ -454,18 +420,22 @@ fn fd_multi_equations(
         }
         qq.extend(cols.iter().map(|c| grid_harmonics(c, nh, fft.as_ref())));
     }
-    // Weighted real equations: DC, then real and imaginary part of each harmonic. The per-part
-    // noise std of harmonic n >= 1 is |noise| / sqrt 2; a floor keeps noise-free data from being
-    // weighted by round-off.
+    // Real equations: DC, then real and imaginary part of each harmonic, with their noise. The
+    // per-part noise std of harmonic n >= 1 is |noise| / sqrt 2; a floor keeps noise-free data
+    // from being weighted by round-off.
     let floor = options.noise_floor
         * eh.force
             .get(1)
             .map_or(0.0, |g| g.norm())
             .max(f64::MIN_POSITIVE);
     let rows = 2 * nh + 1;
-    let mut a = DMatrix::zeros(rows, p);
-    let mut q = DMatrix::zeros(rows, qq.len());
-    let mut b = DVector::zeros(rows);
+    let mut step_rows = StepRows {
+        a: DMatrix::zeros(rows, p),
+        q: DMatrix::zeros(rows, qq.len()),
+        b: DVector::zeros(rows),
+        sigma: vec![f64::INFINITY; rows],
+        harmonic: vec![0; rows],
+    };
     for n in 0..=nh {
         let s = if n == 0 {
             eh.force_noise[0]
@@ -477,17 +447,6 @@ fn fd_multi_equations(
         } else {
             f64::INFINITY
         };
-        let wt = match options.weighting {
-            Weighting::Noise => 1.0 / s,
-            // Uniform still leaves out harmonics without a noise estimate (not measured).
-            Weighting::Uniform => {
-                if s.is_finite() {
-                    1.0
-                } else {
-                    0.0
-                }
-            }
-        };
         let parts: &[(usize, bool)] = if n == 0 {
             &[(0, false)]
         } else {
@@ -495,40 +454,27 @@ fn fd_multi_equations(
         };
         for &(r, im) in parts {
             let pick = |c: Complex64| if im { c.im } else { c.re };
-            b[r] = pick(eh.force[n]) * wt;
-            for i in 0..p {
-                a[(r, i)] = pick(hh[i][n]) * wt;
+            step_rows.b[r] = pick(eh.force[n]);
+            for (i, h) in hh.iter().enumerate() {
+                step_rows.a[(r, i)] = pick(h[n]);
             }
             for (k, qk) in qq.iter().enumerate() {
-                q[(r, k)] = pick(qk[n]) * wt;
+                step_rows.q[(r, k)] = pick(qk[n]);
             }
+            step_rows.sigma[r] = s;
+            step_rows.harmonic[r] = n;
         }
     }
-    // Project the stick-force columns out.
-    let mut nq = 0;
-    if q.ncols() > 0 {
-        let svd = q.clone().svd(true, false);
-        let u = svd.u.expect("U requested");
-        let smax = svd.singular_values.max();
-        for (k, sv) in svd.singular_values.iter().enumerate() {
-            if *sv > options.stick_force_tolerance * smax {
-                let uk = u.column(k).into_owned();
-                let ua = uk.transpose() * &a;
-                a -= &uk * ua;
-                let ub = uk.dot(&b);
-                b -= &uk * ub;
-                nq += 1;
-            }
-        }
-    }
-    let independent = (rows - nq) as f64;
+    let weighed = weigh(&step_rows, options.weighting, options.stick_force_tolerance);
     Ok(StepEquations {
         step,
-        a,
-        b,
-        independent_equations: independent,
+        a: weighed.a,
+        b: weighed.b,
+        independent_equations: weighed.independent,
         term_rms,
         notes,
+        row_noise: weighed.row_noise,
+        form_variance: weighed.form_variance,
     })
 }
 
@@ -556,11 +502,26 @@ pub fn step_equations(
     let notes = Vec::new();
     match method {
         Method::Fd => {
-            // a = Y_1, b = G_1 (eqs. 13, 22, 23), split into real and imaginary parts.
+            // a = Y_1, b = G_1 (eqs. 13, 22, 23), split into real and imaginary parts. A term
+            // with no first harmonic over the cycle (a constant, |x'| of a sine) is no column
+            // of these equations: its column is zero (the solver then names it) rather than
+            // round-off that column scaling would blow up.
             let mut y1: Vec<Complex64> = h.iter().map(|hi| first_harmonic(hi)).collect();
             y1.extend(eh.extra_column.iter().map(|c| c[1]));
+            for (y, rms) in y1.iter_mut().zip(&term_rms) {
+                if y.norm() <= 1e-12 * rms {
+                    *y = Complex64::new(0.0, 0.0);
+                }
+            }
             let a = DMatrix::from_fn(2, p, |r, i| if r == 0 { y1[i].re } else { y1[i].im });
             let b = DVector::from_vec(vec![eh.force[1].re, eh.force[1].im]);
+            let floor = options.noise_floor * eh.force[1].norm();
+            let s = (eh.force_noise[1] / 2f64.sqrt()).max(floor);
+            let row = RowNoise {
+                harmonic: 1,
+                gain: if s.is_finite() && s > 0.0 { 1.0 / s } else { 0.0 },
+                expected: if s.is_finite() && s > 0.0 { 1.0 } else { 0.0 },
+            };
             Ok(StepEquations {
                 step: an.step,
                 a,
@@ -568,6 +529,8 @@ pub fn step_equations(
                 independent_equations: 2.0,
                 term_rms,
                 notes,
+                row_noise: vec![row; 2],
+                form_variance: 0.0,
             })
         }
         Method::FdMulti => fd_multi_equations(model, &eh, an.step, options, term_rms, notes),

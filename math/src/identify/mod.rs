@@ -3,7 +3,9 @@
 //! - `Method::Fd`: the paper's FD-FSM, first harmonic only (eqs. 12-17, 22, 23).
 //! - `Method::FdMulti`: forcemap's improved FD-FSM, a weighted harmonic balance of every
 //!   measured harmonic n = 0..N (eq. 11), each real equation weighted by that harmonic's
-//!   measured noise (so noisy high harmonics count little instead of being cut). For models with
+//!   measured noise plus the step's form error, where the model misses the step by more than
+//!   its noise (`weights`: noisy high harmonics count little instead of being cut, and a form
+//!   that is not the element's does not let the quietest harmonics decide). For models with
 //!   a friction term (sgn or atan), the basis functions are balanced over the slip part of the cycle only; while the
 //!   element sticks (or reverses) its force is set-valued, so there it is an unknown per step (a
 //!   low-order polynomial per stick interval plus a jump where the element sticks or reverses),
@@ -24,10 +26,15 @@ mod cycle;
 mod fd;
 mod multisine;
 mod output_error;
+mod quality;
+mod stick;
 mod td;
+mod weights;
 
 pub use accumulator::EquationAccumulator;
 pub use cycle::{Cycle, rebuilt_cycle};
+pub use quality::{FORM_WARNING_RATIO, FitQuality, HarmonicBand};
+pub use weights::{FORM_FACTOR, RowNoise};
 
 pub use fd::{ElementHarmonics, element_harmonics, step_equations};
 pub use multisine::{
@@ -140,9 +147,14 @@ impl std::fmt::Display for Method {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Weighting {
-    /// Each harmonic by the inverse of its measured noise (the default): noisy high harmonics
-    /// count little, and the covariance is that of the measured scatter.
+    /// Each harmonic by the inverse of its measured noise plus the step's form error (the
+    /// default): the noise weighting where the model explains a step within its noise, every
+    /// harmonic alike where the model's form misses more than the noise (`weights`).
     #[default]
+    Robust,
+    /// Each harmonic by the inverse of its measured noise: noisy high harmonics count little,
+    /// and the covariance is that of the measured scatter (at the Cramer-Rao bound of a model
+    /// whose form is the element's).
     Noise,
     /// Every harmonic's equations in newtons, unweighted (for comparison, or when the records
     /// are too short for a noise estimate).
@@ -152,9 +164,16 @@ pub enum Weighting {
 impl Weighting {
     pub fn name(&self) -> &'static str {
         match self {
+            Weighting::Robust => "robust",
             Weighting::Noise => "noise",
             Weighting::Uniform => "uniform",
         }
+    }
+}
+
+impl std::fmt::Display for Weighting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 
@@ -163,6 +182,7 @@ impl std::str::FromStr for Weighting {
 
     fn from_str(name: &str) -> Result<Weighting, Self::Err> {
         match name {
+            "robust" => Ok(Weighting::Robust),
             "noise" => Ok(Weighting::Noise),
             "uniform" => Ok(Weighting::Uniform),
             _ => Err(crate::recipe::RecipeError::UnknownWeighting(
@@ -214,7 +234,7 @@ impl Default for FdMultiOptions {
             stick_force_tolerance: 1e-6,
             jump_margin_harmonic_periods: 0.5,
             noise_floor: 1e-4,
-            weighting: Weighting::Noise,
+            weighting: Weighting::default(),
             multisine_distortion_lines: true,
         }
     }
@@ -233,6 +253,11 @@ pub struct StepEquations {
     pub term_rms: Vec<f64>,
     /// What a user should know about this step (e.g. left out because it never slipped).
     pub notes: Vec<String>,
+    /// How each row's residual compares with its noise (empty: the rows are not equations of
+    /// a harmonic with a noise estimate, as the time-domain method's and a multisine's).
+    pub row_noise: Vec<RowNoise>,
+    /// The form-error variance the step's rows were weighted with (0: none; `weights`).
+    pub form_variance: f64,
 }
 
 #[derive(Debug, Error)]
@@ -267,6 +292,12 @@ pub enum IdentifyWarning {
     BadlyConditioned { condition_number: f64, text: String },
     /// Fewer than twice as many independent real equations as parameters.
     FewEquations { independent: f64, parameters: usize },
+    /// The residual is more than [`FORM_WARNING_RATIO`] times what the noise allows: the
+    /// model's form is not the element's. `text` names the bands of harmonics.
+    WrongForm {
+        residual_to_noise: f64,
+        text: String,
+    },
 }
 
 impl std::fmt::Display for IdentifyWarning {
@@ -280,6 +311,7 @@ impl std::fmt::Display for IdentifyWarning {
                 f,
                 "few equations: {independent:.0} independent real equations for {parameters} parameters"
             ),
+            IdentifyWarning::WrongForm { text, .. } => f.write_str(text),
         }
     }
 }
@@ -298,6 +330,9 @@ pub struct Identification {
     pub residual_rms: f64,
     /// Steps that contributed equations.
     pub steps_used: Vec<usize>,
+    /// The residual against the noise, by band of harmonics (`None` where the equations are
+    /// not of harmonics with a noise estimate: the time-domain method).
+    pub fit_quality: Option<FitQuality>,
     pub warnings: Vec<String>,
 }
 

@@ -219,8 +219,12 @@ fn multisine_block(
     let mut a = DMatrix::zeros(rows, p);
     let mut b = DVector::zeros(rows);
     for (r, &k) in eq_bins.iter().enumerate() {
+        // The robust weighting weighs a multisine's lines by their noise, as the noise
+        // weighting does: no form error is estimated for a multisine record.
         let weight = match options.weighting {
-            Weighting::Noise => 1.0 / equation_noise(k).max(floor).max(f64::MIN_POSITIVE),
+            Weighting::Noise | Weighting::Robust => {
+                1.0 / equation_noise(k).max(floor).max(f64::MIN_POSITIVE)
+            }
             Weighting::Uniform => 1.0,
         };
         let rhs = f.phasors[k] - known_mass.map_or(Complex64::new(0.0, 0.0), |m| acc[k] * m);
@@ -244,6 +248,8 @@ fn multisine_block(
         independent_equations: rows as f64,
         term_rms,
         notes,
+        row_noise: Vec::new(),
+        form_variance: 0.0,
     })
 }
 

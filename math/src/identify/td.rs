@@ -131,5 +131,7 @@ pub fn td_range_equations(
         independent_equations: idx.len() as f64,
         term_rms,
         notes: vec![],
+        row_noise: Vec::new(),
+        form_variance: 0.0,
     })
 }

@@ -30,8 +30,17 @@
 //!    a rounding floor). The walk stops at the first period that is not accepted; the settled
 //!    part starts at the first accepted period. All channels are tested jointly: a step is
 //!    settled only when all channels are. If fewer than `min_periods` periods were accepted
-//!    the step is flagged `settled = false` and the last `min_periods` periods (or all `P` if
-//!    there are fewer) are used anyway.
+//!    and the record ends in a ramp (a bench that ramps its drive down before it stops: last
+//!    periods that each differ from the `m` before them by more than 5 % of a channel's AC
+//!    amplitude and more than the noise allows, up to `floor(P / 4)` of them), the walk starts
+//!    again before the ramp. Where that accepts fewer than `min_periods` too, or where the
+//!    walk stopped at a period `3 k` noise standard deviations off (a change, not one of the
+//!    noise's excursions among the hundreds of phasors compared), the periods used are those
+//!    the walk (before any ramp) accepts with `tol` raised to 5 %: a drift, as a damper's force
+//!    as it heats up over its step, differs from period to period by far more than the noise
+//!    within a period, but far less than a ramp. The step is flagged `settled = false` then,
+//!    and where even that finds no `min_periods` periods (or the walk stopped at a noise
+//!    excursion), the last `min_periods` periods (or all `P` if there are fewer) are used.
 //! 4. **Phasors.** All used whole periods are fitted jointly (one least-squares fit over the
 //!    contiguous window). `t_ref` is the start of the first used period.
 //! 5. **Noise estimate.** `noise_std[n]` is the standard error of the mean of the per-period
@@ -69,6 +78,7 @@
 //! ~0.35 us at N = 100 (`phasor_stream_push_*`, ~2.9 M samples/s).
 
 mod fit;
+pub mod frequency;
 pub mod multisine;
 pub mod multisine_lines;
 mod periods;
@@ -77,6 +87,7 @@ mod stream;
 pub mod sweep;
 mod types;
 
+pub use frequency::{FrequencyEstimate, drive_frequency};
 pub use multisine::{MultisineAnalysis, MultisineError, MultisineOptions, analyse_multisine};
 pub use multisine_lines::{
     band_disagreement, excited_lines, excited_lines_of, find_multisine_lines,

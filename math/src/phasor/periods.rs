@@ -211,10 +211,10 @@ impl<'a> Periods<'a> {
             .collect())
     }
 
-    /// Joint fit over whole periods `first..` to the end: the solution (channel-major) and the
+    /// Joint fit over whole periods `first..end`: the solution (channel-major) and the
     /// residual variance per sample of each channel, `RSS / (samples - (2N+1))`.
-    fn joint(&mut self, first: usize) -> Result<(Vec<f64>, Vec<f64>), PhasorError> {
-        let periods = self.done.len();
+    fn joint(&mut self, first: usize, end: usize) -> Result<(Vec<f64>, Vec<f64>), PhasorError> {
+        let periods = end;
         let (h, nc) = (self.grid.harmonics + 1, self.n_channels);
         let (mut re, mut im, mut sq) = (vec![0.0; nc * h], vec![0.0; nc * h], vec![0.0; nc]);
         for p in first..periods {
@@ -278,70 +278,63 @@ pub(super) fn settle_and_fit(
     let h = harmonics + 1;
     let n_ch = work.n_channels;
 
-    // 2. Noise level from the joint fit of the tail (periods are fitted lazily from the end).
+    // 2-3. The settled part: the walk from the last period. Where it finds none and the
+    // record ends in periods that are not steady (a bench that ramps its drive down before it
+    // stops), the walk from the last period before them; where that finds none either, the
+    // periods it accepts within `UNSETTLED_RELATIVE_TOLERANCE` (a drift, as a damper's force
+    // as it heats up, changes from period to period by more than the noise of a period).
     let min_periods = options.min_periods.max(2);
-    let tail_first = periods - min_periods.min(periods);
-    let (_, tail_var) = work.joint(tail_first)?;
-    let last = periods - 1;
-    let v = work.per_period_variance_factors(last)?;
-
-    // 3. Walk backwards from the last period.
-    let k = options.settle_noise_factor;
     let tol = options.settle_relative_tolerance;
-    let mut sum: Vec<Vec<Complex64>> = work.phasors(last)?.to_vec();
-    let mut accepted = 1usize;
-    let mut first_accepted = last;
-    for p in (0..last).rev() {
-        let a = accepted as f64;
-        let inflate = (1.0 + 1.0 / a).sqrt();
-        let cp = work.phasors(p)?;
-        let agrees = (0..n_ch).all(|c| {
-            let mean: Vec<Complex64> = sum[c].iter().map(|s| s / a).collect();
-            let scale_ac = mean[1..]
-                .iter()
-                .map(Complex64::norm_sqr)
-                .sum::<f64>()
-                .sqrt();
-            let scale = if scale_ac > 0.0 {
-                scale_ac
+    let walked = |work: &mut Periods<'_>, end: usize, tol: f64| {
+        walk(work, end, n_ch, h, options, tol).map(|w| {
+            (w.accepted >= min_periods)
+                .then_some((w.first, end))
+                .ok_or(w)
+        })
+    };
+    let mut settled_part = None;
+    let mut steadiest = None;
+    match walked(work, periods, tol)? {
+        Ok(part) => settled_part = Some(part),
+        Err(stopped) => {
+            let ramp = trailing_ramp(work, periods, n_ch, h, options)?;
+            let end = periods - ramp;
+            let stopped = if ramp > 0 {
+                match walked(work, end, tol)? {
+                    Ok(part) => {
+                        settled_part = Some(part);
+                        None
+                    }
+                    Err(stopped) => Some(stopped),
+                }
             } else {
-                mean[0].norm()
+                Some(stopped)
             };
-            let floor = 1e-10 * scale_ac.max(mean[0].norm());
-            (0..h).all(|n| {
-                let noise = k * (tail_var[c] * v[n]).sqrt() * inflate;
-                let thr = noise.max(tol * scale).max(floor);
-                (cp[c][n] - mean[n]).norm() <= thr
-            })
-        });
-        if !agrees {
-            break;
-        }
-        for (s, c) in sum.iter_mut().zip(cp) {
-            for (s, c) in s.iter_mut().zip(c) {
-                *s += c;
+            // Not a noise outlier among the many harmonics compared, but a change.
+            if stopped.is_some_and(|w| ramp > 0 || w.beyond_noise > GROSS_CHANGE) {
+                steadiest = walked(work, end, tol.max(UNSETTLED_RELATIVE_TOLERANCE))?.ok();
             }
         }
-        accepted += 1;
-        first_accepted = p;
     }
-    let settled = accepted >= min_periods;
-    let first_used = if settled { first_accepted } else { tail_first };
+    let settled = settled_part.is_some();
+    let (first_used, end_used) = settled_part
+        .or(steadiest)
+        .unwrap_or((periods - min_periods.min(periods), periods));
 
     // 4. Joint fit over the used periods; 5. standard error from the per-period scatter.
-    let used = periods - first_used;
-    let (beta, var) = work.joint(first_used)?;
+    let used = end_used - first_used;
+    let (beta, var) = work.joint(first_used, end_used)?;
     let mut channels = Vec::with_capacity(n_ch);
     for (c, channel) in record_channels.iter().enumerate() {
         let mut noise_std = Vec::with_capacity(h);
         for n in 0..h {
             let mut mean = Complex64::new(0.0, 0.0);
-            for p in first_used..periods {
+            for p in first_used..end_used {
                 mean += work.phasors(p)?[c][n];
             }
             mean /= used as f64;
             let mut ss = 0.0;
-            for p in first_used..periods {
+            for p in first_used..end_used {
                 ss += (work.phasors(p)?[c][n] - mean).norm_sqr();
             }
             noise_std.push((ss / (used * (used - 1)) as f64).sqrt());
@@ -364,11 +357,140 @@ pub(super) fn settle_and_fit(
         periods_used: used,
         periods_available: periods,
         first_settled_sample: bounds[first_used],
-        samples_used: bounds[periods] - bounds[first_used],
+        samples_used: bounds[end_used] - bounds[first_used],
         settled,
         harmonics,
         harmonic_cap: cap,
         channels,
         frequency_rate_hz_per_s: 0.0,
+    })
+}
+
+/// Relative tolerance of a ramp's periods and of the periods used when none are settled
+/// (module docs, step 3).
+pub(super) const UNSETTLED_RELATIVE_TOLERANCE: f64 = 0.05;
+/// A walk stopped by a period this many times beyond its noise threshold (`k` noise standard
+/// deviations) stopped at a change: the noise of some hundred phasors compared passes 4 of
+/// its standard deviations now and then, and 12 practically never.
+const GROSS_CHANGE: f64 = 3.0;
+
+/// The periods at the end of the record that are a ramp: from the last, each that differs
+/// from the `min_periods` periods before it by more than `UNSETTLED_RELATIVE_TOLERANCE` of a
+/// channel's AC amplitude (and more than its noise allows), up to a quarter of the periods.
+fn trailing_ramp(
+    work: &mut Periods<'_>,
+    periods: usize,
+    n_ch: usize,
+    h: usize,
+    options: &PhasorOptions,
+) -> Result<usize, PhasorError> {
+    let m = options.min_periods.max(2);
+    let k = options.settle_noise_factor;
+    let mut ramp = 0;
+    while ramp < periods / 4 && periods - ramp > m {
+        let p = periods - 1 - ramp;
+        let (_, var) = work.joint(p - m, p)?;
+        let v = work.per_period_variance_factors(p - 1)?;
+        let mut mean = vec![vec![Complex64::new(0.0, 0.0); h]; n_ch];
+        for q in p - m..p {
+            for (acc, c) in mean.iter_mut().zip(work.phasors(q)?) {
+                for (a, c) in acc.iter_mut().zip(c) {
+                    *a += c / m as f64;
+                }
+            }
+        }
+        let cp = work.phasors(p)?;
+        let off = (0..n_ch).any(|c| {
+            let scale = mean[c][1..]
+                .iter()
+                .map(Complex64::norm_sqr)
+                .sum::<f64>()
+                .sqrt();
+            (0..h).any(|n| {
+                let noise = k * (var[c] * v[n]).sqrt() * (1.0 + 1.0 / m as f64).sqrt();
+                (cp[c][n] - mean[c][n]).norm() > (UNSETTLED_RELATIVE_TOLERANCE * scale).max(noise)
+            })
+        });
+        if !off {
+            break;
+        }
+        ramp += 1;
+    }
+    Ok(ramp)
+}
+
+/// Where a walk stopped.
+struct Walk {
+    accepted: usize,
+    first: usize,
+    /// How far the period that stopped it differs from the mean, in units of the walk's noise
+    /// threshold (0: it ran to the first period).
+    beyond_noise: f64,
+}
+
+/// The settling walk over periods `..end` (step 3): from period `end - 1` backwards, each
+/// period joins while it agrees with the mean of those accepted within the noise of the tail
+/// (the joint fit of the last `min_periods` periods before `end`, step 2) or `tol` of the
+/// channel's AC amplitude.
+fn walk(
+    work: &mut Periods<'_>,
+    end: usize,
+    n_ch: usize,
+    h: usize,
+    options: &PhasorOptions,
+    tol: f64,
+) -> Result<Walk, PhasorError> {
+    let min_periods = options.min_periods.max(2);
+    let tail_first = end - min_periods.min(end);
+    let (_, tail_var) = work.joint(tail_first, end)?;
+    let last = end - 1;
+    let v = work.per_period_variance_factors(last)?;
+    let k = options.settle_noise_factor;
+    let mut sum: Vec<Vec<Complex64>> = work.phasors(last)?.to_vec();
+    let mut accepted = 1usize;
+    let mut first_accepted = last;
+    let mut beyond_noise = 0.0f64;
+    for p in (0..last).rev() {
+        let a = accepted as f64;
+        let inflate = (1.0 + 1.0 / a).sqrt();
+        let cp = work.phasors(p)?;
+        let mut worst = 0.0f64;
+        let agrees = (0..n_ch).all(|c| {
+            let mean: Vec<Complex64> = sum[c].iter().map(|s| s / a).collect();
+            let scale_ac = mean[1..]
+                .iter()
+                .map(Complex64::norm_sqr)
+                .sum::<f64>()
+                .sqrt();
+            let scale = if scale_ac > 0.0 {
+                scale_ac
+            } else {
+                mean[0].norm()
+            };
+            let floor = 1e-10 * scale_ac.max(mean[0].norm());
+            (0..h).all(|n| {
+                let noise = k * (tail_var[c] * v[n]).sqrt() * inflate;
+                let thr = noise.max(tol * scale).max(floor);
+                let d = (cp[c][n] - mean[n]).norm();
+                worst = worst.max(d / noise.max(floor));
+                d <= thr
+            })
+        });
+        if !agrees {
+            beyond_noise = worst;
+            break;
+        }
+        for (s, c) in sum.iter_mut().zip(cp) {
+            for (s, c) in s.iter_mut().zip(c) {
+                *s += c;
+            }
+        }
+        accepted += 1;
+        first_accepted = p;
+    }
+    Ok(Walk {
+        accepted,
+        first: first_accepted,
+        beyond_noise,
     })
 }

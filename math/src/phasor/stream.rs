@@ -104,6 +104,11 @@ impl PhasorStream {
         self.step
     }
 
+    /// The frequency the stream analyses at (its excitation's).
+    pub fn frequency_hz(&self) -> f64 {
+        self.sine.frequency_hz
+    }
+
     /// The sample rate the stream was started with.
     pub fn sample_rate_hz(&self) -> f64 {
         self.sample_rate_hz

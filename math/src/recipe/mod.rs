@@ -51,7 +51,7 @@ pub enum RecipeError {
         "method '{0}': expected fd, fd-multi, output-error, td (20 points per step), td-all or td-N"
     )]
     UnknownMethod(String),
-    #[error("weighting '{0}': expected noise or uniform")]
+    #[error("weighting '{0}': expected robust, noise or uniform")]
     UnknownWeighting(String),
     #[error(
         "forgetting_per_step = {0}: expected a factor in (0, 1] (1: converged; 0.8: a window of about 4 steps)"

@@ -29,8 +29,13 @@
 //! finished: [`provisional_analysis`](forcemap_math::phasor::provisional_analysis)), published on `phasors/provisional` in order with the
 //! steps' phasors, so that a tracking identifier follows a drift within a long step.
 //!
+//! A sine step's labelled frequency is checked against its driven channel when the step
+//! completes ([`outcome`]: the rule of `forcemap identify`): where the data put it elsewhere, the
+//! step is analysed at the estimate, in batch, with one warning naming both values.
+//!
 //! Parameters: `max_harmonic` (100, as `forcemap identify`), `min_periods` (the phasor
 //! analysis' minimum of settled periods), `find_steps` (false), `update_period_s` (off),
+//! `frequency_tolerance` (relative; 1e-6, as `forcemap identify --frequency-tolerance`),
 //! `frame_id`.
 
 use std::collections::{BTreeMap, VecDeque};
@@ -39,7 +44,7 @@ use std::time::{Duration, Instant};
 use forcemap_math::phasor::{
     IDENTIFICATION_MAX_HARMONIC, PhasorOptions, PhasorStream, ProvisionalUpdates,
 };
-use forcemap_math::record::{Excitation, Record};
+use forcemap_math::record::Record;
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
 use forcemap_msgs::msg::{ExcitationState, HarmonicPhasors, RigSample};
@@ -48,6 +53,7 @@ use tokio::sync::mpsc;
 
 pub mod find_steps;
 pub mod open_step;
+mod outcome;
 mod provisional;
 mod stream;
 
@@ -59,6 +65,7 @@ use stream::StepStream;
 use crate::latency_trace;
 use crate::log_line;
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos};
+use forcemap_io::steps::unlabelled::DEFAULT_FREQUENCY_TOLERANCE;
 use forcemap_io::steps::{StepAssembler, StepError, StepPlan, StepSample};
 use forcemap_io::topics;
 
@@ -115,6 +122,9 @@ pub struct HarmonicState {
     update_period_s: Option<f64>,
     /// The record of the last step analysed from its stream ([`HarmonicState::take_spent`]).
     spent: Option<Record>,
+    /// A sine step's label stands within this relative difference of its frequency estimate
+    /// (and within its uncertainty): [`frequency_from_data`](forcemap_io::steps::unlabelled::frequency_from_data).
+    frequency_tolerance: f64,
 }
 
 impl Default for HarmonicState {
@@ -142,7 +152,22 @@ impl HarmonicState {
             last_sample_at: None,
             update_period_s: None,
             spent: None,
+            frequency_tolerance: DEFAULT_FREQUENCY_TOLERANCE,
         }
+    }
+
+    /// The same state with another relative tolerance of a sine step's label against its
+    /// frequency estimate (default [`DEFAULT_FREQUENCY_TOLERANCE`]); refused unless it is
+    /// finite and not negative.
+    pub fn with_frequency_tolerance(self, relative: f64) -> anyhow::Result<HarmonicState> {
+        anyhow::ensure!(
+            relative.is_finite() && relative >= 0.0,
+            "frequency_tolerance {relative} is not a finite number >= 0"
+        );
+        Ok(HarmonicState {
+            frequency_tolerance: relative,
+            ..self
+        })
     }
 
     /// The same state giving provisional phasors of the step in progress every
@@ -201,10 +226,12 @@ impl HarmonicState {
         let origin = self.finder.as_ref().and_then(StepFinder::origin);
         found
             .into_iter()
-            .map(|f| match f {
-                Found::Step(r) => self.outcome(r, None),
-                Found::Provisional(s) => Outcome::Provisional(s, origin.unwrap_or(Time::ZERO)),
-                Found::Misattributed { message } => Outcome::Warning(message),
+            .flat_map(|f| match f {
+                Found::Step(r) => self.outcomes(r, None),
+                Found::Provisional(s) => {
+                    vec![Outcome::Provisional(s, origin.unwrap_or(Time::ZERO))]
+                }
+                Found::Misattributed { message } => vec![Outcome::Warning(message)],
             })
             .collect()
     }
@@ -263,7 +290,7 @@ impl HarmonicState {
                         if let Ok(a) = &r {
                             done.extend(a.messages().map(Outcome::Warning));
                         }
-                        done.push(self.outcome(r.map(|a| a.record), stream.take()));
+                        done.extend(self.outcomes(r.map(|a| a.record), stream.take()));
                     }
                 }
             }
@@ -311,7 +338,7 @@ impl HarmonicState {
             } else {
                 self.stream.take_if(|st| st.step == step_of)
             };
-            done.push(self.outcome(r, st));
+            done.extend(self.outcomes(r, st));
         }
     }
 
@@ -320,37 +347,6 @@ impl HarmonicState {
     /// as releasing a 10 kHz step's megabytes took up to ~1 ms). Replaced by the next one.
     pub fn take_spent(&mut self) -> Option<Record> {
         self.spent.take()
-    }
-
-    fn outcome(&mut self, r: Result<Record, StepError>, stream: Option<StepStream>) -> Outcome {
-        let origin = match &self.finder {
-            Some(f) => f.origin(),
-            None => self.assembler.origin(),
-        }
-        .unwrap_or(Time::ZERO);
-        match r {
-            Ok(rec) => match rec.excitation {
-                Excitation::Sine { .. } => {
-                    let analysis = match stream.and_then(|s| s.matching(&rec)) {
-                        Some(s) => {
-                            self.spent = Some(rec);
-                            Analysis::Streamed(Box::new(s))
-                        }
-                        None => Analysis::Batch(rec),
-                    };
-                    Outcome::Analyse(analysis, origin)
-                }
-                Excitation::Multisine { .. } => Outcome::Analyse(Analysis::Multisine(rec), origin),
-                Excitation::Random { .. } | Excitation::Sweep { .. } => Outcome::Skipped(
-                    rec.step,
-                    format!(
-                        "random record of {} samples: kept for validation, no phasors",
-                        rec.len()
-                    ),
-                ),
-            },
-            Err(e) => Outcome::Dropped(e),
-        }
     }
 }
 
@@ -380,6 +376,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         options.min_periods = m;
     }
     let find_steps = p.opt_bool("find_steps")?.unwrap_or(false);
+    let frequency_tolerance = p
+        .opt_f64("frequency_tolerance")?
+        .unwrap_or(DEFAULT_FREQUENCY_TOLERANCE);
     let update_period_s = p.opt_f64("update_period_s")?;
     let frame = p.opt_str("frame_id")?.unwrap_or("rig").to_string();
     let fq = setup.fully_qualified_name();
@@ -522,7 +521,8 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         }
     });
 
-    let mut state = HarmonicState::with_options(options.clone());
+    let mut state = HarmonicState::with_options(options.clone())
+        .with_frequency_tolerance(frequency_tolerance)?;
     if let Some(t) = update_period_s {
         state = state.with_updates(t)?;
         log_line!("provisional phasors of a step in progress every {t} s of its samples");

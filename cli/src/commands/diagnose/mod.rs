@@ -19,6 +19,7 @@ use crate::report::{HtmlReport, parameters_text};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
 use forcemap_io::input::{Loaded, Measured};
 use forcemap_io::params::{Params, read_params};
+use forcemap_io::steps::unlabelled::frequencies_from_data;
 use forcemap_math::recipe::SetupKind;
 use plots::{svg_harmonics, svg_heldout, svg_state_plane};
 
@@ -36,8 +37,16 @@ struct Data {
     source: String,
 }
 
-fn load(args: &DiagnoseArgs, files: &[PathBuf], import: Loaded) -> anyhow::Result<Data> {
+fn load(args: &DiagnoseArgs, files: &[PathBuf], mut import: Loaded) -> anyhow::Result<Data> {
     let file = super::identify::data_name(files);
+    super::identify::check_frequency_tolerance(args.frequency_tolerance)?;
+    for w in frequencies_from_data(
+        &mut import.records,
+        import.kind.driven_channel(),
+        args.frequency_tolerance,
+    ) {
+        eprintln!("warning: {file}: {w}");
+    }
     if import.kind == SetupKind::DrivePoint {
         bail!(
             "{file}: the diagnosis needs the base-excited rig channels (base and relative displacement, mass acceleration) or an element test's (relative displacement, force); this is a {} export",
@@ -61,14 +70,21 @@ fn load(args: &DiagnoseArgs, files: &[PathBuf], import: Loaded) -> anyhow::Resul
         Vec::new()
     } else {
         let held_out = forcemap_io::input::expand_paths(&args.validate)?;
-        let vi = forcemap_io::input::load_files(&held_out, args.channels.as_deref())?;
+        let mut vi = forcemap_io::input::load_files(&held_out, args.channels.as_deref())?;
+        let name = super::identify::data_name(&held_out);
         if vi.kind != import.kind {
             bail!(
-                "{}: validation data must hold the channels of the data's {} setup; these are a {} setup's",
-                super::identify::data_name(&held_out),
+                "{name}: validation data must hold the channels of the data's {} setup; these are a {} setup's",
                 import.kind,
                 vi.kind
             );
+        }
+        for w in frequencies_from_data(
+            &mut vi.records,
+            import.kind.driven_channel(),
+            args.frequency_tolerance,
+        ) {
+            eprintln!("warning: {name}: {w}");
         }
         vi.records
     };

@@ -6,7 +6,7 @@
 use anyhow::Context as _;
 use forcemap_math::diagnose::element_heldout::{HeldOutState, excitation_kind};
 use forcemap_math::diagnose::{PhasorDiagnosis, PhasorFindings};
-use forcemap_math::identify::{FdMultiOptions, Method};
+use forcemap_math::identify::{FdMultiOptions, Method, Weighting};
 use forcemap_math::model::Model;
 use forcemap_math::phasor::MultisineOptions;
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
@@ -35,7 +35,11 @@ fn with_known_extras(
         Method::FdMulti,
         records,
         &PhasorOptions::for_identification(),
-        &FdMultiOptions::default(),
+        // As the diagnosis weighs its fits: by the noise.
+        &FdMultiOptions {
+            weighting: Weighting::Noise,
+            ..FdMultiOptions::default()
+        },
     )
     .context("identifying the moving mass with the baseline")?;
     let extras = id.extra_values(setup);

@@ -244,6 +244,8 @@ fn identification(
         r: r_out,
         residual_rms: rms,
         steps_used,
+        // Against the noise in the time domain: the RMS misfit above.
+        fit_quality: None,
         warnings,
     }
 }

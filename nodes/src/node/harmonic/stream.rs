@@ -132,12 +132,18 @@ impl StepStream {
         updates.due(s.samples(), self.expected).then(|| s.clone())
     }
 
-    /// The stream if it holds exactly the samples of `record` at its rate.
+    /// The stream if it holds exactly the samples of `record` at its rate and frequency (a
+    /// label the data corrected is not the stream's).
     pub(super) fn matching(self, record: &Record) -> Option<PhasorStream> {
         let s = self.phasors?;
+        let frequency = match record.excitation {
+            Excitation::Sine { frequency_hz, .. } => Some(frequency_hz),
+            _ => None,
+        };
         let same = s.step() == record.step
             && s.samples() == record.len()
             && s.sample_rate_hz() == record.sample_rate_hz
+            && frequency == Some(s.frequency_hz())
             && s.channels()
                 .iter()
                 .eq(record.channels.iter().map(|(c, _)| c));

@@ -1,7 +1,7 @@
 //! The harmonic node's state machine, without ROS.
 
 use super::*;
-use forcemap_math::record::Channel;
+use forcemap_math::record::{Channel, Excitation};
 
 fn sample(step: u32, k: i64) -> RigSample {
     RigSample::new(

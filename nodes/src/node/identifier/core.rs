@@ -37,7 +37,7 @@ pub struct RecipeParameters {
 }
 
 impl RecipeParameters {
-    /// Reads `model` (`coulomb`), `method` (`fd-multi`), `weighting` (`noise`),
+    /// Reads `model` (`coulomb`), `method` (`fd-multi`), `weighting` (`robust`),
     /// `forgetting_per_step` (1: converged; below 1 theta tracks drifting parameters),
     /// `atan_m`, `poly_order` (`[P, Q]`), `mass_kg` and `substructure...`; refuses a method the
     /// live identifier cannot run.
@@ -63,7 +63,10 @@ impl RecipeParameters {
         if let Some(why) = live_refusal(method) {
             bail!("method = {method}: {why}");
         }
-        let weighting: Weighting = p.opt_str("weighting")?.unwrap_or("noise").parse()?;
+        let weighting: Weighting = match p.opt_str("weighting")? {
+            Some(w) => w.parse()?,
+            None => Weighting::default(),
+        };
         let tracking = Tracking::from_factor(p.opt_f64("forgetting_per_step")?.unwrap_or(1.0))?;
         let constants = rig_constants::from_params(p)?;
         // Refused at once where no setup takes it; zero is an element test's load cell at the

@@ -8,8 +8,8 @@
 //! one on the same data.
 //!
 //! Parameters:
-//! - `model` (`coulomb`), `method` (`fd-multi` or `fd`), `weighting` (`noise` or `uniform`,
-//!   fd-multi only), `atan_m`, `poly_order` (`[P, Q]`), as `forcemap identify`;
+//! - `model` (`coulomb`), `method` (`fd-multi` or `fd`), `weighting` (`robust`, `noise` or
+//!   `uniform`, fd-multi only), `atan_m`, `poly_order` (`[P, Q]`), as `forcemap identify`;
 //! - `mass_kg`: the rig's mass; without it the value on the rig's `parameters` topic is used;
 //! - `substructure...`: the linear substructure of a drive-point setup (see
 //!   launch_configs/three_dof.params.yaml);
@@ -189,7 +189,7 @@ fn declared_parameters(setup: &NodeSetup, core: &IdentifierCore) -> ParameterTab
         (
             "weighting",
             ParamValue::String(p.weighting.name().to_string()),
-            format!("noise or uniform weighting of fd-multi's equations{settable}"),
+            format!("robust, noise or uniform weighting of fd-multi's equations{settable}"),
         ),
         (
             "forgetting_per_step",
