@@ -73,6 +73,17 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
+    /// The RMS below which a stretch is at rest: `rest_fraction` of the largest window's.
+    fn rest_rms(&self) -> f64 {
+        let largest = self
+            .analysis
+            .windows
+            .iter()
+            .filter_map(|w| w.fit.map(|f| f.total_rms))
+            .fold(0.0, f64::max);
+        self.options.rest_fraction * largest
+    }
+
     fn model(&self, run: &Run, from: usize, to: usize) -> Model {
         let (from, to) = if to >= from + 8 {
             (from, to)
@@ -289,6 +300,11 @@ impl Ctx<'_> {
                 }
             }
             Class::Rest => DetectedKind::Rest { rms },
+            // A stretch between windows that barely moves (a machine standing still before it
+            // starts, a quantised sensor reading one value) is rest, whatever its windows said.
+            Class::Broadband | Class::Transition if rms <= self.rest_rms() => {
+                DetectedKind::Rest { rms }
+            }
             Class::Broadband | Class::Transition => DetectedKind::Broadband { rms },
         };
         DetectedStep {
