@@ -33,14 +33,13 @@
 //!    and the record ends in a ramp (a bench that ramps its drive down before it stops: last
 //!    periods that each differ from the `m` before them by more than 5 % of a channel's AC
 //!    amplitude and more than the noise allows, up to `floor(P / 4)` of them), the walk starts
-//!    again before the ramp. Where that accepts fewer than `min_periods` too, or where the
-//!    walk stopped at a period `3 k` noise standard deviations off (a change, not one of the
-//!    noise's excursions among the hundreds of phasors compared), the periods used are those
-//!    the walk (before any ramp) accepts with `tol` raised to 5 %: a drift, as a damper's force
-//!    as it heats up over its step, differs from period to period by far more than the noise
-//!    within a period, but far less than a ramp. The step is flagged `settled = false` then,
-//!    and where even that finds no `min_periods` periods (or the walk stopped at a noise
-//!    excursion), the last `min_periods` periods (or all `P` if there are fewer) are used.
+//!    again before the ramp. Where that accepts fewer than `min_periods` too, the periods used
+//!    are those the walk (before any ramp) accepts with `tol` raised to 5 %: a drift, as a
+//!    damper's force as it heats up over its step or a test table's mean position wandering by
+//!    a millimetre, differs from period to period by far more than the noise within a period,
+//!    but far less than a ramp, and every period of it is a measurement of the element. The
+//!    step is flagged `settled = false` then, and where even that finds no `min_periods`
+//!    periods, the last `min_periods` periods (or all `P` if there are fewer) are used.
 //! 4. **Phasors.** All used whole periods are fitted jointly (one least-squares fit over the
 //!    contiguous window). `t_ref` is the start of the first used period.
 //! 5. **Noise estimate.** `noise_std[n]` is the standard error of the mean of the per-period

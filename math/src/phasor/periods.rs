@@ -310,8 +310,7 @@ pub(super) fn settle_and_fit(
             } else {
                 Some(stopped)
             };
-            // Not a noise outlier among the many harmonics compared, but a change.
-            if stopped.is_some_and(|w| ramp > 0 || w.beyond_noise > GROSS_CHANGE) {
+            if stopped.is_some() {
                 steadiest = walked(work, end, tol.max(UNSETTLED_RELATIVE_TOLERANCE))?.ok();
             }
         }
@@ -369,10 +368,6 @@ pub(super) fn settle_and_fit(
 /// Relative tolerance of a ramp's periods and of the periods used when none are settled
 /// (module docs, step 3).
 pub(super) const UNSETTLED_RELATIVE_TOLERANCE: f64 = 0.05;
-/// A walk stopped by a period this many times beyond its noise threshold (`k` noise standard
-/// deviations) stopped at a change: the noise of some hundred phasors compared passes 4 of
-/// its standard deviations now and then, and 12 practically never.
-const GROSS_CHANGE: f64 = 3.0;
 
 /// The periods at the end of the record that are a ramp: from the last, each that differs
 /// from the `min_periods` periods before it by more than `UNSETTLED_RELATIVE_TOLERANCE` of a
@@ -423,9 +418,6 @@ fn trailing_ramp(
 struct Walk {
     accepted: usize,
     first: usize,
-    /// How far the period that stopped it differs from the mean, in units of the walk's noise
-    /// threshold (0: it ran to the first period).
-    beyond_noise: f64,
 }
 
 /// The settling walk over periods `..end` (step 3): from period `end - 1` backwards, each
@@ -449,12 +441,10 @@ fn walk(
     let mut sum: Vec<Vec<Complex64>> = work.phasors(last)?.to_vec();
     let mut accepted = 1usize;
     let mut first_accepted = last;
-    let mut beyond_noise = 0.0f64;
     for p in (0..last).rev() {
         let a = accepted as f64;
         let inflate = (1.0 + 1.0 / a).sqrt();
         let cp = work.phasors(p)?;
-        let mut worst = 0.0f64;
         let agrees = (0..n_ch).all(|c| {
             let mean: Vec<Complex64> = sum[c].iter().map(|s| s / a).collect();
             let scale_ac = mean[1..]
@@ -471,13 +461,10 @@ fn walk(
             (0..h).all(|n| {
                 let noise = k * (tail_var[c] * v[n]).sqrt() * inflate;
                 let thr = noise.max(tol * scale).max(floor);
-                let d = (cp[c][n] - mean[n]).norm();
-                worst = worst.max(d / noise.max(floor));
-                d <= thr
+                (cp[c][n] - mean[n]).norm() <= thr
             })
         });
         if !agrees {
-            beyond_noise = worst;
             break;
         }
         for (s, c) in sum.iter_mut().zip(cp) {
@@ -491,6 +478,5 @@ fn walk(
     Ok(Walk {
         accepted,
         first: first_accepted,
-        beyond_noise,
     })
 }
