@@ -90,15 +90,16 @@ pub(super) fn weigh(rows: &StepRows, weighting: Weighting, tolerance: f64) -> We
     let w: Vec<f64> = rows
         .sigma
         .iter()
-        .map(|&s| {
+        .enumerate()
+        .map(|(i, &s)| {
             if !s.is_finite() {
                 0.0
             } else {
                 match weighting {
-                    Weighting::Uniform => 1.0,
+                    Weighting::Uniform => 1.0 / form_share(rows.harmonic[i]).sqrt(),
                     // Exactly the noise weight when there is no form error.
                     _ if form_variance == 0.0 => 1.0 / s,
-                    _ => 1.0 / (s * s + form_variance).sqrt(),
+                    _ => 1.0 / (s * s + form_share(rows.harmonic[i]) * form_variance).sqrt(),
                 }
             }
         })
@@ -188,7 +189,7 @@ fn form_variance(rows: &StepRows) -> f64 {
         let mut w = Vec::with_capacity(m);
         for (r, &i) in measured.iter().enumerate() {
             let s = rows.sigma[i];
-            let wt = 1.0 / (s * s + tau2).sqrt();
+            let wt = 1.0 / (s * s + form_share(rows.harmonic[i]) * tau2).sqrt();
             for c in 0..rows.a.ncols() {
                 z[(r, c)] = rows.a[(i, c)] * wt;
             }
@@ -215,10 +216,15 @@ fn form_variance(rows: &StepRows) -> f64 {
         Some((e.iter().zip(&w).map(|(v, wt)| v / wt).collect(), dof))
     };
     let sigma2: Vec<f64> = measured.iter().map(|&i| rows.sigma[i].powi(2)).collect();
+    let share: Vec<f64> = measured
+        .iter()
+        .map(|&i| form_share(rows.harmonic[i]))
+        .collect();
     let weighted = |e: &[f64], tau2: f64| -> f64 {
         e.iter()
             .zip(&sigma2)
-            .map(|(e, s2)| e * e / (s2 + tau2))
+            .zip(&share)
+            .map(|((e, s2), f)| e * e / (s2 + f * tau2))
             .sum()
     };
     let Some((e, dof)) = residual(0.0) else {
@@ -231,7 +237,7 @@ fn form_variance(rows: &StepRows) -> f64 {
     let mut tau2 = 0.0;
     let mut e = e;
     for _ in 0..MAX_PASSES {
-        let next = solve_tau2(&e, &sigma2, target);
+        let next = solve_tau2(&e, &sigma2, &share, target);
         let done = (next - tau2).abs() <= CONVERGED_REL * next;
         tau2 = next;
         if done {
@@ -245,10 +251,25 @@ fn form_variance(rows: &StepRows) -> f64 {
     tau2
 }
 
-/// The `tau^2 >= 0` with `sum_i e_i^2 / (s2_i + tau^2) = target` (0 when even `tau^2 = 0` gives
-/// less), by bisection on a bracket (the sum falls with `tau^2`).
-fn solve_tau2(e: &[f64], s2: &[f64], target: f64) -> f64 {
-    let q = |t: f64| -> f64 { e.iter().zip(s2).map(|(e, s)| e * e / (s + t)).sum() };
+/// The share of a step's form-error variance `tau^2` (that of a real or imaginary part of a
+/// harmonic) on a row of `harmonic`: a period's mean square is `C_0^2 + sum |C_n|^2 / 2`
+/// (Parseval, one-sided phasors), so the time-domain least squares of the waveform counts the
+/// mean's row once and each real part of the others by half; the mean's row carries half the
+/// variance. With it, rows weighted by the form error alone are that least squares.
+fn form_share(harmonic: usize) -> f64 {
+    if harmonic == 0 { 0.5 } else { 1.0 }
+}
+
+/// The `tau^2 >= 0` with `sum_i e_i^2 / (s2_i + f_i tau^2) = target` (0 when even `tau^2 = 0`
+/// gives less), by bisection on a bracket (the sum falls with `tau^2`).
+fn solve_tau2(e: &[f64], s2: &[f64], share: &[f64], target: f64) -> f64 {
+    let q = |t: f64| -> f64 {
+        e.iter()
+            .zip(s2)
+            .zip(share)
+            .map(|((e, s), f)| e * e / (s + f * t))
+            .sum()
+    };
     if q(0.0) <= target {
         return 0.0;
     }
