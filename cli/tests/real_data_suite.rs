@@ -1,0 +1,203 @@
+//! The real-data suite: public measurements of other labs (committed under `data/real/`, each
+//! with its licence and citation), read as they lie through their channel maps, identified by
+//! `forcemap identify` with its defaults and scored on held-out tests (`--validate`) beside a
+//! plain reference: the time-domain least squares of the same model's terms and moving mass on
+//! every scored sample of the same fitted tests (`common/reference.rs`). The target is a mean
+//! held-out force NMSE no worse than the reference's on every set and model; where forcemap
+//! misses it, the bound below is the measured ratio with a 5 % margin, so that the gap can
+//! only close. On the second UTFSM split each test counts once in `fd-multi` (its steady
+//! periods, weighted by its form error) but by its samples in the least squares (the 0.1 Hz
+//! test holds 19 035 of its 28 007), and the held-out 25 mm test is like that one; on the
+//! Labcontrol damper fd-multi takes each velocity reversal out of theta's fit (a window
+//! widened by the quantised displacement's noise), where a real damper's force passes through
+//! its yield; its `linear` model has no offset for the damper's 110 N preload, and where that
+//! misfit goes differs between the two fits (not analysed further).
+//!
+//! `cargo test -p forcemap_cli --test real_data_suite -- --nocapture` prints the table of
+//! docs/results.md.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
+mod common;
+#[path = "common/reference.rs"]
+mod reference;
+
+use std::path::{Path, PathBuf};
+
+use forcemap_io::input::load_files;
+use forcemap_io::steps::unlabelled::{DEFAULT_FREQUENCY_TOLERANCE, frequencies_from_data};
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::record::{Channel, Record};
+
+/// One real set and its split into fitted and held-out files.
+struct Split {
+    name: &'static str,
+    /// The largest mean ratio of forcemap's held-out NMSE to the reference's, per model of
+    /// [`MODELS`] (1: no worse).
+    max_ratio: [f64; 2],
+    dir: &'static str,
+    fit: &'static [&'static str],
+    held: &'static [&'static str],
+}
+
+const SPLITS: &[Split] = &[
+    Split {
+        name: "UTFSM MR damper, 0 A: the 200 Hz tests / the 1 kHz tests",
+        max_ratio: [1.0, 1.0],
+        dir: "mr_damper_utfsm",
+        fit: &[
+            "2mm5Hz0A.txt",
+            "25mm0x1Hz0A.txt",
+            "25mm0x25Hz0A.txt",
+            "25mm0x5Hz0A.txt",
+        ],
+        held: &["5mm3Hz0A.txt", "10mm1Hz0A.txt"],
+    },
+    Split {
+        name: "UTFSM MR damper, 0 A: 25 mm at 0.1 and 0.5 Hz, 5 mm at 3 Hz / the others",
+        // Measured 1.23 and 1.55.
+        max_ratio: [1.29, 1.63],
+        dir: "mr_damper_utfsm",
+        fit: &["25mm0x1Hz0A.txt", "25mm0x5Hz0A.txt", "5mm3Hz0A.txt"],
+        held: &["2mm5Hz0A.txt", "10mm1Hz0A.txt", "25mm0x25Hz0A.txt"],
+    },
+    Split {
+        name: "Labcontrol MR damper, 0 V: odd tests / even tests",
+        // Measured 1.27 and 1.30.
+        max_ratio: [1.33, 1.37],
+        dir: "labcontrol_mr_shaketable",
+        fit: &[
+            "ensaio1.1.mat",
+            "ensaio3.1.mat",
+            "ensaio5.1.mat",
+            "ensaio7.1.mat",
+            "ensaio9.1.mat",
+        ],
+        held: &[
+            "ensaio2.1.mat",
+            "ensaio4.1.mat",
+            "ensaio6.1.mat",
+            "ensaio8.1.mat",
+            "ensaio10.1.mat",
+        ],
+    },
+];
+
+const MODELS: &[&str] = &["damper", "linear"];
+
+fn data_dir(dir: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../data/real")
+        .join(dir)
+}
+
+fn paths(dir: &Path, files: &[&str]) -> Vec<PathBuf> {
+    files.iter().map(|f| dir.join(f)).collect()
+}
+
+/// The records of `files` as `identify` reads them: through the map, each sine step at the
+/// frequency its driven channel shows.
+fn records(dir: &Path, files: &[&str]) -> Vec<Record> {
+    let loaded = load_files(&paths(dir, files), Some(&dir.join("map.yaml")))
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+    let mut records = loaded.records;
+    frequencies_from_data(
+        &mut records,
+        Channel::RelativeDisplacementM,
+        DEFAULT_FREQUENCY_TOLERANCE,
+    );
+    records
+}
+
+/// `forcemap identify FIT... --channels MAP --model MODEL --validate HELD... --json`: the
+/// held-out force NMSE of each held-out record [%].
+fn forcemap_held_out_nmse(dir: &Path, split: &Split, model: &str) -> Vec<f64> {
+    let map = dir.join("map.yaml");
+    let mut args: Vec<String> = vec!["identify".into()];
+    args.extend(
+        paths(dir, split.fit)
+            .iter()
+            .map(|p| p.display().to_string()),
+    );
+    args.extend([
+        "--channels".into(),
+        map.display().to_string(),
+        "--model".into(),
+        model.into(),
+        "--json".into(),
+    ]);
+    for h in paths(dir, split.held) {
+        args.extend(["--validate".into(), h.display().to_string()]);
+    }
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = common::forcemap(&refs);
+    assert!(
+        o.status.success(),
+        "{} {model}: {}",
+        split.name,
+        common::stderr(&o)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    v["held_out"]
+        .as_array()
+        .expect("held_out in the JSON")
+        .iter()
+        .map(|h| h["nmse_percent"].as_f64().expect("nmse_percent"))
+        .collect()
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+fn fmt(v: &[f64]) -> String {
+    v.iter()
+        .map(|x| format!("{x:.2}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+#[test]
+fn forcemap_predicts_real_held_out_tests_beside_least_squares() {
+    let mut worse = Vec::new();
+    println!(
+        "| set: fitted / held out | model | forcemap (default) | least squares | mean ratio |"
+    );
+    println!("|---|---|---|---|---|");
+    for split in SPLITS {
+        let dir = data_dir(split.dir);
+        let fit = records(&dir, split.fit);
+        let held = records(&dir, split.held);
+        for (name, max_ratio) in MODELS.iter().zip(split.max_ratio) {
+            let model = Model::by_name(name, &ModelOptions::default()).expect("a built-in model");
+            let ours = forcemap_held_out_nmse(&dir, split, name);
+            let theta = reference::least_squares_theta(&model, true, &fit);
+            let reference = reference::nmse_on(&model, &theta, &held);
+            assert_eq!(
+                ours.len(),
+                reference.len(),
+                "{}: held-out records",
+                split.name
+            );
+            let ratio = mean(&ours) / mean(&reference);
+            println!(
+                "| {} | `{name}` | {} | {} | {ratio:.2} |",
+                split.name,
+                fmt(&ours),
+                fmt(&reference)
+            );
+            if ratio > max_ratio {
+                worse.push(format!(
+                    "{} `{name}`: {ratio:.3} (at most {max_ratio})",
+                    split.name
+                ));
+            }
+        }
+    }
+    assert!(
+        worse.is_empty(),
+        "forcemap's default predicts worse than its bound against least squares: {worse:#?}"
+    );
+}
