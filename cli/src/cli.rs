@@ -22,7 +22,8 @@ pub enum Command {
     /// Reproduce Tables 1-4 of Kim (1997): the paper's numbers, the truth and forcemap's
     /// (paper method and improved method) side by side.
     Reproduce(ReproduceArgs),
-    /// Identify a model's parameters from a test-bench CSV export.
+    /// Identify a model's parameters from measurements: bags, CSV exports, or (with
+    /// --channels) a bench's own text, MAT, MDF4 or TDMS files.
     Identify(IdentifyArgs),
     /// Simulate the suspension rig or the 3-DOF example and write a test-bench CSV export.
     Simulate(SimulateArgs),
@@ -50,6 +51,24 @@ pub enum Command {
     /// Benchmarks: the node graph (throughput without loss, latency, CPU and memory) and
     /// `identify` on a CSV export against its numpy peer.
     Bench(BenchArgs),
+    /// Print a shell completion script: `forcemap completions bash > /etc/bash_completion.d/forcemap`.
+    Completions(CompletionsArgs),
+    /// Write the manual pages (forcemap.1 and one per subcommand) into a new directory.
+    Man(ManArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct CompletionsArgs {
+    /// The shell the script is for.
+    #[arg(value_enum)]
+    pub shell: clap_complete::Shell,
+}
+
+#[derive(Debug, Args)]
+pub struct ManArgs {
+    /// The directory to write the pages into (must not exist; written whole or not at all).
+    #[arg(value_name = "DIR")]
+    pub dir: PathBuf,
 }
 
 #[derive(Debug, Args)]

@@ -442,3 +442,27 @@ fn a_closed_output_pipe_ends_the_command_quietly() {
     // Killed by SIGPIPE, as `head` leaves any filter.
     assert_eq!(o.status.signal(), Some(13), "{:?}: {e}", o.status);
 }
+
+/// The completion script and the manual pages come from the argument parser: they name the
+/// subcommands and options `--help` names, and `man` writes a new directory whole.
+#[test]
+fn completions_and_manual_pages_name_the_subcommands() {
+    let o = forcemap(&["completions", "bash"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let script = String::from_utf8_lossy(&o.stdout);
+    for word in ["_forcemap", "identify", "--channels", "--validate", "info"] {
+        assert!(script.contains(word), "{word} missing from the bash script");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let man = dir.path().join("man");
+    let o = forcemap(&["man", man.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let page = std::fs::read_to_string(man.join("forcemap-identify.1")).unwrap();
+    assert!(page.starts_with(".ie") || page.contains(".TH"), "{page}");
+    assert!(page.contains("frequency\\-tolerance"), "{page}");
+    assert!(man.join("forcemap.1").is_file());
+    // An existing directory is refused, and left as it was.
+    let o = forcemap(&["man", man.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("exists already"), "{}", stderr(&o));
+}

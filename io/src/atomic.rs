@@ -36,7 +36,7 @@ pub fn write_dir_atomically(
 ) -> anyhow::Result<()> {
     if dir.exists() {
         anyhow::bail!(
-            "{}: the report directory exists already; remove it or choose a new one",
+            "{}: the directory exists already; remove it or choose a new one",
             dir.display()
         );
     }

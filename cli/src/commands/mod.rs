@@ -10,6 +10,7 @@ pub mod element_outputs;
 pub mod identify;
 pub mod import;
 pub mod info;
+pub mod manual;
 pub mod reproduce;
 pub mod simulate;
 
@@ -39,6 +40,11 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
             crate::cli::BenchCommand::Graph(g) => bench::run_graph(g),
             crate::cli::BenchCommand::Identify(i) => bench_identify::run(i),
         },
+        Command::Completions(a) => {
+            manual::completions(a.shell);
+            Ok(())
+        }
+        Command::Man(a) => manual::man_pages(&a.dir),
         Command::Models => {
             for (name, what) in forcemap_math::model::MODEL_NAMES {
                 println!("{name:<20} {what}");
