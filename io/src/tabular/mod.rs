@@ -7,6 +7,7 @@
 //! errors of the same samples in forcemap's CSV.
 
 pub mod datetime;
+mod default_map;
 pub mod mat;
 mod resolve;
 pub mod text;
@@ -18,7 +19,8 @@ use crate::input::FileFormat;
 use crate::table::TableError;
 use crate::table_map::TableMap;
 
-pub use resolve::{Picks, default_map, pick, read_through};
+pub use default_map::default_map;
+pub use resolve::{Picks, pick, read_through};
 
 /// One column of a file, as its format describes it.
 #[derive(Debug, Clone, PartialEq)]
