@@ -1,13 +1,15 @@
 //! The element-test profile of the CSV contract: a damper dyno's export (relative
 //! displacement, force, fixture acceleration) reads back as the element setup, labelled or
 //! not, and identifies as the simulated records do.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
+mod common;
 
 use forcemap_io::csv_export::{read_csv, write_csv};
-use forcemap_math::identify::{FdMultiOptions, Method};
-use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::phasor::PhasorOptions;
-use forcemap_math::pipeline::identify_records;
-use forcemap_math::recipe::{Setup, SetupKind};
+use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::Record;
 use forcemap_math::sim::{ElementDrive, RunSpec, StepSpec};
 
@@ -44,22 +46,11 @@ fn theta(records: &[Record]) -> Vec<f64> {
 }
 
 fn std_theta(records: &[Record]) -> Vec<(f64, f64)> {
-    let model = Model::by_name("damper", &ModelOptions::default()).expect("model");
-    identify_records(
-        &model,
-        &Setup::Element {
-            moving_mass_kg: Some(0.8),
-        },
-        Method::FdMulti,
-        records,
-        &PhasorOptions::for_identification(),
-        &FdMultiOptions::default(),
-    )
-    .expect("identifies")
-    .parameters
-    .iter()
-    .map(|p| (p.value, p.std))
-    .collect()
+    common::dyno_identification(records)
+        .parameters
+        .iter()
+        .map(|p| (p.value, p.std))
+        .collect()
 }
 
 fn assert_close(a: &[f64], b: &[f64], rel: f64) {

@@ -6,6 +6,8 @@
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
 )]
 
+mod common;
+
 use std::path::Path;
 
 use forcemap_io::csv_export::{CsvImport, read_csv, write_csv};
@@ -258,20 +260,7 @@ fn two_rates(dir: &Path, spec: &RunSpec) -> CsvImport {
     csv
 }
 
-fn dyno_identification(records: &[Record]) -> forcemap_math::identify::Identification {
-    let model = Model::by_name("damper", &ModelOptions::default()).unwrap();
-    identify_records(
-        &model,
-        &Setup::Element {
-            moving_mass_kg: Some(0.8),
-        },
-        Method::FdMulti,
-        records,
-        &PhasorOptions::for_identification(),
-        &FdMultiOptions::default(),
-    )
-    .unwrap()
-}
+use common::dyno_identification;
 
 /// An element test in one file at 1 kHz and 200 Hz identifies together: noise-free, every
 /// parameter within 1e-4 of the truth (each record analysed at its own rate); at 30 dB, every

@@ -9,16 +9,14 @@
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
 )]
 
+mod common;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use forcemap_io::input::{load_files, load_mapped};
-use forcemap_math::identify::{FdMultiOptions, Method};
-use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::phasor::PhasorOptions;
-use forcemap_math::pipeline::identify_records;
-use forcemap_math::recipe::{Setup, SetupKind};
+use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::{Channel, Record};
 use forcemap_math::sim::{ElementDrive, RunSpec, StepSpec};
 
@@ -63,19 +61,7 @@ fn samples(records: &[Record]) -> Vec<(f64, f64, f64)> {
 }
 
 fn theta(records: &[Record]) -> Vec<f64> {
-    let model = Model::by_name("damper", &ModelOptions::default()).unwrap();
-    identify_records(
-        &model,
-        &Setup::Element {
-            moving_mass_kg: Some(0.8),
-        },
-        Method::FdMulti,
-        records,
-        &PhasorOptions::for_identification(),
-        &FdMultiOptions::default(),
-    )
-    .unwrap()
-    .theta()
+    common::dyno_identification(records).theta()
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
