@@ -60,7 +60,7 @@ where
 
 /// How long a client may take to be answered first: discovery and the match of the service's
 /// four endpoints, which under a loaded CI host took more than 10 s (the client never saw the
-/// service in 10 s once, session 17).
+/// service in 10 s once).
 const FIRST_ANSWER_TIMEOUT: Duration = Duration::from_secs(45);
 
 /// Waits until the service answers `harmless` (a request that changes nothing). The client

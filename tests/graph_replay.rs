@@ -152,7 +152,7 @@ fn damper_dyno_bag_tracked_within_steps_live_gives_the_offline_track_end() {
     println!("{provisional} provisional thetas live");
 }
 
-/// Tracking within the steps live without excitation states (issue 12): the harmonic node
+/// Tracking within the steps live without excitation states: the harmonic node
 /// ignores the bag's states and finds the steps in the samples (`find_steps:=true`), with
 /// provisional phasors every 2 s of a step's samples; the identifier (forgetting 0.7) ends on
 /// the theta `forcemap identify --forgetting-per-step 0.7 --update-period-s 2` ends on with

@@ -190,7 +190,7 @@ fn a_bag_without_the_samples_topic_or_with_another_type_is_refused_by_name() {
     );
 }
 
-/// Issue 11's acceptance on the committed multisine bag: the model identified from its two
+/// The acceptance case on the committed multisine bag: the model identified from its two
 /// multisine realisations (moving mass included), driven by the measured force of its third,
 /// band-random record, predicts the measured displacement within 1.5 times the noise floor's
 /// NMSE (the noise-free displacement of the same seeded run against the measured one). The

@@ -1,4 +1,4 @@
-//! The new names of issue 13 on the wide forms' world: a damper in series with a spring is named
+//! The names `series_compliance` and `drift` on the wide forms' world: a damper in series with a spring is named
 //! series_compliance with its spring and damper, a damper whose damping fades with the energy it
 //! dissipated is named drift with its rate per minute and per kJ, and a run without either is
 //! given neither name.

@@ -211,7 +211,7 @@ fn output_error_noise_free_within_a_tenth_of_a_percent() {
     }
 }
 
-/// Issue 2's 40 dB targets (CASE II every parameter within 2 %, CASE I within 5 %) over ten noise
+/// The 40 dB targets (CASE II every parameter within 2 %, CASE I within 5 %) over ten noise
 /// seeds, and honest standard deviations: each error within 3.5 reported std, and the scatter
 /// over the seeds of the same size as the reported std.
 #[test]

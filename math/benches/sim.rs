@@ -28,7 +28,7 @@ fn bench_sim(c: &mut Criterion) {
         ..RunSpec::paper_rig(None, 0)
     };
     // The same three steps at 100 Hz: the 10 kHz run's cost per simulated second against
-    // the same run's at the paper's rate (issue 14: no slower).
+    // the same run's at the paper's rate (the target: no slower).
     let rig_100hz = RunSpec {
         sample_rate_hz: 100.0,
         samples_per_record: 200,

@@ -348,7 +348,7 @@ fn seeds() -> u64 {
         .unwrap_or(10)
 }
 
-/// Issue 13's acceptance on the element setup: over the seeds (`SEEDS`, default 10) at 30 and
+/// The acceptance on the element setup: over the seeds (`SEEDS`, default 10) at 30 and
 /// 40 dB, the scatter (RMS error about the truth) against the reported std and the Cramer-Rao
 /// bound, for both benches. Prints the table. Asserts every error within 1 % at 30 dB, the
 /// reported std within 20 % of the bound, and the scatter within the 99 % interval of an RMS

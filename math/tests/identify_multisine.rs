@@ -1,7 +1,7 @@
 //! Periodic multisines against the truth of the element simulator: the phasors of a linear
 //! single-DOF system against its receptance at every line, the noise estimate against the
 //! noise that was added, the distortion indicator of a linear and a cubic system, a record too
-//! short to analyse, and the acceptance of issue 11: a force-driven single-DOF system with
+//! short to analyse, and the acceptance case: a force-driven single-DOF system with
 //! cubic stiffness, identified from two multisine realisations at 30 dB with its moving mass,
 //! every parameter within 1 %, and its simulation against a third, non-periodic record within
 //! 1.5 times the noise floor's NMSE.
@@ -304,7 +304,7 @@ fn simulate_under_force(model: &IdentifiedModel, mass_kg: f64, record: &Record) 
         .to_vec()
 }
 
-/// Issue 11's acceptance for multisines.
+/// The acceptance case for multisines.
 #[test]
 fn two_realisations_at_30_db_identify_the_sdof_and_predict_a_random_record() {
     let records = run(cubic_sdof(), MultisineDesign::RandomOdd, Some(30.0), 2)

@@ -182,7 +182,7 @@ fn study(snr_db: f64, drive: Option<RigDrive>) -> Study {
     }
 }
 
-/// Issue 13's acceptance: over the seeds (`SEEDS`, default 10) at 30 and 40 dB, the scatter
+/// The acceptance: over the seeds (`SEEDS`, default 10) at 30 and 40 dB, the scatter
 /// (RMS error about the truth) against the reported std and the Cramer-Rao bound. Prints the
 /// table. Asserts that the reported std is within 20 % of the bound (the fit is efficient and
 /// says so) and that the scatter is within the 99 % interval of an RMS of `SEEDS` normal

@@ -1,6 +1,6 @@
 //! The rig simulator's outputs, bit for bit: a hash of every sample (channels, trace, stuck time
 //! and events) of the runs its speed work must not change, against the hash the simulator gave
-//! before that work (session 13, at c43da81). A change of the integration that moves any output
+//! before that work (commit c43da81). A change of the integration that moves any output
 //! in its last bit fails here; a change meant to move them must say so, measure the difference
 //! against the channels' RMS, and update the hash with the reason.
 //!

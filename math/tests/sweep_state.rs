@@ -2,8 +2,7 @@
 //! `F = k x + c x' + m x''` whose displacement `x = A(t) sin(phi(t))` swells across the sweep
 //! (as a rig's relative displacement does through its resonance). In a window the velocity is
 //! `j w X + dX/dt` and the acceleration `-(w^2) X + 2 j w dX/dt + j w' X`; without the rate
-//! terms (first order in the sweep rate) k and c come out biased, which was the sweep bias of
-//! issue 11.
+//! terms (first order in the sweep rate) k and c come out biased by the sweep.
 
 use std::f64::consts::TAU;
 

@@ -12,7 +12,7 @@ use forcemap_math::sim::{
 
 /// The effects the rig evaluation plants, in the order its cases draw them: the library's
 /// effects that can show on the base-excited rig (a preload only moves its equilibrium), but
-/// not the new names of issue 13 (series compliance, drift), which only the wide forms' world
+/// not the names series compliance and drift, which only the wide forms' world
 /// plants: the exact forms' draws stay those of the published figures.
 pub(super) fn planted_effects() -> Vec<Effect> {
     Effect::ALL

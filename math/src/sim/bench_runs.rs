@@ -120,7 +120,7 @@ impl RunSpec {
     /// for validation: random-odd lines of 0.5 Hz over 4-25 Hz (around its 16 Hz resonance),
     /// 60 N RMS, nine periods of 2 s each (the first one the transient), then band-random force
     /// over the same band at the same RMS for as long; 2 kHz. What `forcemap simulate --system
-    /// shaker-sdof --excitation multisine` writes (issue 11's multisine acceptance).
+    /// shaker-sdof --excitation multisine` writes (the multisine acceptance case).
     pub fn shaker_sdof_multisine(snr_db: Option<f64>, seed: u64) -> RunSpec {
         let plan = MultisinePlan {
             base_frequency_hz: 0.5,

@@ -23,7 +23,7 @@ pub const LIBRARY_FAMILIES: [&str; 10] = [
     "sensor_lowpass",
 ];
 
-/// The effects issue 13 adds to the library by name.
+/// The effects the wide forms add to the library by name.
 pub const NEW_NAMES: [&str; 2] = ["series_compliance", "drift"];
 
 /// The out-of-library effects.

@@ -33,7 +33,7 @@ use super::{RIG_C, RIG_K};
 pub enum WorldKind {
     /// A library effect in a wider form: the right answer is its library name.
     Library,
-    /// An effect issue 13 names (`series_compliance`, `drift`) that the library may lack.
+    /// A named effect (`series_compliance`, `drift`) that the library may lack.
     NewName,
     /// Out of the library, and staying so: no library name is right.
     OutOfLibrary,

@@ -1,6 +1,6 @@
 //! Live parameters of the identifier: which parameters may change while it runs, how a new
 //! value is checked, and the re-solve of the kept phasors for a new model, method, weighting
-//! or forgetting factor (issue 12, item 3).
+//! or forgetting factor.
 
 use forcemap_io::params::ParamValue;
 use forcemap_math::identify::{Method, Weighting};
