@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Flat memory over a long 10 kHz rig run (issue 14 item 4): the simulated sensor publishes a run
+# Flat memory over a long 10 kHz rig run: the simulated sensor publishes a run
 # of STEPS 13 s sine steps (1.6-3.4 Hz, cycled) and the two band-random records, simulated while
 # published, as fast as the recorder acknowledges; the recorder writes it to a bag; the sensor
 # plays the bag back into a second recorder; `forcemap identify` reads it offline. The RSS of
