@@ -18,6 +18,7 @@ pub mod element;
 pub mod frf;
 pub mod identify;
 pub mod lstsq;
+pub mod measured_state;
 pub mod model;
 pub mod phasor;
 pub mod pipeline;

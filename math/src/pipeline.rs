@@ -16,8 +16,11 @@ use crate::sim::{ReplayOptions, RigInitial, SimError, ZeroPhaseLowpass, simulate
 
 mod broadband;
 mod element;
-pub use broadband::{SWEEP_TRANSIENT_WINDOWS, analyse_sweep_records, identify_random_records};
-pub use element::{ElementValidation, validate_element};
+pub use broadband::{
+    SWEEP_TRANSIENT_WINDOWS, analyse_sweep_records, identify_element_sample_records,
+    identify_random_records, multisine_too_short, sample_records,
+};
+pub use element::{ElementValidation, ForcedValidation, validate_element, validate_forced_element};
 
 #[derive(Debug, Error)]
 pub enum PipelineError {
@@ -32,7 +35,7 @@ pub enum PipelineError {
     #[error("validation of record {step}: channel {channel} is missing")]
     MissingChannel { step: usize, channel: &'static str },
     #[error(transparent)]
-    HeldOut(#[from] crate::diagnose::element_heldout::HeldOutError),
+    HeldOut(#[from] crate::measured_state::MeasuredStateError),
 }
 
 /// Harmonic analyses of the sine steps; steps that never settled are kept but noted.
@@ -133,7 +136,22 @@ pub fn identify_analysed(
         }));
     }
     analyses.extend(sweeps);
-    let multisines = analyse_multisine_records(records, &MultisineOptions::default())?;
+    let multisine_options = MultisineOptions::default();
+    if let Setup::Element { moving_mass_kg } = setup
+        && analyses.is_empty()
+    {
+        let sampled = sample_records(records, &multisine_options);
+        let periodic = records.iter().any(|r| {
+            matches!(r.excitation, Excitation::Multisine { .. })
+                && !multisine_too_short(r, &multisine_options)
+        });
+        if !sampled.is_empty() && !periodic {
+            let mut id = identify_element_sample_records(model, *moving_mass_kg, method, &sampled)?;
+            id.warnings.splice(0..0, notes);
+            return Ok((id, analyses));
+        }
+    }
+    let multisines = analyse_multisine_records(records, &multisine_options)?;
     if analyses.is_empty()
         && multisines.is_empty()
         && records

@@ -12,9 +12,10 @@
 use std::sync::Arc;
 
 use forcemap_math::basis::{Cubic, Displacement, SignVelocity, Term, Velocity};
-use forcemap_math::diagnose::element_heldout::{HeldOutState, TermFit};
+use forcemap_math::diagnose::element_heldout::TermFit;
 use forcemap_math::diagnose::{Effect, PhasorDiagnosis, PhasorFindings};
 use forcemap_math::element::Friction;
+use forcemap_math::measured_state::MeasuredState;
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::phasor::{
     MultisineOptions, PhasorOptions, SweepKind, analyse_multisine, analyse_record,
@@ -45,7 +46,7 @@ fn diagnose(setup: Setup, records: &[Record]) -> PhasorFindings {
 
 /// (baseline, top candidate, truth) force NMSE on the held-out record [%].
 fn held_out(f: &PhasorFindings, record: &Record, truth: &TermFit) -> [f64; 3] {
-    let state = HeldOutState::of(record).unwrap();
+    let state = MeasuredState::of(record).unwrap();
     let top = f.ranked_effects[0]
         .fit
         .as_ref()

@@ -3,13 +3,14 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Context, anyhow};
-use forcemap_math::identify::{Identification, Method, TrackPoint, rebuilt_cycle};
+use forcemap_math::identify::{Identification, Method, TrackPoint, rebuilt_cycle, records_drive};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::{HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
 use forcemap_math::recipe::Setup;
 use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind, Tracking};
 use forcemap_math::record::Excitation;
+use forcemap_math::sim::ElementDrive;
 use serde_json::json;
 
 use super::element_outputs;
@@ -186,6 +187,9 @@ struct HeldOut {
     nmse_percent: f64,
     /// RMS error of the element force [N] (element tests).
     rms_error_n: Option<f64>,
+    /// A force-driven element test's displacement simulated under the record's measured force.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    simulated: Option<pipeline::ForcedValidation>,
 }
 
 /// The identified model on every record of the `--validate` files: an element test's force
@@ -212,13 +216,25 @@ fn held_out_validations(
             let context = || format!("{file}: validating on record {}", r.step);
             let held = match setup {
                 Setup::Element { moving_mass_kg } => {
-                    let v = pipeline::validate_element(&fitted, moving_mass_kg.unwrap_or(0.0), r)
+                    // The identified mass, when it is, follows theta.
+                    let mass = moving_mass_kg.or_else(|| theta.get(model.terms.len()).copied());
+                    let v = pipeline::validate_element(&fitted, mass.unwrap_or(0.0), r)
                         .with_context(context)?;
-                    (v.nmse_percent, Some(v.rms_error_n))
+                    let forced = records_drive(&[r]) == ElementDrive::Force
+                        && !matches!(r.excitation, Excitation::Sine { .. });
+                    let simulated = if forced {
+                        Some(
+                            pipeline::validate_forced_element(model, *moving_mass_kg, theta, r)
+                                .with_context(context)?,
+                        )
+                    } else {
+                        None
+                    };
+                    (v.nmse_percent, Some(v.rms_error_n), simulated)
                 }
                 Setup::BaseExcited { mass_kg } => {
                     let v = pipeline::validate_rig(&fitted, *mass_kg, r).with_context(context)?;
-                    (v.nmse_percent, None)
+                    (v.nmse_percent, None, None)
                 }
                 Setup::DrivePoint { .. } => anyhow::bail!(
                     "{file}: --validate predicts element tests and base-excited rigs; a drive-point setup's held-out records are not predicted"
@@ -229,6 +245,7 @@ fn held_out_validations(
                 step: r.step,
                 nmse_percent: held.0,
                 rms_error_n: held.1,
+                simulated: held.2,
             });
         }
     }
@@ -237,6 +254,12 @@ fn held_out_validations(
 
 fn print_held_out(held: &[HeldOut]) {
     for h in held {
+        if let Some(s) = &h.simulated {
+            println!(
+                "held out: {} record {}: displacement simulated under the measured force: NMSE {:.2} %, RMS error {:.3e} m",
+                h.file, h.step, s.nmse_percent, s.rms_error_m
+            );
+        }
         match h.rms_error_n {
             Some(rms) => println!(
                 "held out: {} record {}: force NMSE {:.2} %, RMS error {:.3e} N",

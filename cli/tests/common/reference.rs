@@ -1,11 +1,11 @@
 //! The plain reference the real-data suite and the form-error tests score forcemap against:
 //! the time-domain least squares of a model's terms (and the moving mass) on every scored
 //! sample of the fitted records, solved by nalgebra's SVD (independent of forcemap's
-//! solvers). The states are those `--validate` predicts along (`HeldOutState`: the velocity and
+//! solvers). The states are those `--validate` predicts along (`MeasuredState`: the velocity and
 //! acceleration differentiated in the frequency domain, the ends of each record left out), so
 //! both are scored on the same samples.
 
-use forcemap_math::diagnose::element_heldout::HeldOutState;
+use forcemap_math::measured_state::MeasuredState;
 use forcemap_math::model::Model;
 use forcemap_math::pipeline::nmse_percent;
 use forcemap_math::record::Record;
@@ -13,7 +13,7 @@ use forcemap_math::record::Record;
 /// A record's regressor rows (each term at the state, then the acceleration if `with_mass`)
 /// and its measured force, over its scored samples.
 fn rows(model: &Model, with_mass: bool, r: &Record) -> (Vec<Vec<f64>>, Vec<f64>) {
-    let s = HeldOutState::of(r).expect("a record's held-out states");
+    let s = MeasuredState::of(r).expect("a record's held-out states");
     s.scored
         .clone()
         .map(|i| {

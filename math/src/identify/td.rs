@@ -1,9 +1,12 @@
 //! Classical time-domain force-state mapping (paper section 4.3): one equation per time point,
-//! m x_o''(t) = -g(x(t), x'(t)), with the velocity integrated from the relative acceleration.
+//! m x_o''(t) = -g(x(t), x'(t)) on the rig, with the velocity integrated from the relative
+//! acceleration; F(t) - m x''(t) = g(x(t), x'(t)) on an element test, along its measured state
+//! ([`MeasuredState`]).
 
 use nalgebra::{DMatrix, DVector};
 
 use super::{IdentifyError, StepEquations};
+use crate::measured_state::MeasuredState;
 use crate::model::Model;
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
@@ -64,6 +67,90 @@ pub fn td_step_equations(
     td_range_equations(model, setup, rec, start, len, points)
 }
 
+/// Evenly spaced sample indices `0..len`: `points` of them, or every one.
+fn evenly_spaced(len: usize, points: Option<usize>) -> Vec<usize> {
+    match points {
+        Some(n) if n < len => (0..n).map(|k| k * len / n).collect(),
+        _ => (0..len).collect(),
+    }
+}
+
+/// Equations of TD-FSM for an element test over samples `start..start + len` of `rec`, the
+/// scored samples of its [`MeasuredState`] only (the derivative rings at the record's ends):
+/// `F - m x'' = sum theta_i h_i(x, x')` at each sample, the moving mass a column when it is
+/// identified (`moving_mass_kg` None). Unweighted: every sample counts the same, the
+/// time-domain least squares of the force waveform.
+fn element_range_equations(
+    model: &Model,
+    moving_mass_kg: Option<f64>,
+    rec: &Record,
+    start: usize,
+    len: usize,
+    points: Option<usize>,
+) -> Result<StepEquations, IdentifyError> {
+    let step = rec.step;
+    let state = MeasuredState::of(rec).map_err(|e| IdentifyError::Step {
+        step,
+        problem: e.to_string(),
+    })?;
+    let lo = start.max(state.scored.start);
+    let hi = (start + len).min(state.scored.end);
+    if hi < lo + 2 {
+        return Err(IdentifyError::Step {
+            step,
+            problem: format!(
+                "samples {start}..{} leave fewer than 2 samples inside the record's scored part {}..{}",
+                start + len,
+                state.scored.start,
+                state.scored.end
+            ),
+        });
+    }
+    let idx: Vec<usize> = evenly_spaced(hi - lo, points)
+        .into_iter()
+        .map(|k| lo + k)
+        .collect();
+    let (x, v, a) = (
+        &state.displacement_m,
+        &state.velocity_mps,
+        &state.acceleration_mps2,
+    );
+    let p = model.terms.len();
+    let cols = p + usize::from(moving_mass_kg.is_none());
+    let rows = DMatrix::from_fn(idx.len(), cols, |r, i| {
+        let k = idx[r];
+        match model.terms.get(i) {
+            Some(t) => t.eval(x[k], v[k]),
+            None => a[k],
+        }
+    });
+    let b = DVector::from_fn(idx.len(), |r, _| {
+        let k = idx[r];
+        state.force_n[k] - moving_mass_kg.unwrap_or(0.0) * a[k]
+    });
+    let rms = |f: &dyn Fn(usize) -> f64| {
+        ((lo..hi).map(|k| f(k).powi(2)).sum::<f64>() / (hi - lo) as f64).sqrt()
+    };
+    let mut term_rms: Vec<f64> = model
+        .terms
+        .iter()
+        .map(|t| rms(&|k| t.eval(x[k], v[k])))
+        .collect();
+    if moving_mass_kg.is_none() {
+        term_rms.push(rms(&|k| a[k]));
+    }
+    Ok(StepEquations {
+        step,
+        a: rows,
+        b,
+        independent_equations: idx.len() as f64,
+        term_rms,
+        notes: vec![],
+        row_noise: Vec::new(),
+        form_variance: 0.0,
+    })
+}
+
 /// Equations of TD-FSM over samples `start..start + len` of `rec` (any excitation: the
 /// equation of motion holds at every sample, transient or not), at `points` evenly spaced
 /// samples (None = every sample of the range).
@@ -76,11 +163,17 @@ pub fn td_range_equations(
     points: Option<usize>,
 ) -> Result<StepEquations, IdentifyError> {
     let step = rec.step;
-    let Setup::BaseExcited { mass_kg } = setup else {
-        return Err(IdentifyError::Step {
-            step,
-            problem: "time-domain FSM is implemented for the base-excited rig (it needs the mass acceleration)".into(),
-        });
+    let mass_kg = match setup {
+        Setup::BaseExcited { mass_kg } => mass_kg,
+        Setup::Element { moving_mass_kg } => {
+            return element_range_equations(model, *moving_mass_kg, rec, start, len, points);
+        }
+        Setup::DrivePoint { .. } => {
+            return Err(IdentifyError::Step {
+                step,
+                problem: "time-domain FSM is implemented for the base-excited rig and the element test (the drive-point setup's element force needs the substructure's dynamics)".into(),
+            });
+        }
     };
     let need = |c: Channel| {
         rec.channel(c).ok_or_else(|| IdentifyError::Step {
@@ -104,10 +197,7 @@ pub fn td_range_equations(
         step,
         problem: "no way to get the relative velocity: need base_acceleration_mps2 or relative_displacement_m".into(),
     })?;
-    let idx: Vec<usize> = match points {
-        Some(n) if n < len => (0..n).map(|k| k * len / n).collect(),
-        _ => (0..len).collect(),
-    };
+    let idx = evenly_spaced(len, points);
     let p = model.terms.len();
     let a = DMatrix::from_fn(idx.len(), p, |r, i| {
         model.terms[i].eval(x[start + idx[r]], v[idx[r]])

@@ -87,7 +87,9 @@ pub mod sweep;
 mod types;
 
 pub use frequency::{FrequencyEstimate, drive_frequency};
-pub use multisine::{MultisineAnalysis, MultisineError, MultisineOptions, analyse_multisine};
+pub use multisine::{
+    MIN_MULTISINE_PERIODS, MultisineAnalysis, MultisineError, MultisineOptions, analyse_multisine,
+};
 pub use multisine_lines::{
     band_disagreement, excited_lines, excited_lines_of, find_multisine_lines,
 };

@@ -1,13 +1,21 @@
 //! Records that are not steps: sine sweeps (cut into windows by the short-time harmonic
-//! analysis, each window then a step at the sweep's frequency there) and band-random records
-//! identified in the time domain when a run has nothing else to identify from.
+//! analysis, each window then a step at the sweep's frequency there), and band-random records
+//! (and an element test's multisines too short to average periods of) identified in the time
+//! domain, or by output error on an element test, when a run has nothing else to identify
+//! from.
 
 use super::PipelineError;
-use crate::identify::{self, IdentifyError, Method, StepEquations, td_range_equations};
+use crate::identify::{
+    self, ForcedRecordsOutputError, IdentifyError, Method, StepEquations, records_drive,
+    td_range_equations,
+};
 use crate::model::Model;
-use crate::phasor::{HarmonicAnalysis, SweepOptions, analyse_sweep};
+use crate::phasor::{
+    HarmonicAnalysis, MIN_MULTISINE_PERIODS, MultisineOptions, SweepOptions, analyse_sweep,
+};
 use crate::recipe::Setup;
 use crate::record::{Excitation, Record};
+use crate::sim::ElementDrive;
 
 /// Leading windows of each sweep record left out of the equations: the first holds the
 /// transient of the start (the drive starts at full amplitude from rest). On the paper's rig
@@ -76,4 +84,88 @@ pub fn identify_random_records(
         .map(|r| td_range_equations(model, setup, r, 0, r.len(), points_per_step))
         .collect::<Result<Vec<StepEquations>, _>>()?;
     Ok(identify::solve_blocks(model, setup, method, &blocks)?)
+}
+
+/// Whether a multisine record is too short for the periodic analysis (its transient periods
+/// and [`MIN_MULTISINE_PERIODS`] more): an element test identifies it as a record of any
+/// excitation.
+pub fn multisine_too_short(r: &Record, options: &MultisineOptions) -> bool {
+    match &r.excitation {
+        Excitation::Multisine {
+            base_frequency_hz, ..
+        } => {
+            let periods = r.len() as f64 * base_frequency_hz / r.sample_rate_hz;
+            periods + 1e-9 < (options.transient_periods + MIN_MULTISINE_PERIODS) as f64
+        }
+        _ => false,
+    }
+}
+
+/// The records an element test identifies sample by sample: band-random records and
+/// multisines too short for the periodic analysis.
+pub fn sample_records<'a>(records: &'a [Record], options: &MultisineOptions) -> Vec<&'a Record> {
+    records
+        .iter()
+        .filter(|r| {
+            matches!(r.excitation, Excitation::Random { .. }) || multisine_too_short(r, options)
+        })
+        .collect()
+}
+
+/// Identifies an element test's `model` on `records` (none of them sine steps, sweeps or
+/// periodic multisines) over all their samples: the time-domain fit of the force along the
+/// measured motion, then, unless `method` is the time-domain one, output error
+/// ([`ForcedRecordsOutputError`]) when the records say the force was the drive
+/// ([`records_drive`]); with a displacement drive the time-domain fit is the output-error
+/// estimate already (the force is the output, linear in theta).
+pub fn identify_element_sample_records(
+    model: &Model,
+    moving_mass_kg: Option<f64>,
+    method: Method,
+    records: &[&Record],
+) -> Result<identify::Identification, PipelineError> {
+    let setup = Setup::Element { moving_mass_kg };
+    let td = Method::Td {
+        points_per_step: None,
+    };
+    let (fit_method, points) = match method {
+        Method::Td { points_per_step } => (method, points_per_step),
+        _ => (td, None),
+    };
+    let blocks = records
+        .iter()
+        .map(|r| td_range_equations(model, &setup, r, 0, r.len(), points))
+        .collect::<Result<Vec<StepEquations>, _>>()?;
+    let start = identify::solve_blocks(model, &setup, fit_method, &blocks)?;
+    if matches!(method, Method::Td { .. }) {
+        return Ok(start);
+    }
+    let chosen = match method {
+        Method::OutputError => "",
+        _ => " (chosen: the records have no steps for the frequency-domain methods)",
+    };
+    let mut id = match records_drive(records) {
+        ElementDrive::Displacement => {
+            let mut id = start;
+            id.method = Method::OutputError.name();
+            id.warnings.push(format!(
+                "output error{chosen}: the displacement is the drive, so the model's output is the force along the measured motion, linear in theta: its least squares over every sample of {} record(s)",
+                records.len()
+            ));
+            return Ok(id);
+        }
+        ElementDrive::Force => {
+            ForcedRecordsOutputError::new(model, moving_mass_kg, records)?.fit(&start)?
+        }
+    };
+    if !chosen.is_empty()
+        && let Some(w) = id
+            .warnings
+            .iter_mut()
+            .rev()
+            .find(|w| w.starts_with("output error: the mass simulated"))
+    {
+        w.insert_str("output error".len(), chosen);
+    }
+    Ok(id)
 }

@@ -1,14 +1,16 @@
 //! An identified element model on held-out element-test records: its force predicted along
 //! each record's measured motion (the force law on the measured displacement and its
 //! zero-phase velocity, plus the moving mass times the acceleration), as the diagnosis predicts
-//! its held-out records ([`HeldOutState`]), scored by the NMSE of eq. 27 and the RMS error.
+//! its held-out records ([`MeasuredState`]), scored by the NMSE of eq. 27 and the RMS error.
 
 use serde::Serialize;
 
 use super::{PipelineError, nmse_percent};
-use crate::diagnose::element_heldout::{HeldOutState, TermFit};
-use crate::model::IdentifiedModel;
-use crate::record::Record;
+use crate::diagnose::element_heldout::TermFit;
+use crate::identify::ForcedRecordsOutputError;
+use crate::measured_state::MeasuredState;
+use crate::model::{IdentifiedModel, Model};
+use crate::record::{Channel, Record};
 
 /// The prediction of an element model on one held-out record.
 #[derive(Debug, Clone, Serialize)]
@@ -23,7 +25,7 @@ pub struct ElementValidation {
 }
 
 /// Predicts the force of `record` (an element test's: relative displacement and force) with
-/// `model` behind a moving mass of `moving_mass_kg` ([`HeldOutState`]: the velocity and, where
+/// `model` behind a moving mass of `moving_mass_kg` ([`MeasuredState`]: the velocity and, where
 /// the record measures none, the acceleration from the displacement differentiated in the
 /// frequency domain up to 4 times its highest excitation frequency; the first and last 5 %
 /// left out).
@@ -32,7 +34,7 @@ pub fn validate_element(
     moving_mass_kg: f64,
     record: &Record,
 ) -> Result<ElementValidation, PipelineError> {
-    let state = HeldOutState::of(record)?;
+    let state = MeasuredState::of(record)?;
     let fit = TermFit {
         terms: model.model.terms.clone(),
         theta: model.theta.clone(),
@@ -60,6 +62,46 @@ pub fn validate_element(
         nmse_percent: nmse_percent(measured, &predicted),
         rms_error_n: (sse / measured.len() as f64).sqrt(),
         samples: measured.len(),
+    })
+}
+
+/// The simulated displacement of an element model on one held-out force-driven record.
+#[derive(Debug, Clone, Serialize)]
+pub struct ForcedValidation {
+    pub step: usize,
+    /// 100 % * sum (x - x^)^2 / (N var(x)) of the measured displacement.
+    pub nmse_percent: f64,
+    /// RMS of x - x^ [m].
+    pub rms_error_m: f64,
+}
+
+/// Simulates the mass of a force-driven element test (`moving_mass_kg`, or the identified
+/// mass after theta in `element` when None) under `record`'s measured force from the initial
+/// state that fits the record best with the parameters held
+/// ([`ForcedRecordsOutputError::predict`]), and scores its displacement.
+pub fn validate_forced_element(
+    model: &Model,
+    moving_mass_kg: Option<f64>,
+    element: &[f64],
+    record: &Record,
+) -> Result<ForcedValidation, PipelineError> {
+    let predicted = ForcedRecordsOutputError::predict(model, moving_mass_kg, element, record)?;
+    let measured =
+        record
+            .channel(Channel::RelativeDisplacementM)
+            .ok_or(PipelineError::MissingChannel {
+                step: record.step,
+                channel: Channel::RelativeDisplacementM.name(),
+            })?;
+    let sse: f64 = measured
+        .iter()
+        .zip(&predicted)
+        .map(|(x, p)| (x - p).powi(2))
+        .sum();
+    Ok(ForcedValidation {
+        step: record.step,
+        nmse_percent: nmse_percent(measured, &predicted),
+        rms_error_m: (sse / measured.len() as f64).sqrt(),
     })
 }
 

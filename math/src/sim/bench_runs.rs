@@ -144,6 +144,45 @@ impl RunSpec {
         spec
     }
 
+    /// A force-driven Duffing oscillator on a shaker measured with one-period multisines: 2 kg
+    /// on 40 000 N/m with cubic stiffness 2e9 N/m^3 and 60 N s/m (22.5 Hz, 10.6 % of
+    /// critical), six one-period random-phase multisines of 40 N RMS on every 0.5 Hz line from
+    /// 5 to 60 Hz, back to back at 1 kHz (the first from rest, the others where the last one
+    /// left the mass), so no record has settled periods: records for output error
+    /// ([`crate::identify::ForcedRecordsOutputError`]). The `cubic` model's truth is
+    /// [`RunSpec::SHAKER_DUFFING_THETA`].
+    pub fn shaker_duffing_one_period(snr_db: Option<f64>, seed: u64) -> RunSpec {
+        let [(_, k), (_, c), (_, s)] = RunSpec::SHAKER_DUFFING_THETA;
+        let element = TruthElement {
+            cubic_stiffness_n_per_m3: s,
+            ..TruthElement::linear(k, c)
+        };
+        let step = StepSpec::Multisine {
+            base_frequency_hz: 0.5,
+            low_hz: 5.0,
+            high_hz: 60.0,
+            rms: 40.0,
+            design: MultisineDesign::Full,
+        };
+        RunSpec {
+            snr_db,
+            seed,
+            ..RunSpec::element_test(
+                ElementDrive::Force,
+                2.0,
+                element,
+                vec![step; 6],
+                1000.0,
+                2000,
+            )
+        }
+    }
+
+    /// The `cubic` model's parameters of [`RunSpec::shaker_duffing_one_period`] (its moving mass
+    /// is 2 kg).
+    pub const SHAKER_DUFFING_THETA: [(&'static str, f64); 3] =
+        [("k", 4.0e4), ("c", 60.0), ("s", 2.0e9)];
+
     /// The paper's rig driven by one sine sweep over the stepped sine's band and time: 1.6 to
     /// 3.4 Hz at 6 mm in 130 s (the ten 13 s steps), `kind` linear or logarithmic; with
     /// `validation`, then the two band-random validation records of the paper run (each as long

@@ -22,7 +22,10 @@ mod stream;
 pub mod three_dof;
 pub mod truth;
 
-pub use element::{ELEMENT_CHANNELS, ElementDrive, simulate_element};
+pub use element::{
+    ELEMENT_CHANNELS, ElementDrive, ForcedInitial, ForcedResponse, simulate_element,
+    simulate_on_sampled_force,
+};
 pub use excitation::{Derivs, Multisine, Program, StepSpec};
 pub use hybrid::SolverOptions;
 pub use periodic_multisine::{MultisineDesign, MultisinePlan};

@@ -4,9 +4,9 @@
 //! cross-validated by leaving each step out.
 
 use anyhow::Context as _;
-use forcemap_math::diagnose::element_heldout::{HeldOutState, excitation_kind};
 use forcemap_math::diagnose::{PhasorDiagnosis, PhasorFindings};
 use forcemap_math::identify::{FdMultiOptions, Method, Weighting};
+use forcemap_math::measured_state::{MeasuredState, excitation_kind};
 use forcemap_math::model::Model;
 use forcemap_math::phasor::MultisineOptions;
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
@@ -74,7 +74,7 @@ fn held_out(f: &PhasorFindings, records: &[&Record]) -> anyhow::Result<Vec<HeldO
     records
         .iter()
         .map(|r| {
-            let state = HeldOutState::of(r)?;
+            let state = MeasuredState::of(r)?;
             Ok(HeldOut {
                 step: r.step,
                 excitation: excitation_kind(&r.excitation),

@@ -15,8 +15,11 @@
 //! - the element test ([`element_test`]): x, F and the mass acceleration, the element driven by
 //!   a fitted sine per step of its stroke (damper dyno) or of its force (shaker), whichever
 //!   channel is the purer sine.
+//! - element-test records of any excitation, with no steps ([`element_records`]): the mass
+//!   simulated under the measured force, each record from its fitted initial state.
 
 mod element;
+pub mod element_records;
 pub mod element_test;
 mod lm;
 pub mod rig;
@@ -29,6 +32,7 @@ use crate::recipe::Setup;
 use crate::record::{Channel, Record};
 use crate::sim::excitation::{Piece, PiecewiseSignal};
 
+pub use element_records::{ForcedRecordsOutputError, records_drive};
 pub use element_test::{ElementOutputError, element_drive_of};
 pub use rig::{RigDrive, RigMisfit, RigOutputError};
 
