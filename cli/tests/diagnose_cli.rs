@@ -1,5 +1,5 @@
 //! `forcemap diagnose` and `forcemap diagnose-eval` at the process boundary: the demo names
-//! coulomb_friction, the JSON keys the issue lists, the report files (written atomically), and
+//! coulomb_friction, the JSON keys of the diagnosis, the report files (written atomically), and
 //! clear errors with nothing half-written.
 #![allow(
     clippy::unwrap_used,

@@ -1,7 +1,7 @@
 //! A stiffness neighbour second: with a hardening spring drawn wider than the candidate's x^3
 //! (an x^5 share), cubic stiffness with quadratic stiffness fits the spring's form better than
-//! either alone, and that pair took the first two places where a distinct second effect was
-//! planted (`diagnose-eval --forms wide --seed 2`, cases 170 and 177). The second effect is now
+//! either alone, so that pair would take the first two places where a distinct second effect is
+//! planted (`diagnose-eval --forms wide --seed 2`, cases 170 and 177). The second effect is
 //! searched beside the two (`pairs::beside_neighbour`): the planted one ranks second, the
 //! neighbour is reported as the widened form of the first.
 #![allow(

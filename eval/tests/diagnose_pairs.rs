@@ -117,11 +117,11 @@ fn one_effect_alone_is_not_named_as_a_pair() {
 }
 
 /// `diagnose-eval --forms wide --seed 3` case 225: a free play (1.7 and 2.1 mm) beside a
-/// spring growing as x^2.23. The forward pair with quadratic stiffness on top found free play
-/// (cross-validated step error 1.36 %); the exchange then put free play with x^3 in its place
-/// for 0.001 %-points of penalised held-out NMSE, though its step error was 2.20 %. The
-/// exchange now keeps the best pair by the forward pairs' own rule: tied on the held-out
-/// records, the steps decide.
+/// spring growing as x^2.23. The forward pair with quadratic stiffness on top finds free play
+/// (cross-validated step error 1.36 %); free play with x^3 beats it by 0.001 %-points of
+/// penalised held-out NMSE with a step error of 2.20 %. The exchange keeps the best pair by the
+/// forward pairs' own rule: tied on the held-out records, the steps decide, so the forward pair
+/// stays.
 #[test]
 fn the_exchange_does_not_replace_a_pair_the_steps_prefer_for_a_hair_on_the_held_out_records() {
     let d = diagnosed(

@@ -266,10 +266,10 @@ fn stribeck_friction_refitted_by_output_error_is_named() {
 }
 
 /// An exciter with its own resonance (10.4 Hz, damping ratio 0.23; out of the library)
-/// amplifies the base the rig receives below its resonance, 1.11 times at 3.4 Hz. The delay
-/// fitted to the kinematic identity's phases made the rig's prediction good enough to name
+/// amplifies the base the rig receives below its resonance, 1.11 times at 3.4 Hz. A delay
+/// fitted to the kinematic identity's phases makes the rig's prediction good enough to name
 /// exciter_delay with confidence (3.44 % -> 0.87 %); a delay never amplifies, so the candidate
-/// is no longer offered and the gap stays unexplained. Case 172 of `forcemap diagnose-eval
+/// is not offered and the gap stays unexplained. Case 172 of `forcemap diagnose-eval
 /// --forms wide --seed 1`.
 #[test]
 fn an_exciter_resonance_is_not_named_exciter_delay() {

@@ -1,7 +1,7 @@
 //! A second-order sensor filter on every channel near the top excitation frequency (wide seed 2
-//! case 47, seed 3 case 159): undone on the held-out records by central differences it lost to
-//! the baseline there (two central differences fall 8 % short at 8 Hz, where x'' / wc^2
-//! dominates the undo), and its grid member (3.4 Hz, damping 0.7) left a lag. Undone by
+//! case 47, seed 3 case 159): undone on the held-out records by central differences it would
+//! lose to the baseline there (two central differences fall 8 % short at 8 Hz, where x'' /
+//! wc^2 dominates the undo), and its grid member (3.4 Hz, damping 0.7) leaves a lag. Undone by
 //! sixth-order stencils and refined on the sine steps (`sensor::refine_on_every_channel`), the
 //! member is named, its cutoff near the planted one.
 #![allow(

@@ -61,7 +61,8 @@ fn least_squares_fit_lands_near_the_published_parameters() {
 
 #[test]
 fn a_position_cutoff_below_the_decimation_band_still_gives_the_parameters() {
-    // The brief's 20-30 Hz: the parameters stay within 1 %, only the force error grows.
+    // A position cutoff of 25 Hz (within 20-30 Hz): the parameters stay within 1 %, only the
+    // force error grows.
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/real/emps");
     if !dir.join("DATA_EMPS.mat").is_file() {
         eprintln!("skipped: {} does not exist", dir.display());

@@ -114,7 +114,7 @@ fn a_subscriber_behind_by_three_writer_depths_loses_no_sample() {
         );
         assert!(
             shallow_got.len() <= qos::SAMPLES_DEPTH + 64 && shallow_got.len() < SAMPLES,
-            "a reader with the writer's depth kept {} of {SAMPLES} untaken samples: the cache no longer evicts unread samples, so the readers' deeper history may no longer be needed",
+            "a reader with the writer's depth kept {} of {SAMPLES} untaken samples: the cache does not evict unread samples here, so the readers' deeper history may not be needed",
             shallow_got.len()
         );
     });

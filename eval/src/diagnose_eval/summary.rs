@@ -109,7 +109,7 @@ pub struct EvalSummary {
     pub shrink_baseline_diverged: usize,
     /// Rows: planted; columns: named ("adequate", "unexplained" or an effect); counts.
     pub confusion: BTreeMap<String, BTreeMap<String, usize>>,
-    /// The pairs the issue names as confusable, over single-effect cases at every SNR.
+    /// The pairs of effects most easily confused, over single-effect cases at every SNR.
     pub confusable_pairs: Vec<ConfusablePair>,
     pub lower_snr_db: f64,
 }

@@ -15,7 +15,7 @@ use crate::model::Model;
 use crate::recipe::SetupKind;
 use crate::signal::bouc_wen::HysteresisLaw;
 
-/// A candidate unmodelled effect, named as the issue names them.
+/// A candidate unmodelled effect, by the name the diagnosis reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Effect {

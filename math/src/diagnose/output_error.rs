@@ -43,10 +43,9 @@ pub const OUTPUT_ERROR_EFFECTS: [Effect; 2] = [Effect::CoulombFriction, Effect::
 
 /// Candidates among this many of the top of the held-out ranking are refitted (each refit runs
 /// tens of simulations of the sine steps, seconds each on the wide forms' rig); below them, only a
-/// friction candidate whose phasor fit shows a Stribeck excess ([`excess_shown`]). Four since
-/// `drift` and `series_compliance` joined the library: each adds a parameter that buys a little
-/// on any gap, enough to push an underestimated Stribeck friction (phasor fit) from third to
-/// fourth place.
+/// friction candidate whose phasor fit shows a Stribeck excess ([`excess_shown`]). Four, not
+/// three: `drift` and `series_compliance` each add a parameter that buys a little on any gap,
+/// enough to push an underestimated Stribeck friction (phasor fit) from third to fourth place.
 pub const OUTPUT_ERROR_TOP: usize = 4;
 
 /// The RK4 sub-step of the refits' simulations (the truth simulators take 0.1 ms). Candidates
@@ -100,9 +99,9 @@ fn model_of(baseline: &Model, s: &Structure) -> Model {
 }
 
 /// Fits baseline + `fitted`'s structure by output error from `fitted`'s parameters; the
-/// fitted parameters in `fitted`'s form (least-squares std dropped: the phasor fit's no longer
-/// apply) and the misfit. Structures with a hysteresis state or a channel transform are not
-/// run by the output-error simulator (an error).
+/// fitted parameters in `fitted`'s form (least-squares std dropped: the phasor fit's do not
+/// apply to the refit) and the misfit. Structures with a hysteresis state or a channel
+/// transform are not run by the output-error simulator (an error).
 pub fn refit(
     steps: &SineSteps,
     baseline: &Model,

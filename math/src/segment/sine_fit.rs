@@ -292,8 +292,8 @@ fn cost_of(x: &[f64], phases: &[(f64, f64)], [dc, a, b]: [f64; 3]) -> f64 {
 mod tests {
     use super::*;
 
-    /// The fit as it was written before the phases were shared: every linear fit, cost and
-    /// normal matrix computes its own `sin_cos` of every sample.
+    /// The fit without shared phases, the reference the shared ones are checked against: every
+    /// linear fit, cost and normal matrix computes its own `sin_cos` of every sample.
     fn reference_fit(x: &[f64], omega0: f64, max_iterations: usize) -> Option<[f64; 6]> {
         let n = x.len();
         let centre = (n as f64 - 1.0) / 2.0;

@@ -340,9 +340,9 @@ impl<'a> RigOutputError<'a> {
 
     /// Fits the model's parameters from `theta`, the channels weighted by their measured noise
     /// throughout (a refinement re-estimates the weights from its own misfit, which makes every
-    /// model's misfit about 1: no longer comparable between models). Each pass re-masks the
-    /// samples next to the simulation's events ([`RigOutputError::masked_at`]); the misfit is
-    /// that of the last pass's mask.
+    /// model's misfit about 1, so that misfits could not be compared between models). Each pass
+    /// re-masks the samples next to the simulation's events ([`RigOutputError::masked_at`]); the
+    /// misfit is that of the last pass's mask.
     pub fn compare(&self, theta: &[f64]) -> Result<RigMisfit, IdentifyError> {
         let p_model = self.p_model();
         let full = self.start(theta);

@@ -162,7 +162,8 @@ impl<H: Hybrid> Integrator<'_, H> {
     /// Integrates `y` over the node interval `[t, tn]` (inputs from the pieces at `t_ref`):
     /// one exact step, one linear sub-step, or sub-steps with event location. Inlined for the
     /// one linear sub-step of a 10 kHz sample; the sub-steps with events are a call of their
-    /// own (inlined twice with them, the 3-DOF run's `advance` was no longer inlined: +1.5 %).
+    /// own (inlined twice with them, they keep the 3-DOF run's `advance` from being inlined:
+    /// +1.5 % instructions).
     #[allow(
         clippy::too_many_arguments,
         reason = "the node loop's state, passed through"

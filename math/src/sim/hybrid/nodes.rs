@@ -4,7 +4,8 @@
 /// RK4 sub-steps of an interval of length `d` with sub-steps of at most `max_s`: `ceil(d /
 /// max_s)`, but one for an interval as long as `max_s` but for the rounding of the sample times
 /// (`(i + 1) / fs - i / fs` exceeds `1 / fs` in its last bits for about half the intervals: at
-/// 10 kHz with 0.1 ms sub-steps they were split in two, 1.3 to 1.6 sub-steps per sample).
+/// 10 kHz with 0.1 ms sub-steps `ceil` alone would split them in two, 1.3 to 1.6 sub-steps per
+/// sample).
 pub(super) fn substeps(d: f64, max_s: f64) -> usize {
     if d <= max_s * (1.0 + 1e-9) {
         return 1;

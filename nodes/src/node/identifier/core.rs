@@ -438,7 +438,7 @@ pub(super) fn solve_state(
     st.solve_with_flags(sines, model, &options)
 }
 
-/// Below this weight a step no longer changes theta in double precision: with forgetting, the
+/// Below this weight a step does not change theta in double precision: with forgetting, the
 /// phasors of older steps are let go, so that a tracking identifier's memory stays flat.
 const NEGLIGIBLE_STEP_WEIGHT: f64 = 1e-16;
 
