@@ -5,13 +5,13 @@
 //! every scored sample of the same fitted tests (`common/reference.rs`). The target is a mean
 //! held-out force NMSE no worse than the reference's on every set and model; where forcemap
 //! misses it, the bound below is the measured ratio with a 5 % margin, so that the gap can
-//! only close. On the second UTFSM split each test counts once in `fd-multi` (its steady
-//! periods, weighted by its form error) but by its samples in the least squares (the 0.1 Hz
-//! test holds 19 035 of its 28 007), and the held-out 25 mm test is like that one; on the
-//! Labcontrol damper fd-multi takes each velocity reversal out of theta's fit (a window
-//! widened by the quantised displacement's noise), where a real damper's force passes through
-//! its yield; its `linear` model has no offset for the damper's 110 N preload, and where that
-//! misfit goes differs between the two fits (not analysed further).
+//! only close. On every split the model's form is not the damper's (the fit misses by far
+//! more than the noise), so `identify` chooses between fd-multi and the time-domain least
+//! squares by leave-one-step-out prediction (`pipeline::choose_estimator`): fd-multi on the
+//! first UTFSM split (better than the reference), the least squares on the others (the
+//! reference's own estimate), except the second UTFSM split's `linear` model, where three
+//! steps are too few for the choice: fd-multi predicts the left-out steps better (30.6 %
+//! against 35.8 %) but the held-out tests worse.
 //!
 //! `cargo test -p forcemap_cli --test real_data_suite -- --nocapture` prints the table of
 //! docs/results.md.
@@ -57,16 +57,15 @@ const SPLITS: &[Split] = &[
     },
     Split {
         name: "UTFSM MR damper, 0 A: 25 mm at 0.1 and 0.5 Hz, 5 mm at 3 Hz / the others",
-        // Measured 1.23 and 1.55.
-        max_ratio: [1.29, 1.63],
+        // `linear` measured 1.55.
+        max_ratio: [1.0, 1.63],
         dir: "mr_damper_utfsm",
         fit: &["25mm0x1Hz0A.txt", "25mm0x5Hz0A.txt", "5mm3Hz0A.txt"],
         held: &["2mm5Hz0A.txt", "10mm1Hz0A.txt", "25mm0x25Hz0A.txt"],
     },
     Split {
         name: "Labcontrol MR damper, 0 V: odd tests / even tests",
-        // Measured 1.27 and 1.30.
-        max_ratio: [1.33, 1.37],
+        max_ratio: [1.0, 1.0],
         dir: "labcontrol_mr_shaketable",
         fit: &[
             "ensaio1.1.mat",
@@ -188,7 +187,8 @@ fn forcemap_predicts_real_held_out_tests_beside_least_squares() {
                 fmt(&ours),
                 fmt(&reference)
             );
-            if ratio > max_ratio {
+            // The least squares, where chosen, is the reference's estimate to round-off.
+            if ratio > max_ratio * (1.0 + 1e-9) {
                 worse.push(format!(
                     "{} `{name}`: {ratio:.3} (at most {max_ratio})",
                     split.name

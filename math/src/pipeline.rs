@@ -16,11 +16,13 @@ use crate::sim::{ReplayOptions, RigInitial, SimError, ZeroPhaseLowpass, simulate
 
 mod broadband;
 mod element;
+mod estimator_choice;
 pub use broadband::{
     SWEEP_TRANSIENT_WINDOWS, analyse_sweep_records, identify_element_sample_records,
     identify_random_records, multisine_too_short, sample_records,
 };
 pub use element::{ElementValidation, ForcedValidation, validate_element, validate_forced_element};
+pub use estimator_choice::{MIN_CROSS_VALIDATION_STEPS, choose_estimator};
 
 #[derive(Debug, Error)]
 pub enum PipelineError {
@@ -163,7 +165,8 @@ pub fn identify_analysed(
         return Ok((id, analyses));
     }
     let mut id = if multisines.is_empty() {
-        identify::identify(model, setup, method, records, &analyses, fd_options)?
+        let id = identify::identify(model, setup, method, records, &analyses, fd_options)?;
+        choose_estimator(model, setup, method, records, &analyses, fd_options, id)?
     } else {
         identify::identify_with_multisines(
             model,

@@ -53,8 +53,9 @@ fn relative_velocity(rec: &Record, start: usize, len: usize) -> Option<Vec<f64>>
     }
 }
 
-/// Equations of one step for TD-FSM over the settled part found by the harmonic analysis,
-/// at `points` evenly spaced samples (None = every settled sample).
+/// Equations of one step for TD-FSM over the settled part found by the harmonic analysis (an
+/// element test's sine step: its whole record), at `points` evenly spaced samples (None =
+/// every sample of that part).
 pub fn td_step_equations(
     model: &Model,
     setup: &Setup,
@@ -62,6 +63,14 @@ pub fn td_step_equations(
     an: &HarmonicAnalysis,
     points: Option<usize>,
 ) -> Result<StepEquations, IdentifyError> {
+    // An element's force law holds at every sample, settled or not, and its state is
+    // measured: a sine step's whole record counts (a sweep's windows are its parts). The rig's
+    // velocity is integrated over the settled part, whose mean and drift it removes.
+    if matches!(setup, Setup::Element { .. })
+        && matches!(rec.excitation, crate::record::Excitation::Sine { .. })
+    {
+        return td_range_equations(model, setup, rec, 0, rec.len(), points);
+    }
     let start = an.first_settled_sample.min(rec.len());
     let len = an.samples_used.min(rec.len() - start);
     td_range_equations(model, setup, rec, start, len, points)
