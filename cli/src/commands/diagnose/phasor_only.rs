@@ -42,15 +42,30 @@ fn with_known_extras(
         },
     )
     .context("identifying the moving mass with the baseline")?;
-    let extras = id.extra_values(setup);
-    let note = setup
+    let mut extras = id.extra_values(setup);
+    let first = id.parameters.len() - extras.len();
+    let notes: Vec<String> = setup
         .extra_parameters()
         .iter()
-        .zip(&extras)
-        .map(|(n, v)| format!("{n} = {v:.4} identified with the baseline, then held"))
-        .collect::<Vec<_>>()
-        .join(", ");
-    Ok((setup.with_extra_values(&extras), Some(note)))
+        .zip(extras.iter_mut())
+        .zip(&id.parameters[first..])
+        .map(|((n, v), p)| {
+            // A mass below zero is no mass: the baseline's missing terms went into it (a
+            // friction's force correlates with -x'' on a sine), and every candidate would
+            // inherit it.
+            if *v < 0.0 {
+                let note = format!(
+                    "{n} = {:.4} +/- {:.1e} identified with the baseline is negative (the baseline's missing terms went into it): held at 0; give the moving mass (--mass-kg) if it is known",
+                    *v, p.std
+                );
+                *v = 0.0;
+                note
+            } else {
+                format!("{n} = {v:.4} identified with the baseline, then held")
+            }
+        })
+        .collect();
+    Ok((setup.with_extra_values(&extras), Some(notes.join(", "))))
 }
 
 /// One held-out record's force NMSE with the baseline and with the top candidate.
