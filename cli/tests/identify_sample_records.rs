@@ -52,7 +52,7 @@ fn one_period_multisines_of_a_force_driven_system_are_identified_by_output_error
     }
     let warnings = id["warnings"].to_string();
     assert!(
-        warnings.contains("output error (chosen: the records have no steps"),
+        warnings.contains("output error chosen: the records have no steps"),
         "{warnings}"
     );
     // The held-out record: its displacement simulated under its measured force misses by

@@ -150,7 +150,8 @@ fn a_dyno_sweep_identifies_the_damper_and_its_fixture_mass() {
 /// from the CSV and from the bag alike. TD-FSM puts the stick phases (x' = 0, where sgn(x')
 /// cannot represent the friction force) into its equations, so c and F_d are biased even
 /// noise-free (measured: k -0.75, c +11.1, F_d -28.3 %); the bounds guard that it stays the
-/// baseline it is, and that the record is identified at all. fd-multi is refused naming td.
+/// baseline it is, and that the record is identified at all. Without a method the record is
+/// identified by output error, which simulates the stick phases exactly.
 #[test]
 fn a_rig_random_record_is_identified_in_the_time_domain() {
     let dir = tempfile::tempdir().unwrap();
@@ -181,6 +182,9 @@ fn a_rig_random_record_is_identified_in_the_time_domain() {
         );
     }
 
+    // Without a method, output error from td-all's estimate: the rig simulated under the
+    // record's measured base displacement with exact stick-slip (measured: k -0.0001, c
+    // -0.0005, F_d -0.0003 %, the base's bins above 4 times the band dropped).
     let o = forcemap(&[
         "identify",
         csv.to_str().unwrap(),
@@ -188,12 +192,22 @@ fn a_rig_random_record_is_identified_in_the_time_domain() {
         "coulomb",
         "--mass-kg",
         "36",
+        "--json",
     ]);
-    assert!(!o.status.success());
-    let e = stderr(&o);
-    assert!(
-        e.contains("only random records") && e.contains("td-all"),
-        "{e}"
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["method"], "output-error", "{v}");
+    let found: Vec<f64> = v["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["value"].as_f64().unwrap())
+        .collect();
+    check(
+        "rig random output error (csv)",
+        &found,
+        &RIG_TRUTH,
+        &[0.01, 0.01, 0.01],
     );
 }
 

@@ -32,7 +32,7 @@ pub enum MeasuredStateError {
     )]
     MissingChannel { step: usize, channel: &'static str },
     #[error(
-        "record {step}: the {kind} record's displacement and force do not move (no band to differentiate the displacement in)"
+        "record {step}: nothing in the {kind} record moves (no band to differentiate the displacement in)"
     )]
     NoBand { step: usize, kind: &'static str },
     #[error("record {step}: too short ({samples} samples)")]
@@ -148,6 +148,23 @@ pub fn white_noise_std_above(y: &[f64], sample_rate_hz: f64, cutoff_hz: f64) -> 
     Some((power / count / n as f64).sqrt())
 }
 
+/// The highest excitation frequency of record `r` [Hz]: its label's, or, where the label gives
+/// none, the highest frequency below which [`BAND_POWER_SHARE`] of the power of one of
+/// `channels` lies.
+pub fn top_frequency_hz(r: &Record, channels: &[&[f64]]) -> Result<f64, MeasuredStateError> {
+    if let Some(top) = labelled_top_frequency_hz(r) {
+        return Ok(top);
+    }
+    channels
+        .iter()
+        .filter_map(|y| power_band_top_hz(y, r.sample_rate_hz, BAND_POWER_SHARE))
+        .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.max(t))))
+        .ok_or(MeasuredStateError::NoBand {
+            step: r.step,
+            kind: excitation_kind(&r.excitation),
+        })
+}
+
 impl MeasuredState {
     pub fn of(r: &Record) -> Result<MeasuredState, MeasuredStateError> {
         let step = r.step;
@@ -165,20 +182,8 @@ impl MeasuredState {
             return Err(MeasuredStateError::TooShort { step, samples: n });
         }
         let fs = r.sample_rate_hz;
-        let (top, band_estimated) = match labelled_top_frequency_hz(r) {
-            Some(top) => (top, false),
-            None => {
-                let top = [x, f]
-                    .iter()
-                    .filter_map(|y| power_band_top_hz(y, fs, BAND_POWER_SHARE))
-                    .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.max(t))))
-                    .ok_or(MeasuredStateError::NoBand {
-                        step,
-                        kind: excitation_kind(&r.excitation),
-                    })?;
-                (top, true)
-            }
-        };
+        let band_estimated = labelled_top_frequency_hz(r).is_none();
+        let top = top_frequency_hz(r, &[x, f])?;
         let cutoff = CUTOFF_MULTIPLE * top;
         let measured_a = r.channel(Channel::MassAccelerationMps2);
         Ok(MeasuredState {

@@ -6,7 +6,7 @@
 
 use super::PipelineError;
 use crate::identify::{
-    self, ForcedRecordsOutputError, IdentifyError, Method, StepEquations, records_drive,
+    self, IdentifyError, Method, RecordsOutputError, StepEquations, records_drive,
     td_range_equations,
 };
 use crate::model::Model;
@@ -16,6 +16,10 @@ use crate::phasor::{
 use crate::recipe::Setup;
 use crate::record::{Excitation, Record};
 use crate::sim::ElementDrive;
+
+/// What `identify` says when it runs output error without being told.
+pub const OUTPUT_ERROR_CHOSEN: &str =
+    "output error chosen: the records have no steps for the frequency-domain methods";
 
 /// Leading windows of each sweep record left out of the equations: the first holds the
 /// transient of the start (the drive starts at full amplitude from rest). On the paper's rig
@@ -54,9 +58,11 @@ pub fn analyse_sweep_records(records: &[Record]) -> Result<Vec<HarmonicAnalysis>
     Ok(out)
 }
 
-/// Identifies `model` on the band-random records of `records` by time-domain FSM, one block
-/// per record over all its samples (`td-N`: N evenly spaced samples per record). The only way
-/// a random record gives equations: it has no phasors.
+/// Identifies `model` on the band-random records of `records`, the only way a random record
+/// gives equations (it has no phasors): by time-domain FSM with `td-N` / `td-all` (one block
+/// per record over all its samples, N evenly spaced samples per record); otherwise, on the
+/// rig, by output error from `td-all`'s estimate (the rig simulated under each record's
+/// measured base displacement, [`RecordsOutputError::rig`]).
 pub fn identify_random_records(
     model: &Model,
     setup: &Setup,
@@ -70,20 +76,36 @@ pub fn identify_random_records(
     let Some(first) = random.first() else {
         return Err(IdentifyError::NoSteps.into());
     };
-    let Method::Td { points_per_step } = method else {
+    let td = Method::Td {
+        points_per_step: None,
+    };
+    let (fit_method, points) = match method {
+        Method::Td { points_per_step } => (method, points_per_step),
+        _ => (td, None),
+    };
+    let Setup::BaseExcited { mass_kg } = setup else {
         return Err(IdentifyError::Step {
             step: first.step,
             problem: format!(
-                "the data hold only random records, which have no phasors for {method}: identify them in the time domain (--method td-all, or td-N for N samples per record)"
+                "the data hold only random records, which have no phasors for {method}; the {} setup has no time-domain method for them",
+                setup.kind()
             ),
         }
         .into());
     };
     let blocks = random
         .iter()
-        .map(|r| td_range_equations(model, setup, r, 0, r.len(), points_per_step))
+        .map(|r| td_range_equations(model, setup, r, 0, r.len(), points))
         .collect::<Result<Vec<StepEquations>, _>>()?;
-    Ok(identify::solve_blocks(model, setup, method, &blocks)?)
+    let start = identify::solve_blocks(model, setup, fit_method, &blocks)?;
+    if matches!(method, Method::Td { .. }) {
+        return Ok(start);
+    }
+    let mut id = RecordsOutputError::rig(model, *mass_kg, &random)?.fit(&start)?;
+    if method != Method::OutputError {
+        id.warnings.push(OUTPUT_ERROR_CHOSEN.into());
+    }
+    Ok(id)
 }
 
 /// Whether a multisine record is too short for the periodic analysis (its transient periods
@@ -115,7 +137,7 @@ pub fn sample_records<'a>(records: &'a [Record], options: &MultisineOptions) -> 
 /// Identifies an element test's `model` on `records` (none of them sine steps, sweeps or
 /// periodic multisines) over all their samples: the time-domain fit of the force along the
 /// measured motion, then, unless `method` is the time-domain one, output error
-/// ([`ForcedRecordsOutputError`]) when the records say the force was the drive
+/// ([`RecordsOutputError`]) when the records say the force was the drive
 /// ([`records_drive`]); with a displacement drive the time-domain fit is the output-error
 /// estimate already (the force is the output, linear in theta).
 pub fn identify_element_sample_records(
@@ -140,32 +162,22 @@ pub fn identify_element_sample_records(
     if matches!(method, Method::Td { .. }) {
         return Ok(start);
     }
-    let chosen = match method {
-        Method::OutputError => "",
-        _ => " (chosen: the records have no steps for the frequency-domain methods)",
-    };
     let mut id = match records_drive(records) {
         ElementDrive::Displacement => {
             let mut id = start;
             id.method = Method::OutputError.name();
             id.warnings.push(format!(
-                "output error{chosen}: the displacement is the drive, so the model's output is the force along the measured motion, linear in theta: its least squares over every sample of {} record(s)",
+                "output error: the displacement is the drive, so the model's output is the force along the measured motion, linear in theta: its least squares over every sample of {} record(s)",
                 records.len()
             ));
-            return Ok(id);
+            id
         }
         ElementDrive::Force => {
-            ForcedRecordsOutputError::new(model, moving_mass_kg, records)?.fit(&start)?
+            RecordsOutputError::forced(model, moving_mass_kg, records)?.fit(&start)?
         }
     };
-    if !chosen.is_empty()
-        && let Some(w) = id
-            .warnings
-            .iter_mut()
-            .rev()
-            .find(|w| w.starts_with("output error: the mass simulated"))
-    {
-        w.insert_str("output error".len(), chosen);
+    if method != Method::OutputError {
+        id.warnings.push(OUTPUT_ERROR_CHOSEN.into());
     }
     Ok(id)
 }

@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::{PipelineError, nmse_percent};
 use crate::diagnose::element_heldout::TermFit;
-use crate::identify::ForcedRecordsOutputError;
+use crate::identify::RecordsOutputError;
 use crate::measured_state::MeasuredState;
 use crate::model::{IdentifiedModel, Model};
 use crate::record::{Channel, Record};
@@ -78,14 +78,14 @@ pub struct ForcedValidation {
 /// Simulates the mass of a force-driven element test (`moving_mass_kg`, or the identified
 /// mass after theta in `element` when None) under `record`'s measured force from the initial
 /// state that fits the record best with the parameters held
-/// ([`ForcedRecordsOutputError::predict`]), and scores its displacement.
+/// ([`RecordsOutputError::predict_forced`]), and scores its displacement.
 pub fn validate_forced_element(
     model: &Model,
     moving_mass_kg: Option<f64>,
     element: &[f64],
     record: &Record,
 ) -> Result<ForcedValidation, PipelineError> {
-    let predicted = ForcedRecordsOutputError::predict(model, moving_mass_kg, element, record)?;
+    let predicted = RecordsOutputError::predict_forced(model, moving_mass_kg, element, record)?;
     let measured =
         record
             .channel(Channel::RelativeDisplacementM)

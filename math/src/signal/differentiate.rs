@@ -79,8 +79,9 @@ pub fn sixth_order_derivatives(x: &[f64], sample_rate_hz: f64) -> (Vec<f64>, Vec
 }
 
 /// `order`-th derivative of `y` (sampled at `fs`) in the frequency domain, bins above
-/// `cutoff_hz` dropped; the straight line through the end points is taken out first (and its
-/// slope given back to the first derivative) so the record wraps without a jump.
+/// `cutoff_hz` dropped; the straight line through the end points is taken out first (and given
+/// back to `y` itself at order 0, its slope to the first derivative) so the record wraps
+/// without a jump. Order 0 is a zero-phase low-pass with no loss in its pass band.
 pub fn band_limited_derivative(y: &[f64], fs: f64, cutoff_hz: f64, order: u32) -> Vec<f64> {
     let n = y.len();
     let slope = (y[n - 1] - y[0]) / (n - 1) as f64;
@@ -107,8 +108,16 @@ pub fn band_limited_derivative(y: &[f64], fs: f64, cutoff_hz: f64, order: u32) -
         }
     }
     planner.plan_fft_inverse(n).process(&mut buf);
-    let trend = if order == 1 { slope * fs } else { 0.0 };
-    buf.iter().map(|b| b.re + trend).collect()
+    buf.iter()
+        .enumerate()
+        .map(|(i, b)| {
+            b.re + match order {
+                0 => y[0] + slope * i as f64,
+                1 => slope * fs,
+                _ => 0.0,
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -149,7 +149,7 @@ impl RunSpec {
     /// critical), six one-period random-phase multisines of 40 N RMS on every 0.5 Hz line from
     /// 5 to 60 Hz, back to back at 1 kHz (the first from rest, the others where the last one
     /// left the mass), so no record has settled periods: records for output error
-    /// ([`crate::identify::ForcedRecordsOutputError`]). The `cubic` model's truth is
+    /// ([`crate::identify::RecordsOutputError`]). The `cubic` model's truth is
     /// [`RunSpec::SHAKER_DUFFING_THETA`].
     pub fn shaker_duffing_one_period(snr_db: Option<f64>, seed: u64) -> RunSpec {
         let [(_, k), (_, c), (_, s)] = RunSpec::SHAKER_DUFFING_THETA;

@@ -15,14 +15,14 @@
 //! - the element test ([`element_test`]): x, F and the mass acceleration, the element driven by
 //!   a fitted sine per step of its stroke (damper dyno) or of its force (shaker), whichever
 //!   channel is the purer sine.
-//! - element-test records of any excitation, with no steps ([`element_records`]): the mass
+//! - element-test records of any excitation, with no steps ([`sampled_drive`]): the mass
 //!   simulated under the measured force, each record from its fitted initial state.
 
 mod element;
-pub mod element_records;
 pub mod element_test;
 mod lm;
 pub mod rig;
+pub mod sampled_drive;
 mod three_dof;
 
 use super::{Identification, IdentifyError, Parameter};
@@ -32,9 +32,9 @@ use crate::recipe::Setup;
 use crate::record::{Channel, Record};
 use crate::sim::excitation::{Piece, PiecewiseSignal};
 
-pub use element_records::{ForcedRecordsOutputError, records_drive};
 pub use element_test::{ElementOutputError, element_drive_of};
 pub use rig::{RigDrive, RigMisfit, RigOutputError};
+pub use sampled_drive::{RecordsOutputError, records_drive};
 
 /// Floor of each channel's noise std, relative to its fundamental.
 const NOISE_FLOOR: f64 = 1e-6;

@@ -1,20 +1,27 @@
-//! Output error on element-test records of any excitation (band-random, one-period or short
-//! multisines, road profiles): records that have no settled steps to take phasors from.
+//! Output error on records of any excitation (band-random, one-period or short multisines,
+//! road profiles): records that have no settled steps to take phasors from, simulated under
+//! their measured input sample by sample.
 //!
-//! The start is the time-domain fit of the force along the measured motion
-//! (`td_range_equations` of the element test). What refines it depends on what the bench
-//! controlled ([`records_drive`]):
+//! The start is the time-domain fit of the same records (`td_range_equations`). On an element
+//! test what refines it depends on what the bench controlled ([`records_drive`]):
 //!
 //! - Displacement drive (damper dyno, mount tester): the model's output is the force along the
 //!   imposed motion, `m x'' + g(x, x')`, linear in theta, so the start is already the
 //!   output-error estimate; it is returned as it is.
 //! - Force drive (a single-DOF system on a shaker): the mass is simulated under the measured
-//!   force (a spline through its samples) with exact stick-slip, each record from its own
-//!   initial displacement and velocity (fitted, so records may start in motion), and theta,
-//!   the moving mass when it is identified, and the initial states are fitted to every sample
-//!   of the measured displacement, each record weighted by its displacement noise (estimated
-//!   from its spectrum above the band). The standard deviations are the Gauss-Newton ones,
-//!   scaled up by the misfit when the model misses by more than the noise.
+//!   force (a spline through its samples) with exact stick-slip, and its displacement compared.
+//!
+//! On the base-excited rig the mass is simulated under the measured base displacement,
+//! its bins above the differentiation band dropped (the spline's second derivative would
+//! otherwise amplify its noise by w^2; a filter that loses nothing in the band biases nothing),
+//! and its acceleration and relative displacement compared.
+//!
+//! Each record starts from its own initial state (displacement and velocity, fitted, so records
+//! may start in motion); theta, the moving mass when it is identified, and the initial states
+//! are fitted to every sample of the compared channels, each weighted by its noise (estimated
+//! from its spectrum above the record's band). The standard deviations come from the residuals
+//! as they are (a sandwich covariance over their correlation length), since the noise on the
+//! measured input makes them coloured.
 
 use std::ops::Range;
 
@@ -24,10 +31,16 @@ use num_complex::Complex64;
 use super::element::{ModelElement, check_model};
 use super::lm::{self, Limits, Partial, Problem};
 use crate::identify::{Identification, IdentifyError, Method, Parameter};
-use crate::measured_state::{CUTOFF_MULTIPLE, MeasuredState, white_noise_std_above};
+use crate::measured_state::{
+    CUTOFF_MULTIPLE, MeasuredState, top_frequency_hz, white_noise_std_above,
+};
 use crate::model::Model;
 use crate::record::{Channel, Excitation, Record};
-use crate::sim::{ElementDrive, ForcedInitial, SolverOptions, simulate_on_sampled_force};
+use crate::signal::differentiate::band_limited_derivative;
+use crate::sim::{
+    ElementDrive, ForcedInitial, ReplayOptions, RigInitial, SolverOptions,
+    simulate_on_sampled_base, simulate_on_sampled_force,
+};
 
 /// The fit starts from the time-domain estimate, which noise in the differentiated
 /// displacement can put tens of percent off: more and longer steps than a refinement of
@@ -115,78 +128,167 @@ pub fn records_drive(records: &[&Record]) -> ElementDrive {
 
 /// The displacement and velocity a record starts with: a parabola fitted to its first samples
 /// (an eighth of the highest excitation period, at least five samples).
-fn starting_state(x: &[f64], sample_rate_hz: f64, top_frequency_hz: f64) -> ForcedInitial {
+fn starting_state(x: &[f64], sample_rate_hz: f64, top_frequency_hz: f64) -> [f64; 2] {
     let k = ((START_WINDOW_PERIODS * sample_rate_hz / top_frequency_hz).round() as usize)
         .clamp(5, x.len());
     let a = DMatrix::from_fn(k, 3, |i, j| (i as f64 / sample_rate_hz).powi(j as i32));
     let b = nalgebra::DVector::from_column_slice(&x[..k]);
     match a.svd(true, true).solve(&b, 1e-12) {
-        Ok(c) => ForcedInitial {
-            displacement_m: c[0],
-            velocity_mps: c[1],
-        },
-        Err(_) => ForcedInitial {
-            displacement_m: x[0],
-            velocity_mps: 0.0,
-        },
+        Ok(c) => [c[0], c[1]],
+        Err(_) => [x[0], 0.0],
     }
 }
 
-/// The force-driven output-error problem. Parameters: the model's, the moving mass when it is
-/// identified, then each record's initial displacement and velocity.
-pub struct ForcedRecordsOutputError<'a> {
+/// What drives the records and what the fit compares.
+#[derive(Debug, Clone, Copy)]
+enum SampledDrive {
+    /// A force-driven element test: the mass (known, or None: fitted) under the measured
+    /// force; its displacement compared. Initial state: displacement and velocity.
+    Force { moving_mass_kg: Option<f64> },
+    /// The base-excited rig: the mass under the measured base displacement (band-limited); its acceleration
+    /// and the relative displacement compared. Initial state: the relative displacement and
+    /// the mass velocity.
+    Base { mass_kg: f64 },
+}
+
+/// The output-error problem of records driven by a sampled input. Parameters: the model's,
+/// the moving mass when it is identified, then each record's initial state (two numbers).
+pub struct RecordsOutputError<'a> {
     model: Model,
-    mass_kg: Option<f64>,
+    drive: SampledDrive,
     records: Vec<&'a Record>,
-    /// Noise std of each record's displacement [m].
-    sigma_m: Vec<f64>,
+    /// Each record's input: the measured force, or the low-passed base displacement.
+    inputs: Vec<Vec<f64>>,
+    /// Each record's compared channels with their noise std.
+    compared: Vec<Vec<(Channel, f64)>>,
     /// Residual rows of each record.
+    record_rows: Vec<Range<usize>>,
+    /// Residual rows of each record's channels (contiguous runs of one channel).
     blocks: Vec<Range<usize>>,
-    /// Scale of each record's displacement and velocity (their RMS).
+    /// Scale of each record's two initial-state numbers (the RMS of those states).
     state_scale: Vec<[f64; 2]>,
-    start_states: Vec<ForcedInitial>,
+    start_states: Vec<[f64; 2]>,
     solver: SolverOptions,
 }
 
-impl<'a> ForcedRecordsOutputError<'a> {
-    /// The problem of `records` (each with displacement and force), the moving mass known or
-    /// (None) fitted.
-    pub fn new(
+fn rms(y: &[f64]) -> f64 {
+    let mean = y.iter().sum::<f64>() / y.len() as f64;
+    (y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / y.len() as f64).sqrt()
+}
+
+/// The noise std of `y` above `cutoff_hz`, floored at 1e-6 of its RMS (noise-free data would
+/// otherwise be weighted by round-off).
+fn noise_std(y: &[f64], sample_rate_hz: f64, cutoff_hz: f64) -> f64 {
+    white_noise_std_above(y, sample_rate_hz, cutoff_hz)
+        .unwrap_or(0.0)
+        .max(1e-6 * rms(y).max(f64::MIN_POSITIVE))
+}
+
+impl<'a> RecordsOutputError<'a> {
+    /// The problem of a force-driven element test's `records` (each with displacement and
+    /// force), the moving mass known or (None) fitted.
+    pub fn forced(
         model: &Model,
         moving_mass_kg: Option<f64>,
         records: &[&'a Record],
     ) -> Result<Self, IdentifyError> {
-        check_model(model)?;
-        let mut sigma_m = Vec::new();
-        let mut blocks = Vec::new();
-        let mut state_scale = Vec::new();
-        let mut start_states = Vec::new();
-        let mut rows = 0;
+        let mut parts = Vec::new();
         for r in records {
             let state = MeasuredState::of(r).map_err(|e| step_error(r.step, e.to_string()))?;
             let x = &state.displacement_m;
             let fs = r.sample_rate_hz;
             let cutoff = CUTOFF_MULTIPLE * state.top_frequency_hz;
-            let rms = |y: &[f64]| {
-                let mean = y.iter().sum::<f64>() / y.len() as f64;
-                (y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / y.len() as f64).sqrt()
-            };
-            let x_rms = rms(x).max(f64::MIN_POSITIVE);
-            // Noise-free data would be weighted by round-off: floor at 1e-6 of the motion.
-            let sigma = white_noise_std_above(x, fs, cutoff)
-                .unwrap_or(0.0)
-                .max(1e-6 * x_rms);
-            sigma_m.push(sigma);
-            state_scale.push([x_rms, rms(&state.velocity_mps).max(f64::MIN_POSITIVE)]);
-            start_states.push(starting_state(x, fs, state.top_frequency_hz));
-            blocks.push(rows..rows + x.len());
-            rows += x.len();
+            parts.push((
+                state.force_n.clone(),
+                vec![(Channel::RelativeDisplacementM, noise_std(x, fs, cutoff))],
+                [
+                    rms(x).max(f64::MIN_POSITIVE),
+                    rms(&state.velocity_mps).max(f64::MIN_POSITIVE),
+                ],
+                starting_state(x, fs, state.top_frequency_hz),
+            ));
         }
-        Ok(ForcedRecordsOutputError {
+        Self::new(
+            model,
+            SampledDrive::Force { moving_mass_kg },
+            records,
+            parts,
+        )
+    }
+
+    /// The problem of a base-excited rig's `records` (base and relative displacement and mass
+    /// acceleration) with the mass `mass_kg`.
+    pub fn rig(model: &Model, mass_kg: f64, records: &[&'a Record]) -> Result<Self, IdentifyError> {
+        let mut parts = Vec::new();
+        for r in records {
+            let channel = |c: Channel| {
+                r.channel(c).ok_or_else(|| {
+                    step_error(
+                        r.step,
+                        format!("channel {} is missing (output error compares it)", c.name()),
+                    )
+                })
+            };
+            let base = channel(Channel::BaseDisplacementM)?;
+            let rel = channel(Channel::RelativeDisplacementM)?;
+            let acc = channel(Channel::MassAccelerationMps2)?;
+            let fs = r.sample_rate_hz;
+            let top =
+                top_frequency_hz(r, &[base, rel]).map_err(|e| step_error(r.step, e.to_string()))?;
+            let cutoff = CUTOFF_MULTIPLE * top;
+            let mass_x: Vec<f64> = base.iter().zip(rel).map(|(b, x)| b + x).collect();
+            let [_, mass_v0] = starting_state(&mass_x, fs, top);
+            let [rel0, _] = starting_state(rel, fs, top);
+            parts.push((
+                band_limited_derivative(base, fs, cutoff, 0),
+                vec![
+                    (Channel::MassAccelerationMps2, noise_std(acc, fs, cutoff)),
+                    (Channel::RelativeDisplacementM, noise_std(rel, fs, cutoff)),
+                ],
+                [
+                    rms(rel).max(f64::MIN_POSITIVE),
+                    rms(&band_limited_derivative(&mass_x, fs, cutoff, 1)).max(f64::MIN_POSITIVE),
+                ],
+                [rel0, mass_v0],
+            ));
+        }
+        Self::new(model, SampledDrive::Base { mass_kg }, records, parts)
+    }
+
+    #[allow(
+        clippy::type_complexity,
+        reason = "the per-record parts, assembled once"
+    )]
+    fn new(
+        model: &Model,
+        drive: SampledDrive,
+        records: &[&'a Record],
+        parts: Vec<(Vec<f64>, Vec<(Channel, f64)>, [f64; 2], [f64; 2])>,
+    ) -> Result<Self, IdentifyError> {
+        check_model(model)?;
+        let (mut inputs, mut compared, mut state_scale, mut start_states) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut record_rows, mut blocks) = (Vec::new(), Vec::new());
+        let mut rows = 0;
+        for (r, (input, channels, scale, start)) in records.iter().zip(parts) {
+            let first = rows;
+            for _ in &channels {
+                blocks.push(rows..rows + r.len());
+                rows += r.len();
+            }
+            record_rows.push(first..rows);
+            inputs.push(input);
+            compared.push(channels);
+            state_scale.push(scale);
+            start_states.push(start);
+        }
+        Ok(RecordsOutputError {
             model: model.clone(),
-            mass_kg: moving_mass_kg,
+            drive,
             records: records.to_vec(),
-            sigma_m,
+            inputs,
+            compared,
+            record_rows,
             blocks,
             state_scale,
             start_states,
@@ -195,37 +297,72 @@ impl<'a> ForcedRecordsOutputError<'a> {
     }
 
     fn p_element(&self) -> usize {
-        self.model.terms.len() + usize::from(self.mass_kg.is_none())
+        let fitted_mass = matches!(
+            self.drive,
+            SampledDrive::Force {
+                moving_mass_kg: None
+            }
+        );
+        self.model.terms.len() + usize::from(fitted_mass)
     }
 
-    /// Initial-state parameter index of record `k` (displacement; velocity is the next).
+    /// Initial-state parameter index of record `k` (the second number is the next).
     fn state_index(&self, k: usize) -> usize {
         self.p_element() + 2 * k
     }
 
-    /// The simulated displacement of record `k` with element parameters `element` (theta,
-    /// then the mass when fitted) from `initial`.
+    /// The compared channels of record `k` simulated with element parameters `element`
+    /// (theta, then the mass when fitted) from `initial`, in the order of its compared
+    /// channels.
     pub fn simulate(
         &self,
         k: usize,
         element: &[f64],
-        initial: ForcedInitial,
-    ) -> Result<Vec<f64>, IdentifyError> {
+        initial: [f64; 2],
+    ) -> Result<Vec<Vec<f64>>, IdentifyError> {
         let r = self.records[k];
         let p = self.model.terms.len();
-        let mass = self.mass_kg.unwrap_or_else(|| element[p]);
         let el = ModelElement::new(&self.model, &element[..p]);
-        let force = r.channel(Channel::ForceN).unwrap_or(&[]);
-        simulate_on_sampled_force(&el, mass, force, r.sample_rate_hz, initial, &self.solver)
-            .map(|resp| resp.displacement_m)
-            .map_err(|e| step_error(r.step, format!("output-error simulation: {e}")))
-            .and_then(|x| {
-                if x.iter().all(|v| v.is_finite()) {
-                    Ok(x)
-                } else {
-                    Err(step_error(r.step, "output-error simulation diverges"))
-                }
-            })
+        let fs = r.sample_rate_hz;
+        let failed =
+            |e: crate::sim::SimError| step_error(r.step, format!("output-error simulation: {e}"));
+        let out = match self.drive {
+            SampledDrive::Force { moving_mass_kg } => {
+                let mass = moving_mass_kg.unwrap_or_else(|| element[p]);
+                let initial = ForcedInitial {
+                    displacement_m: initial[0],
+                    velocity_mps: initial[1],
+                };
+                let resp = simulate_on_sampled_force(
+                    &el,
+                    mass,
+                    &self.inputs[k],
+                    fs,
+                    initial,
+                    &self.solver,
+                )
+                .map_err(failed)?;
+                vec![resp.displacement_m]
+            }
+            SampledDrive::Base { mass_kg } => {
+                let options = ReplayOptions {
+                    initial: RigInitial {
+                        relative_displacement_m: initial[0],
+                        mass_velocity_mps: initial[1],
+                    },
+                    solver: self.solver,
+                    ..ReplayOptions::default()
+                };
+                let resp = simulate_on_sampled_base(&el, mass_kg, &self.inputs[k], fs, &options)
+                    .map_err(failed)?;
+                vec![resp.mass_acceleration_mps2, resp.relative_displacement_m]
+            }
+        };
+        if out.iter().flatten().all(|v| v.is_finite()) {
+            Ok(out)
+        } else {
+            Err(step_error(r.step, "output-error simulation diverges"))
+        }
     }
 
     /// Whether every record simulates at parameters `p` (all of this problem's).
@@ -233,11 +370,7 @@ impl<'a> ForcedRecordsOutputError<'a> {
         let np = self.p_element();
         for k in 0..self.records.len() {
             let j = self.state_index(k);
-            let initial = ForcedInitial {
-                displacement_m: p[j],
-                velocity_mps: p[j + 1],
-            };
-            self.simulate(k, &p[..np], initial)?;
+            self.simulate(k, &p[..np], [p[j], p[j + 1]])?;
         }
         Ok(())
     }
@@ -254,12 +387,12 @@ impl<'a> ForcedRecordsOutputError<'a> {
             ));
         }
         for s in &self.start_states {
-            p0.extend([s.displacement_m, s.velocity_mps]);
+            p0.extend(s);
         }
         self.simulates(&p0).map_err(|e| {
             step_error(
                 self.records[0].step,
-                format!("the time-domain start cannot be simulated under the measured force: {e}"),
+                format!("the time-domain start cannot be simulated under the measured input: {e}"),
             )
         })?;
         // Initial states first, theta held: a start far from the record's state would
@@ -283,9 +416,9 @@ impl<'a> ForcedRecordsOutputError<'a> {
     /// The covariance of the parameters from the residuals as they are: the sandwich
     /// `B^-1 M B^-1` with `B = J^T J` and `M` the Bartlett-weighted sum of the products of the
     /// per-sample scores `J_i r_i` up to the lag where the residual stops being correlated,
-    /// within each record. The residual of a force-driven fit is not white (the noise on the
-    /// measured force drives the simulated mass, and a form error is smooth), and the
-    /// Gauss-Newton covariance would then understate the uncertainty several times over.
+    /// within each record's channel. The residual is not white (the noise on the measured
+    /// input drives the simulated mass, and a form error is smooth), and the Gauss-Newton
+    /// covariance would then understate the uncertainty several times over.
     fn sandwich_covariance(&self, fit: &lm::Fit) -> Result<DMatrix<f64>, IdentifyError> {
         let np = fit.p.len();
         let jac = lm::jacobian(self, &fit.p, &fit.residual, &fit.scale)?;
@@ -369,14 +502,21 @@ impl<'a> ForcedRecordsOutputError<'a> {
             .map(|i| (0..np).map(|j| cov[(i, j)]).collect())
             .collect();
         let mut warnings = start.warnings.clone();
+        let (input, outputs) = match self.drive {
+            SampledDrive::Force { .. } => ("force", "displacement"),
+            SampledDrive::Base { .. } => (
+                "base displacement",
+                "mass acceleration and relative displacement",
+            ),
+        };
         warnings.push(format!(
-            "output error: the mass simulated under the measured force of {} record(s), each from its fitted initial state; {} samples, RMS misfit {rms:.3} displacement noise std",
+            "output error: the mass simulated under the measured {input} of {} record(s), each from its fitted initial state; {} samples, RMS misfit {rms:.3} noise std",
             self.records.len(),
             fit.residual.len()
         ));
         if rms * rms > 2.0 {
             warnings.push(format!(
-                "output error: the simulated model misses the measured displacement by {rms:.1} noise std (RMS); the model's form may not describe these data (try diagnose)"
+                "output error: the simulated model misses the measured {outputs} by {rms:.1} noise std (RMS); the model's form may not describe these data (try diagnose)"
             ));
         }
         let info = fit.information.clone();
@@ -397,19 +537,18 @@ impl<'a> ForcedRecordsOutputError<'a> {
         }
     }
 
-    /// The displacement of `record` (not among the fitted ones) predicted by simulation with
-    /// the element parameters `element` (theta, then the mass when fitted), from the initial
-    /// state that fits it best with those parameters held.
-    pub fn predict(
+    /// The displacement of a force-driven `record` (not among the fitted ones) predicted by
+    /// simulation with the element parameters `element` (theta, then the mass when fitted),
+    /// from the initial state that fits it best with those parameters held.
+    pub fn predict_forced(
         model: &Model,
         moving_mass_kg: Option<f64>,
         element: &[f64],
         record: &Record,
     ) -> Result<Vec<f64>, IdentifyError> {
-        let problem = ForcedRecordsOutputError::new(model, moving_mass_kg, &[record])?;
-        let s = problem.start_states[0];
+        let problem = RecordsOutputError::forced(model, moving_mass_kg, &[record])?;
         let mut full = element.to_vec();
-        full.extend([s.displacement_m, s.velocity_mps]);
+        full.extend(problem.start_states[0]);
         let np = problem.p_element();
         let states = Partial {
             inner: &problem,
@@ -417,44 +556,31 @@ impl<'a> ForcedRecordsOutputError<'a> {
             free: vec![np, np + 1],
         };
         let fit = lm::levenberg_marquardt_within(&states, full[np..].to_vec(), FROM_TIME_DOMAIN)?;
-        problem.simulate(
-            0,
-            element,
-            ForcedInitial {
-                displacement_m: fit.p[0],
-                velocity_mps: fit.p[1],
-            },
-        )
+        let mut out = problem.simulate(0, element, [fit.p[0], fit.p[1]])?;
+        Ok(out.swap_remove(0))
     }
 }
 
-impl Problem for ForcedRecordsOutputError<'_> {
+impl Problem for RecordsOutputError<'_> {
     fn residual(&self, p: &[f64]) -> Result<Vec<f64>, IdentifyError> {
         let np = self.p_element();
         let n = self.blocks.last().map_or(0, |b| b.end);
         let mut out = Vec::with_capacity(n);
         for (k, r) in self.records.iter().enumerate() {
             let j = self.state_index(k);
-            let initial = ForcedInitial {
-                displacement_m: p[j],
-                velocity_mps: p[j + 1],
+            let Ok(simulated) = self.simulate(k, &p[..np], [p[j], p[j + 1]]) else {
+                return Ok(vec![FAILED_TRIAL_RESIDUAL; n]);
             };
-            let measured = r.channel(Channel::RelativeDisplacementM).unwrap_or(&[]);
-            match self.simulate(k, &p[..np], initial) {
-                Ok(x) => out.extend(
-                    measured
-                        .iter()
-                        .zip(&x)
-                        .map(|(m, s)| (m - s) / self.sigma_m[k]),
-                ),
-                Err(_) => return Ok(vec![FAILED_TRIAL_RESIDUAL; n]),
+            for ((c, sigma), sim) in self.compared[k].iter().zip(&simulated) {
+                let measured = r.channel(*c).unwrap_or(&[]);
+                out.extend(measured.iter().zip(sim).map(|(m, s)| (m - s) / sigma));
             }
         }
         Ok(out)
     }
 
-    /// Each record's initial displacement moves its own rows only, so one simulation gives
-    /// the finite differences of every record's; the same for the velocities.
+    /// Each record's initial state moves its own rows only, so one simulation gives the finite
+    /// differences of every record's first number; the same for the second.
     fn column_groups(&self, np: usize) -> Vec<Vec<usize>> {
         let pe = self.p_element();
         let mut groups: Vec<Vec<usize>> = (0..pe.min(np)).map(|j| vec![j]).collect();
@@ -469,7 +595,7 @@ impl Problem for ForcedRecordsOutputError<'_> {
         if j < pe {
             0..n
         } else {
-            self.blocks[(j - pe) / 2].clone()
+            self.record_rows[(j - pe) / 2].clone()
         }
     }
 
