@@ -73,6 +73,8 @@ pub enum FileFormat {
     Tdms,
     /// A MATLAB level-5 MAT file.
     Mat,
+    /// A JSON object of numeric arrays.
+    Json,
     /// A CSV export or another text file of columns.
     Csv,
 }
@@ -80,7 +82,7 @@ pub enum FileFormat {
 impl FileFormat {
     /// The format of the file at `path`: by its first bytes (MDF's `MDF     ` or `UnFinMF `,
     /// TDMS's `TDSm`, a MAT file's `MATLAB 5.0 MAT-file`), else by its extension (`.mf4`,
-    /// `.mdf`, `.tdms`, `.mat`), else text (a CSV export).
+    /// `.mdf`, `.tdms`, `.mat`, `.json`), else text (a CSV export).
     pub fn of(path: &Path) -> FileFormat {
         let mut head = [0u8; 8];
         let n = std::fs::File::open(path)
@@ -102,6 +104,7 @@ impl FileFormat {
                 Some("mf4" | "mdf") => FileFormat::Mdf,
                 Some("tdms") => FileFormat::Tdms,
                 Some("mat") => FileFormat::Mat,
+                Some("json") => FileFormat::Json,
                 _ => FileFormat::Csv,
             }
         }
@@ -120,6 +123,10 @@ pub fn load(path: &Path) -> anyhow::Result<Loaded> {
             FileFormat::Mat => anyhow::bail!(
                 "{}: a MAT file is read as an axis record (the EMPS form), or through a channel \
                  map naming its variables (--channels MAP)",
+                path.display()
+            ),
+            FileFormat::Json => anyhow::bail!(
+                "{}: a JSON file is read through a channel map naming its arrays (--channels MAP)",
                 path.display()
             ),
             FileFormat::Csv => read_csv(path)?,

@@ -111,6 +111,10 @@ pub struct TableMap {
     pub step: Option<ColumnSource>,
     pub frequency_hz: Option<ColumnSource>,
     pub text: TextOptions,
+    /// Each file is one record of any excitation (`table: {records: whole}`): no step finding,
+    /// for records that are not stepped sines (a road or earthquake profile, a sine test with
+    /// ramps), which `identify` fits sample by sample.
+    pub whole_records: bool,
 }
 
 /// The `table:` block as written.
@@ -122,6 +126,7 @@ pub(crate) struct TextOptionsForm {
     decimal_comma: Option<bool>,
     #[serde(default)]
     skip_lines: usize,
+    records: Option<String>,
 }
 
 impl TableMap {
@@ -138,8 +143,22 @@ impl TableMap {
             step: None,
             frequency_hz: None,
             text: TextOptions::default(),
+            whole_records: false,
         };
-        if let Some(t) = text {
+        if let Some(mut t) = text {
+            map.whole_records = match t.records.take().as_deref() {
+                None | Some("steps") => false,
+                Some("whole") => true,
+                Some(other) => {
+                    return Err(ChannelMapError::Entry {
+                        file: file.to_string(),
+                        entry: "table.records".into(),
+                        problem: format!(
+                            "'{other}' is not a way to make records (steps: found where the drive changes; whole: each file one record)"
+                        ),
+                    });
+                }
+            };
             map.text = text_options(file, t)?;
         }
         for (name, e) in entries {

@@ -84,6 +84,12 @@ const UNITS: &[(&[&str], Quantity, f64)] = &[
     (&["n"], Quantity::Force, 1.0),
     (&["kn"], Quantity::Force, 1e3),
     (&["lbf"], Quantity::Force, POUND_FORCE_N),
+    // The kip (kilo-pound-force) of US structural labs.
+    (
+        &["kip", "kipf", "klbf"],
+        Quantity::Force,
+        1e3 * POUND_FORCE_N,
+    ),
     (&["hz", "1/s"], Quantity::Frequency, 1.0),
     (&["", "-", "1"], Quantity::Count, 1.0),
 ];
@@ -162,6 +168,7 @@ mod tests {
         assert_eq!(f("kN"), f("KN"));
         assert_eq!(f("lbf").unwrap().1, 4.4482216152605);
         assert_eq!(f("in").unwrap().1, 0.0254);
+        assert!((f("kip").unwrap().1 - 4_448.221_615_260_5).abs() < 1e-9);
         assert_eq!(f("in/s"), Some((Quantity::Velocity, 0.0254)));
         assert_eq!(f("g"), Some((Quantity::Acceleration, 9.80665)));
         assert_eq!(f("m/s²"), Some((Quantity::Acceleration, 1.0)));

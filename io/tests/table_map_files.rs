@@ -304,3 +304,69 @@ fn mdf4_and_tdms_with_the_benchs_names_and_units_give_the_contract_theta() {
         "{e}"
     );
 }
+
+/// A lab's JSON (an object with a matrix of rows: time [s], displacement [in], force [kip],
+/// and scalars and unit strings beside it) read through a map as one record per file
+/// (`table: {records: whole}`): the samples of forcemap's CSV to round-off, one record of
+/// unknown excitation where the step finder would have cut six sine steps; and the map's
+/// mistakes named.
+#[test]
+fn a_json_matrix_read_whole_is_one_record_of_the_samples() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = samples(&dyno_records());
+    let mut rows = Vec::new();
+    for (t, x, f) in &s {
+        rows.push(format!(
+            "[{t}, {}, {}, 0.0]",
+            x / 0.0254,
+            f / 4_448.221_615_260_5
+        ));
+    }
+    let text = format!(
+        "{{\"data\": [{}], \"dt\": 0.001, \"displacement units\": \"in\", \"force units\": \"kip\"}}",
+        rows.join(", ")
+    );
+    let file = write(dir.path(), "test.json", &text);
+    let map = write(
+        dir.path(),
+        "lab.yaml",
+        "channels:\n  time_s: {channel: data, column: 1, unit: s}\n  relative_displacement_m: {channel: data, column: 2, unit: in}\n  force_n: {channel: data, column: 3, unit: kip}\ntable:\n  records: whole\n",
+    );
+    let loaded = load_mapped(&file, Some(&map)).unwrap();
+    assert_eq!(loaded.records.len(), 1);
+    let r = &loaded.records[0];
+    assert!(
+        matches!(
+            r.excitation,
+            forcemap_math::record::Excitation::Random { band_hz: None, .. }
+        ),
+        "{:?}",
+        r.excitation
+    );
+    let got = samples(&loaded.records);
+    assert_eq!(got.len(), s.len());
+    for ((_, x, f), (_, x0, f0)) in got.iter().zip(&s) {
+        assert!((x - x0).abs() <= 1e-12 * x0.abs().max(1e-3), "{x} {x0}");
+        assert!((f - f0).abs() <= 1e-9 * f0.abs().max(1.0), "{f} {f0}");
+    }
+    // By steps (the default), the same file gives the six sine steps.
+    let by_steps = write(
+        dir.path(),
+        "steps.yaml",
+        "channels:\n  time_s: {channel: data, column: 1, unit: s}\n  relative_displacement_m: {channel: data, column: 2, unit: in}\n  force_n: {channel: data, column: 3, unit: kip}\n",
+    );
+    assert_eq!(
+        load_mapped(&file, Some(&by_steps)).unwrap().records.len(),
+        6
+    );
+    let bad = write(
+        dir.path(),
+        "bad.yaml",
+        "channels:\n  relative_displacement_m: {channel: data, column: 2, unit: in}\n  force_n: {channel: data, column: 3, unit: kip}\ntable:\n  records: all\n",
+    );
+    let e = format!("{:#}", load_mapped(&file, Some(&bad)).unwrap_err());
+    assert!(
+        e.contains("table.records") && e.contains("'all' is not a way to make records"),
+        "{e}"
+    );
+}

@@ -22,6 +22,7 @@ pub fn default_map(file: &dyn ColumnFile, path: &Path) -> Result<TableMap, Table
         step: None,
         frequency_hz: None,
         text: TextOptions::default(),
+        whole_records: false,
     };
     let columns = file.columns();
     let named: Vec<(&'static str, &ColumnInfo)> = columns

@@ -1,5 +1,5 @@
 //! Files of columns read through a channel map ([`crate::table_map`]): delimited and
-//! whitespace text with or without a header, ASAM MDF4, NI TDMS and MATLAB MAT files. Each
+//! whitespace text with or without a header, ASAM MDF4, NI TDMS, MATLAB MAT and JSON files. Each
 //! format lists its columns (name, group, position, unit, its own time base) and reads the
 //! ones the map picks; the picking, the units and the time are one piece of code for every
 //! format ([`resolve`]), and the picked columns become the CSV contract's rows
@@ -8,6 +8,7 @@
 
 pub mod datetime;
 mod default_map;
+pub mod json;
 pub mod mat;
 mod resolve;
 pub mod text;
@@ -98,6 +99,7 @@ pub fn open(path: &Path, map: Option<&TableMap>) -> Result<Box<dyn ColumnFile>, 
         FileFormat::Mdf => Box::new(crate::mdf::MdfColumns::open(path)?),
         FileFormat::Tdms => Box::new(crate::tdms::TdmsColumns::open(path)?),
         FileFormat::Mat => Box::new(mat::MatColumns::open(path)?),
+        FileFormat::Json => Box::new(json::JsonColumns::open(path)?),
         FileFormat::Csv => Box::new(text::TextColumns::open(
             path,
             &map.map(|m| m.text.clone()).unwrap_or_default(),
