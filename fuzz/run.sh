@@ -21,7 +21,7 @@ set -uo pipefail
 
 SECS=${1:-60}
 shift || true
-ALL_TARGETS=(cdr_decode bag_read csv_import tdms_read mdf_read csv_dialect ros_msg_decode msg_parse channel_map foreign_topics table_text)
+ALL_TARGETS=(cdr_decode bag_read csv_import tdms_read mdf_read csv_dialect ros_msg_decode msg_parse channel_map foreign_topics table_text json_read)
 TARGETS=("$@")
 [ ${#TARGETS[@]} -eq 0 ] && TARGETS=("${ALL_TARGETS[@]}")
 

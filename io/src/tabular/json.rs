@@ -37,17 +37,22 @@ fn numbers(array: &[Value]) -> Result<Vec<f64>, usize> {
 
 impl JsonColumns {
     pub fn open(path: &Path) -> Result<JsonColumns, TableError> {
+        let bytes = std::fs::read(path).map_err(|source| TableError::Io {
+            path: path.to_path_buf(),
+            action: "cannot open for reading",
+            source,
+        })?;
+        JsonColumns::from_bytes(&bytes, path)
+    }
+
+    /// The columns of a JSON document's `bytes` (`path` names it in errors).
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<JsonColumns, TableError> {
         let format_error = |message: String| TableError::Format {
             path: path.to_path_buf(),
             format: FORMAT,
             message,
         };
-        let file = std::fs::File::open(path).map_err(|source| TableError::Io {
-            path: path.to_path_buf(),
-            action: "cannot open for reading",
-            source,
-        })?;
-        let doc: Value = serde_json::from_reader(std::io::BufReader::new(file)).map_err(|e| {
+        let doc: Value = serde_json::from_slice(bytes).map_err(|e| {
             format_error(format!(
                 "not readable JSON: {e} (line {}, column {})",
                 e.line(),
