@@ -261,6 +261,8 @@ pub struct Validation {
     pub step: usize,
     /// Eq. 27: 100 % * sum (y - y^)^2 / (N var(y)) of the mass acceleration.
     pub nmse_percent: f64,
+    /// RMS of y - y^ [m/s^2].
+    pub rms_error_mps2: f64,
     #[serde(skip)]
     pub predicted_mass_acceleration_mps2: Vec<f64>,
     #[serde(skip)]
@@ -352,9 +354,16 @@ pub fn validate_rig_with(
     };
     let resp = simulate_on_sampled_base(model, mass_kg, base, fs, &opts)
         .map_err(|source| PipelineError::Simulation { step, source })?;
+    let n = acc.len().min(resp.mass_acceleration_mps2.len()).max(1);
+    let sse: f64 = acc
+        .iter()
+        .zip(&resp.mass_acceleration_mps2)
+        .map(|(y, p)| (y - p).powi(2))
+        .sum();
     Ok(Validation {
         step,
         nmse_percent: nmse_percent(acc, &resp.mass_acceleration_mps2),
+        rms_error_mps2: (sse / n as f64).sqrt(),
         predicted_mass_acceleration_mps2: resp.mass_acceleration_mps2,
         measured_mass_acceleration_mps2: acc.to_vec(),
     })

@@ -187,6 +187,9 @@ struct HeldOut {
     nmse_percent: f64,
     /// RMS error of the element force [N] (element tests).
     rms_error_n: Option<f64>,
+    /// RMS error of the mass acceleration [m/s^2] (rigs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rms_error_mps2: Option<f64>,
     /// A force-driven element test's displacement simulated under the record's measured force.
     #[serde(skip_serializing_if = "Option::is_none")]
     simulated: Option<pipeline::ForcedValidation>,
@@ -230,11 +233,11 @@ fn held_out_validations(
                     } else {
                         None
                     };
-                    (v.nmse_percent, Some(v.rms_error_n), simulated)
+                    (v.nmse_percent, Some(v.rms_error_n), simulated, None)
                 }
                 Setup::BaseExcited { mass_kg } => {
                     let v = pipeline::validate_rig(&fitted, *mass_kg, r).with_context(context)?;
-                    (v.nmse_percent, None, None)
+                    (v.nmse_percent, None, None, Some(v.rms_error_mps2))
                 }
                 Setup::DrivePoint { .. } => anyhow::bail!(
                     "{file}: --validate predicts element tests and base-excited rigs; a drive-point setup's held-out records are not predicted"
@@ -246,6 +249,7 @@ fn held_out_validations(
                 nmse_percent: held.0,
                 rms_error_n: held.1,
                 simulated: held.2,
+                rms_error_mps2: held.3,
             });
         }
     }
@@ -266,8 +270,11 @@ fn print_held_out(held: &[HeldOut]) {
                 h.file, h.step, h.nmse_percent, rms
             ),
             None => println!(
-                "held out: {} record {}: NMSE of mass acceleration {:.2} % (eq. 27)",
-                h.file, h.step, h.nmse_percent
+                "held out: {} record {}: NMSE of mass acceleration {:.2} % (eq. 27), RMS error {:.3e} m/s^2",
+                h.file,
+                h.step,
+                h.nmse_percent,
+                h.rms_error_mps2.unwrap_or(f64::NAN)
             ),
         }
     }
@@ -516,7 +523,7 @@ pub fn identification_json(
         "residual_rms": id.residual_rms,
         "fit_quality": id.fit_quality,
         "steps_used": id.steps_used,
-        "validation": validations.iter().map(|v| json!({"step": v.step, "nmse_percent": v.nmse_percent})).collect::<Vec<_>>(),
+        "validation": validations.iter().map(|v| json!({"step": v.step, "nmse_percent": v.nmse_percent, "rms_error_mps2": v.rms_error_mps2})).collect::<Vec<_>>(),
         "warnings": id.warnings,
         "ignored_columns": ignored,
     })
@@ -581,8 +588,8 @@ fn print_identification(file: &str, id: &Identification, validations: &[Validati
     }
     for v in validations {
         println!(
-            "validation on random record {}: NMSE of mass acceleration {:.2} % (eq. 27)",
-            v.step, v.nmse_percent
+            "validation on random record {}: NMSE of mass acceleration {:.2} % (eq. 27), RMS error {:.3e} m/s^2",
+            v.step, v.nmse_percent, v.rms_error_mps2
         );
     }
     for w in forcemap_io::messages::grouped(&id.warnings) {
