@@ -23,7 +23,7 @@ pub enum Command {
     /// (paper method and improved method) side by side.
     Reproduce(ReproduceArgs),
     /// Identify a model's parameters from measurements: bags, CSV exports, or (with
-    /// --channels) a bench's own text, MAT, MDF4 or TDMS files.
+    /// --channels) a bench's own text, MAT, JSON, MDF4 or TDMS files.
     Identify(IdentifyArgs),
     /// Simulate the suspension rig or the 3-DOF example and write a test-bench CSV export.
     Simulate(SimulateArgs),
@@ -73,7 +73,7 @@ pub struct ManArgs {
 
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The files: bags, CSV exports, or (with --channels) text, MDF4, TDMS or MAT files of a
+    /// The files: bags, CSV exports, or (with --channels) text, MDF4, TDMS, MAT or JSON files of a
     /// bench's own columns; quoted glob patterns are expanded.
     #[arg(required = true, value_name = "FILE")]
     pub files: Vec<PathBuf>,
@@ -208,7 +208,7 @@ pub struct ReproduceArgs {
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {
     /// The data: bag directories or bare .mcap files, test-bench CSV exports, or (with
-    /// --channels) text, MDF4, TDMS or MAT files of a bench's own columns; several files (or
+    /// --channels) text, MDF4, TDMS, MAT or JSON files of a bench's own columns; several files (or
     /// quoted glob patterns) are identified together, each keeping its own sample rate (see
     /// docs/data.md).
     #[arg(required = true, value_name = "FILE")]
@@ -252,7 +252,7 @@ pub struct IdentifyArgs {
     /// Rig constants in a ROS 2 params YAML (`/**: ros__parameters: {mass_kg: 36.0}`).
     #[arg(long)]
     pub params: Option<PathBuf>,
-    /// A channel map (YAML): which column of a text, MDF4, TDMS or MAT file (channel:, with
+    /// A channel map (YAML): which column of a text, MDF4, TDMS, MAT or JSON file (channel:, with
     /// its unit or scale) or which topic and field of a bag recorded with the bench's own
     /// message types (topic:, field:) supplies each channel (see docs/data.md).
     #[arg(long, value_name = "MAP")]
