@@ -31,6 +31,8 @@ pub struct ElementHarmonics {
     /// The equation column of a parameter the setup adds (an element test's unknown moving
     /// mass: the acceleration harmonics A_n, so that G_n = F_n - m A_n = Y_n theta).
     pub extra_column: Option<Vec<Complex64>>,
+    /// The noise std of `extra_column`'s harmonics.
+    pub extra_column_noise: Option<Vec<f64>>,
 }
 
 impl ElementHarmonics {
@@ -66,6 +68,7 @@ pub fn element_harmonics(
     })?;
     let nh = rel.phasors.len();
     let mut extra_column = None;
+    let mut extra_column_noise = None;
     let (force, force_noise) = match setup {
         Setup::BaseExcited { mass_kg } => {
             let m = *mass_kg;
@@ -149,7 +152,20 @@ pub fn element_harmonics(
                     (g, s)
                 }
                 None => {
+                    let mut acc = acc;
+                    if an.channel(Channel::MassAccelerationMps2).is_none() {
+                        // The displacement's harmonics within their noise, differentiated
+                        // twice, are noise amplified by (n w)^2: the acceleration is rebuilt
+                        // from the harmonics the state is (the significant ones), as x and x'
+                        // are (the rows carry the rest of its noise through the mass hint,
+                        // `FdMultiOptions::moving_mass_hint_kg`).
+                        let nx = significant_harmonics(&rel.phasors, &rel.noise_std);
+                        for a in acc.iter_mut().skip(nx + 1) {
+                            *a = Complex64::new(0.0, 0.0);
+                        }
+                    }
                     extra_column = Some(acc);
+                    extra_column_noise = Some(acc_noise);
                     (f.phasors.clone(), f.noise_std.clone())
                 }
             }
@@ -186,6 +202,7 @@ pub fn element_harmonics(
         force,
         force_noise,
         extra_column,
+        extra_column_noise,
     })
 }
 
@@ -486,7 +503,16 @@ pub fn step_equations(
     an: &HarmonicAnalysis,
     options: &FdMultiOptions,
 ) -> Result<StepEquations, IdentifyError> {
-    let eh = element_harmonics(setup, an, method == Method::Fd)?;
+    let mut eh = element_harmonics(setup, an, method == Method::Fd)?;
+    if let (Method::FdMulti, Some(m), Some(noise)) = (
+        method,
+        options.moving_mass_hint_kg,
+        eh.extra_column_noise.as_ref(),
+    ) {
+        for (s, a) in eh.force_noise.iter_mut().zip(noise) {
+            *s = s.hypot(m * a);
+        }
+    }
     let nh = eh.harmonics();
     let l = options.grid_points.max(16 * (nh + 1)).next_power_of_two();
     let x = synthesize_grid(&eh.displacement, l, |_| Complex64::new(1.0, 0.0));

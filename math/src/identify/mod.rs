@@ -223,6 +223,13 @@ pub struct FdMultiOptions {
     /// only what the element's nonlinearity makes, which ties the nonlinear terms), not only
     /// at the excited lines.
     pub multisine_distortion_lines: bool,
+    /// An element test's moving mass as a first fit found it, where the mass is identified
+    /// and the acceleration is the displacement differentiated: each harmonic's equation then
+    /// carries the acceleration's noise times this mass, as a known mass's does. Without it,
+    /// the noise of the differentiated displacement, amplified by (n w)^2 and carried by no
+    /// row's weight, pulls the identified mass toward zero. [`identify`] sets it from the
+    /// first-harmonic fit.
+    pub moving_mass_hint_kg: Option<f64>,
 }
 
 impl Default for FdMultiOptions {
@@ -237,6 +244,7 @@ impl Default for FdMultiOptions {
             noise_floor: 1e-4,
             weighting: Weighting::default(),
             multisine_distortion_lines: true,
+            moving_mass_hint_kg: None,
         }
     }
 }
@@ -357,6 +365,38 @@ impl Identification {
             .map(|p| p.value)
             .collect()
     }
+}
+
+/// The moving mass of an element test whose mass is identified and whose acceleration is not
+/// measured, from the first-harmonic fit (`fd`, where the displacement's differentiated noise
+/// is small): [`FdMultiOptions::moving_mass_hint_kg`]. None where it does not apply or the fit
+/// gives no positive mass.
+fn moving_mass_hint(
+    model: &Model,
+    setup: &Setup,
+    records: &[Record],
+    analyses: &[HarmonicAnalysis],
+    options: &FdMultiOptions,
+) -> Option<f64> {
+    let derived = analyses.iter().any(|an| {
+        an.channel(crate::record::Channel::MassAccelerationMps2)
+            .is_none()
+    });
+    if !matches!(
+        setup,
+        Setup::Element {
+            moving_mass_kg: None
+        }
+    ) || !derived
+    {
+        return None;
+    }
+    let first = identify(model, setup, Method::Fd, records, analyses, options).ok()?;
+    first
+        .extra_values(setup)
+        .first()
+        .copied()
+        .filter(|m| m.is_finite() && *m > 0.0)
 }
 
 /// Stacks step blocks and solves (through the same accumulator the live identifier keeps, so
@@ -492,6 +532,16 @@ pub fn identify(
     if method == Method::OutputError {
         let first = identify(model, setup, Method::FdMulti, records, analyses, options)?;
         return refine_output_error(model, setup, records, analyses, &first);
+    }
+    if method == Method::FdMulti
+        && options.moving_mass_hint_kg.is_none()
+        && let Some(hint) = moving_mass_hint(model, setup, records, analyses, options)
+    {
+        let hinted = FdMultiOptions {
+            moving_mass_hint_kg: Some(hint),
+            ..*options
+        };
+        return identify(model, setup, method, records, analyses, &hinted);
     }
     let mut blocks = Vec::with_capacity(analyses.len());
     for an in analyses {
