@@ -14,7 +14,7 @@
 use thiserror::Error;
 
 use crate::record::{Channel, Excitation, Record};
-use crate::signal::differentiate::band_limited_derivative;
+use crate::signal::differentiate::{band_limited_derivative, detrended_spectrum};
 
 /// The velocity keeps the displacement's content up to this multiple of the record's highest
 /// excitation frequency (a cubic term's third harmonic, with margin).
@@ -84,22 +84,6 @@ fn labelled_top_frequency_hz(r: &Record) -> Option<f64> {
             ..
         } => lines.last().map(|k| *k as f64 * base_frequency_hz),
     }
-}
-
-/// The DFT of `y` with the line through its end points taken out, so that a record that does
-/// not wrap leaks no step into the spectrum.
-fn detrended_spectrum(y: &[f64]) -> Vec<num_complex::Complex64> {
-    let n = y.len();
-    let slope = (y[n - 1] - y[0]) / (n - 1) as f64;
-    let mut buf: Vec<num_complex::Complex64> = y
-        .iter()
-        .enumerate()
-        .map(|(i, v)| num_complex::Complex64::new(v - y[0] - slope * i as f64, 0.0))
-        .collect();
-    rustfft::FftPlanner::new()
-        .plan_fft_forward(n)
-        .process(&mut buf);
-    buf
 }
 
 /// The frequency [Hz] below which `share` of `y`'s power lies (the line through its end points

@@ -134,24 +134,7 @@ impl ColumnFile for JsonColumns {
     }
 
     fn read(&mut self, picks: &[(usize, bool)]) -> Result<Vec<RawValues>, TableError> {
-        picks
-            .iter()
-            .map(|&(k, _)| {
-                let v = &self.values[k];
-                if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                    return Err(TableError::Format {
-                        path: self.path.clone(),
-                        format: FORMAT,
-                        message: format!(
-                            "{}: element {} is not a finite number (every sample must be)",
-                            self.columns[k].label(),
-                            i + 1
-                        ),
-                    });
-                }
-                Ok(RawValues::Numbers(v.clone()))
-            })
-            .collect()
+        super::finite_columns(&self.path, FORMAT, &self.columns, &self.values, picks)
     }
 }
 

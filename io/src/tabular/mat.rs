@@ -105,24 +105,6 @@ impl ColumnFile for MatColumns {
     }
 
     fn read(&mut self, picks: &[(usize, bool)]) -> Result<Vec<RawValues>, TableError> {
-        picks
-            .iter()
-            .map(|&(k, _)| {
-                let v = &self.values[k];
-                if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                    return Err(TableError::Format {
-                        path: self.path.clone(),
-                        format: FORMAT,
-                        message: format!(
-                            "{}: element {} is {} (every sample must be finite)",
-                            self.columns[k].label(),
-                            i + 1,
-                            v[i]
-                        ),
-                    });
-                }
-                Ok(RawValues::Numbers(v.clone()))
-            })
-            .collect()
+        super::finite_columns(&self.path, FORMAT, &self.columns, &self.values, picks)
     }
 }

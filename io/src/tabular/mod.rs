@@ -93,6 +93,36 @@ pub trait ColumnFile {
     }
 }
 
+/// The values of the picked columns of a binary file held in memory (MAT, JSON), each checked
+/// to be finite; the first that is not is named by its column and element.
+pub(crate) fn finite_columns(
+    path: &Path,
+    format: &'static str,
+    columns: &[ColumnInfo],
+    values: &[Vec<f64>],
+    picks: &[(usize, bool)],
+) -> Result<Vec<RawValues>, TableError> {
+    picks
+        .iter()
+        .map(|&(k, _)| {
+            let v = &values[k];
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(TableError::Format {
+                    path: path.to_path_buf(),
+                    format,
+                    message: format!(
+                        "{}: element {} is not a finite number ({}; every sample must be)",
+                        columns[k].label(),
+                        i + 1,
+                        v[i]
+                    ),
+                });
+            }
+            Ok(RawValues::Numbers(v.clone()))
+        })
+        .collect()
+}
+
 /// Opens `path` as the file of columns its format is.
 pub fn open(path: &Path, map: Option<&TableMap>) -> Result<Box<dyn ColumnFile>, TableError> {
     Ok(match FileFormat::of(path) {

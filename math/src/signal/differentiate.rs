@@ -78,11 +78,9 @@ pub fn sixth_order_derivatives(x: &[f64], sample_rate_hz: f64) -> (Vec<f64>, Vec
     ((0..n).map(d1).collect(), (0..n).map(d2).collect())
 }
 
-/// `order`-th derivative of `y` (sampled at `fs`) in the frequency domain, bins above
-/// `cutoff_hz` dropped; the straight line through the end points is taken out first (and given
-/// back to `y` itself at order 0, its slope to the first derivative) so the record wraps
-/// without a jump. Order 0 is a zero-phase low-pass with no loss in its pass band.
-pub fn band_limited_derivative(y: &[f64], fs: f64, cutoff_hz: f64, order: u32) -> Vec<f64> {
+/// The DFT of `y` (at least two samples) with the straight line through its end points taken
+/// out, so that a record that does not wrap leaks no step into the spectrum.
+pub fn detrended_spectrum(y: &[f64]) -> Vec<num_complex::Complex64> {
     let n = y.len();
     let slope = (y[n - 1] - y[0]) / (n - 1) as f64;
     let mut buf: Vec<num_complex::Complex64> = y
@@ -90,8 +88,21 @@ pub fn band_limited_derivative(y: &[f64], fs: f64, cutoff_hz: f64, order: u32) -
         .enumerate()
         .map(|(i, v)| num_complex::Complex64::new(v - y[0] - slope * i as f64, 0.0))
         .collect();
+    rustfft::FftPlanner::new()
+        .plan_fft_forward(n)
+        .process(&mut buf);
+    buf
+}
+
+/// `order`-th derivative of `y` (sampled at `fs`) in the frequency domain, bins above
+/// `cutoff_hz` dropped; the straight line through the end points is taken out first (and given
+/// back to `y` itself at order 0, its slope to the first derivative) so the record wraps
+/// without a jump. Order 0 is a zero-phase low-pass with no loss in its pass band.
+pub fn band_limited_derivative(y: &[f64], fs: f64, cutoff_hz: f64, order: u32) -> Vec<f64> {
+    let n = y.len();
+    let slope = (y[n - 1] - y[0]) / (n - 1) as f64;
+    let mut buf = detrended_spectrum(y);
     let mut planner = rustfft::FftPlanner::new();
-    planner.plan_fft_forward(n).process(&mut buf);
     for (k, b) in buf.iter_mut().enumerate() {
         // Signed bin frequency.
         let kk = if k <= n / 2 {

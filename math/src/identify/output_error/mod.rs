@@ -23,6 +23,7 @@ pub mod element_test;
 mod lm;
 pub mod rig;
 pub mod sampled_drive;
+mod sandwich;
 mod three_dof;
 
 use super::{Identification, IdentifyError, Parameter};

@@ -30,6 +30,7 @@ use num_complex::Complex64;
 
 use super::element::{ModelElement, check_model};
 use super::lm::{self, Limits, Partial, Problem};
+use super::sandwich::sandwich_covariance;
 use crate::identify::{Identification, IdentifyError, Method, Parameter};
 use crate::measured_state::{
     CUTOFF_MULTIPLE, MeasuredState, top_frequency_hz, white_noise_std_above,
@@ -409,78 +410,8 @@ impl<'a> RecordsOutputError<'a> {
         )?;
         let p1 = states.expand(&fit.p);
         let fit = lm::levenberg_marquardt_within(self, p1, FROM_TIME_DOMAIN)?;
-        let cov = self.sandwich_covariance(&fit)?;
+        let cov = sandwich_covariance(self, &fit, &self.blocks)?;
         Ok(self.identification(start, &fit, &cov))
-    }
-
-    /// The covariance of the parameters from the residuals as they are: the sandwich
-    /// `B^-1 M B^-1` with `B = J^T J` and `M` the Bartlett-weighted sum of the products of the
-    /// per-sample scores `J_i r_i` up to the lag where the residual stops being correlated,
-    /// within each record's channel. The residual is not white (the noise on the measured
-    /// input drives the simulated mass, and a form error is smooth), and the Gauss-Newton
-    /// covariance would then understate the uncertainty several times over.
-    fn sandwich_covariance(&self, fit: &lm::Fit) -> Result<DMatrix<f64>, IdentifyError> {
-        let np = fit.p.len();
-        let jac = lm::jacobian(self, &fit.p, &fit.residual, &fit.scale)?;
-        let r = &fit.residual;
-        let lag = self.correlation_lag(r);
-        let mut meat = DMatrix::<f64>::zeros(np, np);
-        for block in &self.blocks {
-            let scores: Vec<nalgebra::DVector<f64>> = block
-                .clone()
-                .map(|i| jac.row(i).transpose() * r[i])
-                .collect();
-            for l in 0..=lag.min(scores.len().saturating_sub(1)) {
-                let w = if l == 0 {
-                    1.0
-                } else {
-                    1.0 - l as f64 / (lag + 1) as f64
-                };
-                let mut sum = DMatrix::<f64>::zeros(np, np);
-                for i in 0..scores.len() - l {
-                    sum += &scores[i] * scores[i + l].transpose();
-                }
-                meat += if l == 0 {
-                    sum * w
-                } else {
-                    (&sum + sum.transpose()) * w
-                };
-            }
-        }
-        let bread = (jac.transpose() * &jac)
-            .try_inverse()
-            .unwrap_or_else(|| DMatrix::from_element(np, np, f64::NAN));
-        let cov = &bread * meat * &bread;
-        Ok(DMatrix::from_fn(np, np, |i, j| {
-            cov[(i, j)] * fit.scale[i] * fit.scale[j]
-        }))
-    }
-
-    /// The first lag at which the residual's autocorrelation (pooled over the records) falls
-    /// below its white-noise band `2 / sqrt(N)`; at most a tenth of the shortest record.
-    fn correlation_lag(&self, r: &[f64]) -> usize {
-        let shortest = self
-            .blocks
-            .iter()
-            .map(ExactSizeIterator::len)
-            .min()
-            .unwrap_or(0);
-        let variance: f64 = r.iter().map(|v| v * v).sum();
-        if variance <= 0.0 || shortest < 20 {
-            return 0;
-        }
-        let band = 2.0 / (r.len() as f64).sqrt();
-        for l in 1..shortest / 10 {
-            let c: f64 = self
-                .blocks
-                .iter()
-                .map(|b| (b.start..b.end - l).map(|i| r[i] * r[i + l]).sum::<f64>())
-                .sum();
-            if c / variance < band {
-                return l;
-            }
-        }
-        shortest / 10
     }
 
     fn identification(

@@ -1,0 +1,78 @@
+//! The covariance of an output-error fit from its residuals as they are, for residuals that
+//! are not white (noise on a measured input that drives the simulation, a smooth form error).
+
+use std::ops::Range;
+
+use nalgebra::DMatrix;
+
+use super::lm::{self, Problem};
+use crate::identify::IdentifyError;
+
+/// The covariance of the parameters from the residuals as they are: the sandwich
+/// `B^-1 M B^-1` with `B = J^T J` and `M` the Bartlett-weighted sum of the products of the
+/// per-sample scores `J_i r_i` up to the lag where the residual stops being correlated,
+/// within each block of `blocks` (a record's channel: contiguous residual rows). The residual
+/// is not white (the noise on the measured input drives the simulated mass, and a form error
+/// is smooth), and the Gauss-Newton covariance would then understate the uncertainty several
+/// times over.
+pub(crate) fn sandwich_covariance(
+    problem: &impl Problem,
+    fit: &lm::Fit,
+    blocks: &[Range<usize>],
+) -> Result<DMatrix<f64>, IdentifyError> {
+    let np = fit.p.len();
+    let jac = lm::jacobian(problem, &fit.p, &fit.residual, &fit.scale)?;
+    let r = &fit.residual;
+    let lag = correlation_lag(blocks, r);
+    let mut meat = DMatrix::<f64>::zeros(np, np);
+    for block in blocks {
+        let scores: Vec<nalgebra::DVector<f64>> = block
+            .clone()
+            .map(|i| jac.row(i).transpose() * r[i])
+            .collect();
+        for l in 0..=lag.min(scores.len().saturating_sub(1)) {
+            let w = if l == 0 {
+                1.0
+            } else {
+                1.0 - l as f64 / (lag + 1) as f64
+            };
+            let mut sum = DMatrix::<f64>::zeros(np, np);
+            for i in 0..scores.len() - l {
+                sum += &scores[i] * scores[i + l].transpose();
+            }
+            meat += if l == 0 {
+                sum * w
+            } else {
+                (&sum + sum.transpose()) * w
+            };
+        }
+    }
+    let bread = (jac.transpose() * &jac)
+        .try_inverse()
+        .unwrap_or_else(|| DMatrix::from_element(np, np, f64::NAN));
+    let cov = &bread * meat * &bread;
+    Ok(DMatrix::from_fn(np, np, |i, j| {
+        cov[(i, j)] * fit.scale[i] * fit.scale[j]
+    }))
+}
+
+/// The first lag at which the residual's autocorrelation (pooled over the records) falls
+/// below its white-noise band `2 / sqrt(N)`; at most a tenth of the shortest record.
+fn correlation_lag(blocks: &[Range<usize>], r: &[f64]) -> usize {
+    let shortest = blocks.iter().map(ExactSizeIterator::len).min().unwrap_or(0);
+    let variance: f64 = r.iter().map(|v| v * v).sum();
+    if variance <= 0.0 || shortest < 20 {
+        return 0;
+    }
+    let band = 2.0 / (r.len() as f64).sqrt();
+    for l in 1..shortest / 10 {
+        let c: f64 = blocks
+            .iter()
+            .map(|b| (b.start..b.end - l).map(|i| r[i] * r[i + l]).sum::<f64>())
+            .sum();
+        if c / variance < band {
+            return l;
+        }
+    }
+    shortest / 10
+}
