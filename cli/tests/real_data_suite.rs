@@ -128,11 +128,11 @@ fn records(dir: &Path, files: &[&str]) -> Vec<Record> {
     records
 }
 
-/// `forcemap identify FIT... --channels MAP --model MODEL --validate HELD... --json`: the
-/// held-out force NMSE of each held-out record [%].
-fn forcemap_held_out_nmse(dir: &Path, split: &Split, model: &str) -> Vec<f64> {
+/// `forcemap COMMAND FIT... --channels MAP --model MODEL --validate HELD... --json` on a
+/// split: its JSON output.
+fn run_on_split(command: &str, dir: &Path, split: &Split, model: &str) -> serde_json::Value {
     let map = dir.join("map.yaml");
-    let mut args: Vec<String> = vec!["identify".into()];
+    let mut args: Vec<String> = vec![command.into()];
     args.extend(
         paths(dir, split.fit)
             .iter()
@@ -152,12 +152,16 @@ fn forcemap_held_out_nmse(dir: &Path, split: &Split, model: &str) -> Vec<f64> {
     let o = common::forcemap(&refs);
     assert!(
         o.status.success(),
-        "{} {model}: {}",
+        "{} {command} {model}: {}",
         split.name,
         common::stderr(&o)
     );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
-    v["held_out"]
+    serde_json::from_slice(&o.stdout).expect("JSON")
+}
+
+/// `forcemap identify` on a split: the held-out force NMSE of each held-out record [%].
+fn forcemap_held_out_nmse(dir: &Path, split: &Split, model: &str) -> Vec<f64> {
+    run_on_split("identify", dir, split, model)["held_out"]
         .as_array()
         .expect("held_out in the JSON")
         .iter()
@@ -220,29 +224,9 @@ fn forcemap_predicts_real_held_out_tests_beside_least_squares() {
     );
 }
 
-/// `forcemap diagnose FIT... --channels MAP --model linear --validate HELD... --json`.
+/// `forcemap diagnose ... --model linear` on a split.
 fn diagnose_linear(dir: &Path, split: &Split) -> serde_json::Value {
-    let map = dir.join("map.yaml");
-    let mut args: Vec<String> = vec!["diagnose".into()];
-    args.extend(
-        paths(dir, split.fit)
-            .iter()
-            .map(|p| p.display().to_string()),
-    );
-    args.extend([
-        "--channels".into(),
-        map.display().to_string(),
-        "--model".into(),
-        "linear".into(),
-        "--json".into(),
-    ]);
-    for h in paths(dir, split.held) {
-        args.extend(["--validate".into(), h.display().to_string()]);
-    }
-    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
-    let o = common::forcemap(&refs);
-    assert!(o.status.success(), "{}: {}", split.name, common::stderr(&o));
-    serde_json::from_slice(&o.stdout).expect("JSON")
+    run_on_split("diagnose", dir, split, "linear")
 }
 
 /// The diagnosis of a `linear` model names what the hardware is known for. The UTFSM MR damper
