@@ -43,7 +43,11 @@ pub enum MeasuredStateError {
 pub fn excitation_kind(e: &Excitation) -> &'static str {
     match e {
         Excitation::Sine { .. } => "sine",
-        Excitation::Random { .. } => "band-random",
+        Excitation::Random {
+            band_hz: Some(_), ..
+        } => "band-random",
+        // A record nobody labelled (a whole file, an earthquake history): no band known.
+        Excitation::Random { band_hz: None, .. } => "unlabelled",
         Excitation::Multisine { .. } => "multisine",
         Excitation::Sweep { .. } => "sweep",
     }
@@ -66,6 +70,7 @@ pub struct MeasuredState {
     pub top_frequency_hz: f64,
     /// Whether that frequency is estimated from the record's spectrum (its label gave none).
     pub band_estimated: bool,
+    pub sample_rate_hz: f64,
 }
 
 /// Highest excitation frequency of a record by its label [Hz], if the label gives one.
@@ -132,6 +137,22 @@ pub fn white_noise_std_above(y: &[f64], sample_rate_hz: f64, cutoff_hz: f64) -> 
     Some((power / count / n as f64).sqrt())
 }
 
+/// The noise std of `y` above `cutoff_hz` ([`white_noise_std_above`]), floored at 1e-6 of
+/// its RMS about its mean (noise-free data would otherwise be weighted by round-off): the
+/// weight of a channel's samples in a fit.
+pub fn noise_std(y: &[f64], sample_rate_hz: f64, cutoff_hz: f64) -> f64 {
+    white_noise_std_above(y, sample_rate_hz, cutoff_hz)
+        .unwrap_or(0.0)
+        .max(1e-6 * rms_about_mean(y).max(f64::MIN_POSITIVE))
+}
+
+/// The RMS of `y` about its mean (0 for no samples).
+pub fn rms_about_mean(y: &[f64]) -> f64 {
+    let n = y.len().max(1) as f64;
+    let mean = y.iter().sum::<f64>() / n;
+    (y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt()
+}
+
 /// The highest excitation frequency of record `r` [Hz]: its label's, or, where the label gives
 /// none, the highest frequency below which [`BAND_POWER_SHARE`] of the power of one of
 /// `channels` lies.
@@ -183,6 +204,7 @@ impl MeasuredState {
             acceleration_measured: measured_a.is_some(),
             top_frequency_hz: top,
             band_estimated,
+            sample_rate_hz: fs,
         })
     }
 }

@@ -89,6 +89,7 @@ fn a_cubic_spring_fitted_on_multisines_predicts_the_random_record() {
         terms: terms(&[Arc::new(Displacement), Arc::new(Velocity), Arc::new(Cubic)]),
         theta: vec![2.0e4, 60.0, 5.0e7],
         mass_kg: 2.0,
+        hysteresis: None,
     };
     let [before, after, floor] = held_out(&f, &records[2], &truth);
     assert!(
@@ -142,6 +143,7 @@ fn coulomb_friction_fitted_on_dyno_steps_predicts_a_sweep() {
         ]),
         theta: vec![2000.0, 1750.0, 40.0],
         mass_kg: 0.8,
+        hysteresis: None,
     };
     let [before, after, floor] = held_out(&f, &sweep[0], &truth);
     assert!(

@@ -11,20 +11,25 @@ use std::sync::Arc;
 
 use crate::basis::Term;
 use crate::pipeline::nmse_percent;
+use crate::signal::bouc_wen::HysteresisLaw;
 
 use crate::measured_state::MeasuredState;
 
-/// A model of the element force with its fitted coefficients (extra element terms only), and
-/// the moving mass it was fitted with.
+/// A model of the element force with its fitted coefficients (extra element terms, and a
+/// hysteresis state where it was fitted on records' samples), and the moving mass it was
+/// fitted with.
 #[derive(Debug, Clone)]
 pub struct TermFit {
     pub terms: Vec<Arc<dyn Term>>,
     pub theta: Vec<f64>,
     pub mass_kg: f64,
+    /// A Bouc-Wen law and its force coefficient alpha [N/m]: the force alpha z, z integrated
+    /// along the record's measured velocity from its start.
+    pub hysteresis: Option<(HysteresisLaw, f64)>,
 }
 
 impl TermFit {
-    /// The measured force's prediction at (x, x', x'').
+    /// The measured force's prediction at (x, x', x''), the hysteresis force aside.
     pub fn force(&self, x: f64, v: f64, a: f64) -> f64 {
         self.mass_kg * a
             + self
@@ -40,6 +45,10 @@ impl MeasuredState {
     /// NMSE of the measured force against `fit`'s prediction over the scored samples [%].
     pub fn force_nmse_percent(&self, fit: &TermFit) -> f64 {
         let s = self.scored.clone();
+        let hysteresis = fit.hysteresis.map(|(law, alpha)| {
+            let z = law.integrate_record(&self.velocity_mps, 1.0 / self.sample_rate_hz);
+            (z, alpha)
+        });
         let predicted: Vec<f64> = s
             .clone()
             .map(|i| {
@@ -47,7 +56,7 @@ impl MeasuredState {
                     self.displacement_m[i],
                     self.velocity_mps[i],
                     self.acceleration_mps2[i],
-                )
+                ) + hysteresis.as_ref().map_or(0.0, |(z, alpha)| alpha * z[i])
             })
             .collect();
         nmse_percent(&self.force_n[s], &predicted)

@@ -58,6 +58,7 @@ pub mod pair_partners;
 pub mod pairs;
 pub mod phasor;
 mod ranking;
+pub mod sampled_records;
 pub mod score;
 pub mod search;
 pub mod sensor;
@@ -90,9 +91,11 @@ use score::{HeldOut, effective_samples, penalised, predict_record};
 #[derive(Debug, Error)]
 pub enum DiagnoseError {
     #[error(
-        "no settled sine steps to fit the baseline on (the diagnosis fits on stepped-sine records)"
+        "no settled sine steps to fit the baseline on (the diagnosis fits on stepped-sine records, multisine records, or an element test's records with no steps)"
     )]
     NoSineSteps,
+    #[error(transparent)]
+    MeasuredState(#[from] crate::measured_state::MeasuredStateError),
     #[error(
         "no held-out records: the data hold no random records and no steps were held out; give validation data (--validate) or name steps to hold out"
     )]

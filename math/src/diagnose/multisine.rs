@@ -1,16 +1,18 @@
-//! The phasor diagnosis on periodic multisine records (and the sine steps beside them): the
-//! baseline and each candidate effect identified through the equations `forcemap identify`
-//! solves (the sine steps' fd-multi blocks, every multisine record's per-line block through
-//! [`accumulate_multisines`]), cross-validated by leaving out a whole step (a sine step or a
-//! multisine realisation) and scoring its equations, weighted by their noise, with the
-//! parameters fitted on the others.
+//! The diagnosis on the identification's equations, for periodic multisine records (and the
+//! sine steps beside them) and for an element test's records with no steps: the baseline and
+//! each candidate effect identified through the equations `forcemap identify` solves (the sine
+//! steps' fd-multi blocks, every multisine record's per-line block through
+//! [`accumulate_multisines`], a record's time-domain rows, [`super::sampled_records`]),
+//! cross-validated by leaving out a whole step (a sine step, a multisine realisation or a
+//! record) and scoring its equations, weighted by their noise, with the parameters fitted on
+//! the others.
 //!
 //! The candidates that are extra element terms are fitted on these equations (friction,
 //! damping and stiffness nonlinearities, free play, preload), and so are the two that are
 //! linear per line ([`super::multisine_state`]): sensor_lowpass (each member's filter undone on
 //! every step's phasors) and series_compliance (the damper's column lagged per line; on
 //! multisine records only). Hysteresis and drift are listed, with the reason, as not fitted
-//! here.
+//! here; on records with no steps only the extra element terms are fitted.
 
 use std::borrow::Cow;
 
@@ -24,6 +26,11 @@ use super::element_heldout::TermFit;
 use super::fit::root_ratio_percent;
 use super::locate::{Located, StatePlane};
 use super::multisine_state;
+use super::sampled_records::SampledRecord;
+use crate::signal::bouc_wen::HysteresisLaw;
+
+/// The name of the hysteresis state's coefficient (the axis path's and the rig's).
+const HYSTERESIS_COEFFICIENT: &str = "alpha";
 use super::search::POSITIVE_SYMBOLS;
 use crate::identify::{
     EquationAccumulator, FdMultiOptions, Identification, Method, StepEquations, TermLag, Weighting,
@@ -34,8 +41,8 @@ use crate::phasor::{HarmonicAnalysis, MultisineAnalysis};
 use crate::recipe::Setup;
 use crate::record::Channel;
 
-/// Fewest steps (sine steps and multisine realisations) to cross-validate over when one is a
-/// multisine: one realisation determines every parameter, so two can predict each other.
+/// Fewest steps (sine steps, multisine realisations, records) to cross-validate over when one
+/// is a multisine or a record: one determines every parameter, so two can predict each other.
 pub const MIN_BLOCKS: usize = 2;
 
 /// One candidate fitted on the equations of every step.
@@ -59,11 +66,20 @@ pub struct DroppedEffect {
     pub reason: String,
 }
 
+/// What a step of the block diagnosis is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BlockKind {
+    Sine,
+    Multisine,
+    /// A record with no steps, fitted sample by sample.
+    Samples,
+}
+
 /// The baseline's fit on one step.
 #[derive(Debug, Clone)]
 pub struct BlockGap {
     pub step: usize,
-    pub multisine: bool,
+    pub kind: BlockKind,
     /// 100 * |weighted residual| / |weighted force| on the step's equations, fitted on every
     /// step [%].
     pub mismatch_percent: f64,
@@ -92,42 +108,64 @@ pub struct BlockSearch {
     pub by_step: Vec<BlockGap>,
 }
 
-/// The steps of the diagnosis: sine steps first, then multisine records (indices in that
-/// order); a sensor_lowpass member's steps have its filter undone, a series_compliance
-/// structure's lag one term ([`super::multisine_state::steps_for`]).
+/// The steps of the diagnosis: sine steps first, then records with no steps, then multisine
+/// records (indices in that order); a sensor_lowpass member's steps have its filter undone, a
+/// series_compliance structure's lag one term ([`super::multisine_state::steps_for`]).
 #[derive(Clone)]
 pub(super) struct Steps<'a> {
     pub(super) setup: &'a Setup,
     pub(super) sines: Cow<'a, [HarmonicAnalysis]>,
+    pub(super) records: &'a [SampledRecord],
     pub(super) multisines: Cow<'a, [MultisineAnalysis]>,
     pub(super) options: FdMultiOptions,
     pub(super) lag: Option<TermLag>,
+    /// A hysteresis law whose state is the records' last column, its coefficient alpha the
+    /// last parameter (records with no steps only: [`SampledRecord::equations`]).
+    pub(super) hysteresis: Option<HysteresisLaw>,
 }
 
 impl Steps<'_> {
     fn len(&self) -> usize {
-        self.sines.len() + self.multisines.len()
+        self.fixed() + self.multisines.len()
+    }
+
+    /// Steps whose equations do not depend on theta: the sine steps and the records.
+    fn fixed(&self) -> usize {
+        self.sines.len() + self.records.len()
+    }
+
+    fn kind(&self, index: usize) -> BlockKind {
+        if index < self.sines.len() {
+            BlockKind::Sine
+        } else if index < self.fixed() {
+            BlockKind::Samples
+        } else {
+            BlockKind::Multisine
+        }
     }
 
     /// `model` identified on every step but `leave` as `forcemap identify` does it.
     fn identify(
         &self,
         model: &Model,
-        sine_blocks: &[StepEquations],
+        fixed_blocks: &[StepEquations],
         leave: Option<usize>,
     ) -> Result<Identification, DiagnoseError> {
         let mut acc = EquationAccumulator::new(model, self.setup, Method::FdMulti);
-        for (i, b) in sine_blocks.iter().enumerate() {
+        if self.hysteresis.is_some() {
+            acc = acc.with_state_parameter(HYSTERESIS_COEFFICIENT);
+        }
+        for (i, b) in fixed_blocks.iter().enumerate() {
             if Some(i) != leave {
                 acc.add(b)?;
             }
         }
-        let ns = self.sines.len();
+        let nf = self.fixed();
         let ms: Vec<MultisineAnalysis> = self
             .multisines
             .iter()
             .enumerate()
-            .filter(|(j, _)| Some(ns + j) != leave)
+            .filter(|(j, _)| Some(nf + j) != leave)
             .map(|(_, m)| m.clone())
             .collect();
         Ok(
@@ -140,12 +178,12 @@ impl Steps<'_> {
     fn block(
         &self,
         model: &Model,
-        sine_blocks: &[StepEquations],
+        fixed_blocks: &[StepEquations],
         index: usize,
         theta: &[f64],
     ) -> Result<StepEquations, DiagnoseError> {
-        Ok(match index.checked_sub(self.sines.len()) {
-            None => sine_blocks[index].clone(),
+        Ok(match index.checked_sub(self.fixed()) {
+            None => fixed_blocks[index].clone(),
             Some(j) => multisine_equations_about_lagged(
                 model,
                 self.setup,
@@ -157,18 +195,26 @@ impl Steps<'_> {
         })
     }
 
-    fn sine_blocks(&self, model: &Model) -> Result<Vec<StepEquations>, DiagnoseError> {
-        Ok(self
+    /// The equations of the steps that do not depend on theta, in step order: the sine steps'
+    /// and the records'.
+    fn fixed_blocks(&self, model: &Model) -> Result<Vec<StepEquations>, DiagnoseError> {
+        let mut blocks: Vec<StepEquations> = self
             .sines
             .iter()
             .map(|an| step_equations(model, self.setup, Method::FdMulti, an, &self.options))
-            .collect::<Result<_, _>>()?)
+            .collect::<Result<_, _>>()?;
+        for r in self.records {
+            blocks.push(r.equations(model, self.setup, self.hysteresis.as_ref())?);
+        }
+        Ok(blocks)
     }
 
     fn step_number(&self, index: usize) -> usize {
-        match index.checked_sub(self.sines.len()) {
-            None => self.sines[index].step,
-            Some(j) => self.multisines[j].step,
+        let ns = self.sines.len();
+        match self.kind(index) {
+            BlockKind::Sine => self.sines[index].step,
+            BlockKind::Samples => self.records[index - ns].step(),
+            BlockKind::Multisine => self.multisines[index - self.fixed()].step,
         }
     }
 }
@@ -187,11 +233,11 @@ fn sums(b: &StepEquations, theta: &[f64]) -> (f64, f64, f64) {
 
 /// Leave-one-step-out cross-validated error of `model` [%] and its noise floor [%].
 fn cross_validated(steps: &Steps, model: &Model) -> Result<(f64, f64), DiagnoseError> {
-    let sine_blocks = steps.sine_blocks(model)?;
+    let fixed_blocks = steps.fixed_blocks(model)?;
     let (mut num, mut den, mut noise) = (0.0, 0.0, 0.0);
     for k in 0..steps.len() {
-        let theta = steps.identify(model, &sine_blocks, Some(k))?.theta();
-        let (n, d, s) = sums(&steps.block(model, &sine_blocks, k, &theta)?, &theta);
+        let theta = steps.identify(model, &fixed_blocks, Some(k))?.theta();
+        let (n, d, s) = sums(&steps.block(model, &fixed_blocks, k, &theta)?, &theta);
         num += n;
         den += d;
         noise += s;
@@ -214,6 +260,11 @@ fn scales(setup: &Setup, steps: &Steps) -> Result<Scales, DiagnoseError> {
         s.max_displacement_m = s.max_displacement_m.max(peak(1.0));
         s.max_velocity_mps = s.max_velocity_mps.max(peak(w));
         s.max_frequency_hz = s.max_frequency_hz.max(an.frequency_hz);
+    }
+    for r in steps.records {
+        s.max_displacement_m = s.max_displacement_m.max(r.max_displacement_m);
+        s.max_velocity_mps = s.max_velocity_mps.max(r.max_velocity_mps);
+        s.max_frequency_hz = s.max_frequency_hz.max(r.top_frequency_hz);
     }
     for ms in steps.multisines.iter() {
         let Some(x) = ms.channel(Channel::RelativeDisplacementM) else {
@@ -240,17 +291,19 @@ fn scales(setup: &Setup, steps: &Steps) -> Result<Scales, DiagnoseError> {
 }
 
 /// Fits the baseline and every candidate of `effects` that is an extra element term on the
-/// equations of `sines` and `multisines` (see the module docs).
+/// equations of `sines`, `records` and `multisines` (see the module docs).
 pub fn search_blocks(
     setup: &Setup,
     baseline: &Model,
     sines: &[HarmonicAnalysis],
+    records: &[SampledRecord],
     multisines: &[MultisineAnalysis],
     effects: &[Effect],
 ) -> Result<BlockSearch, DiagnoseError> {
     let steps = Steps {
         setup,
         sines: Cow::Borrowed(sines),
+        records,
         multisines: Cow::Borrowed(multisines),
         // The diagnosis scores residuals in units of the noise: noise weights, whatever the
         // form error.
@@ -259,24 +312,25 @@ pub fn search_blocks(
             ..FdMultiOptions::default()
         },
         lag: None,
+        hysteresis: None,
     };
     if steps.len() < MIN_BLOCKS {
         return Err(DiagnoseError::NoSineSteps);
     }
     let (baseline_cv, noise_cv) = cross_validated(&steps, baseline)?;
     // The baseline on every step, per step.
-    let sine_blocks = steps.sine_blocks(baseline)?;
-    let theta = steps.identify(baseline, &sine_blocks, None)?.theta();
-    let baseline_fit = term_fit(setup, baseline, &theta);
+    let fixed_blocks = steps.fixed_blocks(baseline)?;
+    let theta = steps.identify(baseline, &fixed_blocks, None)?.theta();
+    let baseline_fit = term_fit(&steps, baseline, &theta);
     let mut equations = 0.0;
     let mut by_step = Vec::new();
     for k in 0..steps.len() {
-        let b = steps.block(baseline, &sine_blocks, k, &theta)?;
+        let b = steps.block(baseline, &fixed_blocks, k, &theta)?;
         equations += b.independent_equations;
         let (n, d, s) = sums(&b, &theta);
         by_step.push(BlockGap {
             step: steps.step_number(k),
-            multisine: k >= sines.len(),
+            kind: steps.kind(k),
             mismatch_percent: root_ratio_percent(n, d),
             floor_percent: root_ratio_percent(s, d),
         });
@@ -351,12 +405,13 @@ pub(super) fn evaluate(
         format!("{} + {}", baseline.name, effect.name()),
         &structure.terms,
     );
-    let sine_blocks = steps.sine_blocks(&model).map_err(|e| e.to_string())?;
+    let fixed_blocks = steps.fixed_blocks(&model).map_err(|e| e.to_string())?;
     let id = steps
-        .identify(&model, &sine_blocks, None)
+        .identify(&model, &fixed_blocks, None)
         .map_err(|e| e.to_string())?;
     let mut added: Vec<(String, f64, f64)> = id.parameters[baseline.terms.len()..model.terms.len()]
         .iter()
+        .chain(id.parameters.last().filter(|_| steps.hysteresis.is_some()))
         .map(|p| (p.name.clone(), p.value, p.std))
         .collect();
     // A fit that needs the opposite sign is not that effect.
@@ -380,16 +435,18 @@ pub(super) fn evaluate(
         effect,
         cv_percent: cv,
         added_parameters: added,
-        fit: is_extra_terms(&structure).then(|| term_fit(steps.setup, &model, &theta)),
+        fit: (is_extra_terms(&structure) || steps.hysteresis.is_some())
+            .then(|| term_fit(&steps, &model, &theta)),
         structure,
     })
 }
 
-/// `model` with `theta` from the identification: its terms' coefficients, then the moving
-/// mass where the setup leaves it unknown.
-fn term_fit(setup: &Setup, model: &Model, theta: &[f64]) -> TermFit {
+/// `model` with `theta` from the identification on `steps`: its terms' coefficients, then the
+/// moving mass where the setup leaves it unknown, then the hysteresis state's coefficient
+/// where the steps carry one.
+fn term_fit(steps: &Steps, model: &Model, theta: &[f64]) -> TermFit {
     let n = model.terms.len();
-    let mass_kg = match setup {
+    let mass_kg = match steps.setup {
         Setup::Element {
             moving_mass_kg: Some(m),
         } => *m,
@@ -399,6 +456,9 @@ fn term_fit(setup: &Setup, model: &Model, theta: &[f64]) -> TermFit {
         terms: model.terms.clone(),
         theta: theta[..n].to_vec(),
         mass_kg,
+        hysteresis: steps
+            .hysteresis
+            .zip(theta.last().copied().filter(|_| steps.hysteresis.is_some())),
     }
 }
 
@@ -430,10 +490,10 @@ pub fn located_by_step(by_step: &[BlockGap]) -> Located {
             format!(
                 "step {} ({}): baseline residual {:.2} % of the force on its equations (noise alone {:.2} %)",
                 g.step,
-                if g.multisine {
-                    "multisine, its lines and distortion bins"
-                } else {
-                    "sine, its harmonics"
+                match g.kind {
+                    BlockKind::Multisine => "multisine, its lines and distortion bins",
+                    BlockKind::Sine => "sine, its harmonics",
+                    BlockKind::Samples => "a record with no steps, its samples",
                 },
                 g.mismatch_percent,
                 g.floor_percent

@@ -18,8 +18,8 @@
 use std::borrow::Cow;
 
 use super::effects::{
-    LOWPASS_CUTOFF_MULTIPLES, SERIES_RELAXATION_MULTIPLES, Structure, sensor_structure,
-    series_structure,
+    HYSTERESIS_YIELD_FRACTIONS, LOWPASS_CUTOFF_MULTIPLES, SERIES_RELAXATION_MULTIPLES, Structure,
+    hysteresis_structure, sensor_structure, series_structure,
 };
 use super::multisine::{BlockCandidate, Steps};
 use super::sensor::{self, SensorFilter};
@@ -27,6 +27,7 @@ use super::series::{DAMPER_SYMBOL, golden_section_ln};
 use crate::identify::TermLag;
 use crate::model::Model;
 use crate::record::Channel;
+use crate::signal::bouc_wen::HysteresisLaw;
 
 /// Channels a single-channel sensor member may sit on in a multisine record (the element
 /// setup's motion channels; the force is what the members compare against).
@@ -37,6 +38,20 @@ const SINGLE_CHANNELS: [Channel; 2] = [
 
 /// Why `s` is not fitted on these steps' equations; None when it is.
 pub(super) fn not_fitted_reason(s: &Structure, steps: &Steps) -> Option<String> {
+    let hysteresis_alone = s.hysteresis.is_some()
+        && s.transform == Default::default()
+        && s.series_relaxation_s.is_none()
+        && !s.drift;
+    if !steps.records.is_empty() {
+        if hysteresis_alone && steps.sines.is_empty() && steps.multisines.is_empty() {
+            return None;
+        }
+        if !super::multisine::is_extra_terms(s) {
+            return Some(
+                "records with no steps are fitted sample by sample, on the element's terms along the measured motion and a hysteresis state integrated along it (on records alone): a filter, a lag or a drift is not written into those rows".into(),
+            );
+        }
+    }
     if s.hysteresis.is_some() {
         return Some(
             "the Bouc-Wen state is not written into the per-line equations (its column needs the steady periodic state over the multisine's period); fitted on sine steps alone".into(),
@@ -90,6 +105,9 @@ pub(super) fn steps_for<'a>(
     s: &Structure,
 ) -> Result<Steps<'a>, String> {
     let mut out = steps.clone();
+    if !steps.records.is_empty() {
+        out.hysteresis = s.hysteresis;
+    }
     if let Some(f) = &s.transform.sensor {
         out.sines = Cow::Owned(
             steps
@@ -144,7 +162,8 @@ pub(super) fn derived(steps: &Steps, theta: &[f64]) -> Vec<(String, f64, f64)> {
         .collect()
 }
 
-/// `best` with its shape parameter (a sensor member's cutoff, a series relaxation time)
+/// `best` with its shape parameter (a sensor member's cutoff, a series relaxation time, a
+/// hysteresis yield fitted on records' samples)
 /// refined by golden section of the cross-validated error on its log, between the grid's
 /// neighbours ([`golden_section_ln`], as on sine steps); `evaluate` fits one structure (None when it gives no candidate). Other
 /// candidates are returned as they are.
@@ -165,6 +184,12 @@ pub(super) fn refine(
                 f.cutoff_hz,
                 LOWPASS_CUTOFF_MULTIPLES[2] / LOWPASS_CUTOFF_MULTIPLES[1],
                 Box::new(move |c| sensor_structure(&SensorFilter { cutoff_hz: c, ..f })),
+            )
+        } else if let Some(zy) = s.hysteresis.and_then(|l| l.one_parameter_yield_m()) {
+            (
+                zy,
+                HYSTERESIS_YIELD_FRACTIONS[2] / HYSTERESIS_YIELD_FRACTIONS[1],
+                Box::new(|y| hysteresis_structure(HysteresisLaw::yield_law(y), false)),
             )
         } else {
             return best;

@@ -1,6 +1,7 @@
 //! The phasor-only diagnosis for a live stream of harmonic analyses (what a diagnoser node
-//! wraps): no time samples, no held-out random records; the evidence is the element-force
-//! residual of each step, cross-validated over steps.
+//! wraps): no held-out records to simulate on; the evidence is the element-force residual of
+//! each step, cross-validated over steps. Offline, an element test's records with no steps
+//! join as steps fitted sample by sample ([`super::sampled_records`]).
 
 use serde::Serialize;
 
@@ -10,6 +11,7 @@ use super::findings::{Evidence, Findings, TopCandidate, Verdict};
 use super::fit::Fitted;
 use super::locate::{Located, locate};
 use super::multisine::{DroppedEffect, is_extra_terms, located_by_step, search_blocks};
+use super::sampled_records::SampledRecord;
 use super::score::penalised;
 use super::search::search;
 use super::{DiagnoseError, ParameterValue, parameter_values};
@@ -54,6 +56,8 @@ pub struct PhasorFindings {
     pub kinematic_delay_s: Option<[f64; 2]>,
     /// Of `steps`, the periodic multisine records.
     pub multisine_steps: usize,
+    /// Of `steps`, the records with no steps fitted sample by sample.
+    pub sampled_records: usize,
     /// Candidates not fitted: with multisine records, those that are not extra element terms
     /// ([`super::multisine`]).
     pub not_fitted: Vec<Effect>,
@@ -92,6 +96,7 @@ pub struct PhasorDiagnosis {
     baseline: Model,
     analyses: Vec<HarmonicAnalysis>,
     multisines: Vec<MultisineAnalysis>,
+    records: Vec<SampledRecord>,
     effects: Vec<Effect>,
 }
 
@@ -107,6 +112,7 @@ impl PhasorDiagnosis {
             baseline,
             analyses: Vec::new(),
             multisines: Vec::new(),
+            records: Vec::new(),
             effects,
         }
     }
@@ -129,24 +135,42 @@ impl PhasorDiagnosis {
         }
     }
 
-    /// Steps so far: sine steps and multisine records.
+    /// Adds (or replaces, by step number) an element test's record with no steps (band-random,
+    /// ramped, a whole file): the diagnosis then fits every step through the identification's
+    /// equations, this one by its samples ([`super::sampled_records`]).
+    pub fn push_record(&mut self, record: SampledRecord) {
+        match self.records.iter_mut().find(|r| r.step() == record.step()) {
+            Some(r) => *r = record,
+            None => self.records.push(record),
+        }
+    }
+
+    /// Steps so far: sine steps, multisine records and records with no steps.
     pub fn steps(&self) -> usize {
-        self.analyses.len() + self.multisines.len()
+        self.analyses.len() + self.multisines.len() + self.records.len()
     }
 
     /// Forgets every step (e.g. when the rig or the baseline changes).
     pub fn clear(&mut self) {
         self.analyses.clear();
         self.multisines.clear();
+        self.records.clear();
+    }
+
+    /// Whether the steps are fitted through the identification's equations ([`search_blocks`]):
+    /// with a multisine record or a record with no steps among them.
+    fn on_equations(&self) -> bool {
+        !self.multisines.is_empty() || !self.records.is_empty()
     }
 
     /// Steps needed before [`findings`](Self::findings) can cross-validate: [`MIN_STEPS`] sine
-    /// steps, or [`super::multisine::MIN_BLOCKS`] steps when one is a multisine record.
+    /// steps, or [`super::multisine::MIN_BLOCKS`] steps when one is a multisine record or a
+    /// record with no steps.
     pub fn min_steps(&self) -> usize {
-        if self.multisines.is_empty() {
-            MIN_STEPS
-        } else {
+        if self.on_equations() {
             super::multisine::MIN_BLOCKS
+        } else {
+            MIN_STEPS
         }
     }
 
@@ -155,7 +179,7 @@ impl PhasorDiagnosis {
         if self.steps() < self.min_steps() {
             return Err(DiagnoseError::NoSineSteps);
         }
-        if !self.multisines.is_empty() {
+        if self.on_equations() {
             return self.findings_on_equations();
         }
         let s = search(&self.setup, &self.baseline, &self.analyses, &self.effects)?;
@@ -182,6 +206,7 @@ impl PhasorDiagnosis {
         Ok(PhasorFindings {
             steps: self.analyses.len(),
             multisine_steps: 0,
+            sampled_records: 0,
             findings,
             located: locate(&s.baseline, &s.cycles),
             ranked_effects: ranked,
@@ -192,13 +217,14 @@ impl PhasorDiagnosis {
         })
     }
 
-    /// The findings with multisine records: every step fitted through the identification's
-    /// equations ([`search_blocks`]); the residual located per step only.
+    /// The findings with multisine records or records with no steps: every step fitted through
+    /// the identification's equations ([`search_blocks`]); the residual located per step only.
     fn findings_on_equations(&self) -> Result<PhasorFindings, DiagnoseError> {
         let s = search_blocks(
             &self.setup,
             &self.baseline,
             &self.analyses,
+            &self.records,
             &self.multisines,
             &self.effects,
         )?;
@@ -222,6 +248,7 @@ impl PhasorDiagnosis {
         Ok(PhasorFindings {
             steps: self.steps(),
             multisine_steps: self.multisines.len(),
+            sampled_records: self.records.len(),
             findings,
             located: located_by_step(&s.by_step),
             ranked_effects: ranked,
@@ -245,6 +272,7 @@ impl PhasorDiagnosis {
             terms: f.terms.clone(),
             theta: f.theta[..f.terms.len()].to_vec(),
             mass_kg: m,
+            hysteresis: None,
         })
     }
 }

@@ -63,6 +63,18 @@ impl EquationAccumulator {
         }
     }
 
+    /// This (empty) accumulator with one more parameter after the others: the coefficient of
+    /// a column the blocks carry last that is no term of the model (a hysteresis state along a
+    /// record's measured motion, in the diagnosis).
+    pub fn with_state_parameter(mut self, name: &str) -> EquationAccumulator {
+        debug_assert_eq!(self.blocks, 0, "parameters are added before any equations");
+        self.parameter_names.push(name.to_string());
+        let p = self.parameter_names.len();
+        self.qr = QrAccumulator::new(p);
+        self.term_ms_sum = vec![0.0; p];
+        self
+    }
+
     /// Weights every step so far by `factor` (0 < factor <= 1) against the steps added later:
     /// exponential forgetting, for tracking parameters that drift (a damper that heats up).
     /// Called before each [`add`](Self::add), the equations of the step `a` steps back weigh

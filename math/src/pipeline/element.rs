@@ -39,6 +39,7 @@ pub fn validate_element(
         terms: model.model.terms.clone(),
         theta: model.theta.clone(),
         mass_kg: moving_mass_kg,
+        hysteresis: None,
     };
     let s = state.scored.clone();
     let predicted: Vec<f64> = s

@@ -67,6 +67,7 @@ fn predicted_nmse(
         terms: model.terms.clone(),
         theta: theta[..p].to_vec(),
         mass_kg,
+        hysteresis: None,
     })
 }
 

@@ -84,6 +84,20 @@ impl HysteresisLaw {
         }
     }
 
+    /// The law's state over a sampled record of velocity `velocity_mps` at step `dt`, from
+    /// z = 0: one forward-Euler step per sample, the value after the step returned for each
+    /// ([`integrate_record`] for the one-parameter law).
+    pub fn integrate_record(&self, velocity_mps: &[f64], dt: f64) -> Vec<f64> {
+        let mut z = 0.0;
+        velocity_mps
+            .iter()
+            .map(|&v| {
+                z += dt * self.rate(z, v);
+                z
+            })
+            .collect()
+    }
+
     /// The rate z' at state `z` and velocity `v`: [`yield_rate`] for the one-parameter law
     /// (the diagnoses' results were computed with its rounding), else the general law.
     pub fn rate(&self, z: f64, v: f64) -> f64 {
@@ -154,14 +168,7 @@ pub fn steady_cycle(velocity_mps: &[f64], period_s: f64, law: &HysteresisLaw) ->
 /// are sampled far above their motion's bandwidth (1 kHz for EMPS), where one step per sample
 /// is accurate; its results (the hysteresis candidate on EMPS) were computed with it.
 pub fn integrate_record(velocity_mps: &[f64], dt: f64, yield_m: f64) -> Vec<f64> {
-    let mut z = 0.0;
-    velocity_mps
-        .iter()
-        .map(|&v| {
-            z += dt * yield_rate(z, v, yield_m);
-            z
-        })
-        .collect()
+    HysteresisLaw::yield_law(yield_m).integrate_record(velocity_mps, dt)
 }
 
 #[cfg(test)]

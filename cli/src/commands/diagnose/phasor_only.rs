@@ -1,16 +1,21 @@
-//! The diagnosis of stepped-sine data that hold no record to simulate the baseline on (an
-//! element test; a drive point is refused until it has its held-out path): the phasor diagnosis the live diagnoser runs
-//! (`forcemap_math::diagnose::PhasorDiagnosis`), its evidence the element-force error
-//! cross-validated by leaving each step out.
+//! The diagnosis of an element test's data, which hold no record to simulate the baseline on
+//! (a drive point is refused until it has its held-out path): the phasor diagnosis the live
+//! diagnoser runs (`forcemap_math::diagnose::PhasorDiagnosis`), its evidence the element-force
+//! error cross-validated by leaving each step out. Data with no sine steps and no periodic
+//! multisines (band-random records, ramped sines, whole files) are fitted record by record on
+//! their samples, each record a step.
 
 use anyhow::Context as _;
+use forcemap_math::diagnose::sampled_records::SampledRecord;
 use forcemap_math::diagnose::{PhasorDiagnosis, PhasorFindings};
 use forcemap_math::identify::{FdMultiOptions, Method, Weighting};
 use forcemap_math::measured_state::{MeasuredState, excitation_kind};
 use forcemap_math::model::Model;
 use forcemap_math::phasor::MultisineOptions;
 use forcemap_math::phasor::{PhasorOptions, analyse_record};
-use forcemap_math::pipeline::{analyse_multisine_records, identify_records};
+use forcemap_math::pipeline::{
+    analyse_multisine_records, identify_records, multisine_too_short, sample_records,
+};
 use forcemap_math::recipe::Setup;
 use forcemap_math::record::{Excitation, Record};
 
@@ -107,20 +112,32 @@ fn held_out(f: &PhasorFindings, records: &[&Record]) -> anyhow::Result<Vec<HeldO
 pub(super) fn run(args: &DiagnoseArgs, data: &Data, baseline: &Model) -> anyhow::Result<()> {
     let source = data.source.as_str();
     // Sine steps and multisine records are fitted; sweep and band-random records, in the data
-    // or in --validate, are held out.
-    let (fitted, in_data): (Vec<&Record>, Vec<&Record>) = data.records.iter().partition(|r| {
-        matches!(
-            r.excitation,
-            Excitation::Sine { .. } | Excitation::Multisine { .. }
-        )
-    });
+    // or in --validate, are held out. Data with neither are fitted on their records' samples.
+    let multisine_options = MultisineOptions::default();
+    let periodic = |r: &Record| match r.excitation {
+        Excitation::Sine { .. } => true,
+        Excitation::Multisine { .. } => !multisine_too_short(r, &multisine_options),
+        _ => false,
+    };
+    let by_samples = !data.records.iter().any(periodic)
+        && !sample_records(&data.records, &multisine_options).is_empty();
+    let (fitted, in_data): (Vec<&Record>, Vec<&Record>) =
+        data.records.iter().partition(|r| match r.excitation {
+            Excitation::Sine { .. } | Excitation::Multisine { .. } => true,
+            Excitation::Random { .. } => by_samples,
+            Excitation::Sweep { .. } => false,
+        });
     let fitted: Vec<Record> = fitted.into_iter().cloned().collect();
     let heldout_records: Vec<&Record> = in_data.into_iter().chain(&data.validation).collect();
-    let multisines = analyse_multisine_records(&fitted, &MultisineOptions::default())
-        .with_context(|| format!("{source}: analysing the multisine records"))?;
-    // The identification's equations fit the moving mass with every model; the rebuilt sine
-    // periods need it held.
-    let (setup, note) = if multisines.is_empty() {
+    let multisines = if by_samples {
+        Vec::new()
+    } else {
+        analyse_multisine_records(&fitted, &multisine_options)
+            .with_context(|| format!("{source}: analysing the multisine records"))?
+    };
+    // The identification's equations (a multisine's lines, a record's samples) fit the moving
+    // mass with every model; the rebuilt sine periods need it held.
+    let (setup, note) = if multisines.is_empty() && !by_samples {
         with_known_extras(&data.setup, baseline, &fitted)?
     } else {
         (data.setup.clone(), None)
@@ -137,6 +154,14 @@ pub(super) fn run(args: &DiagnoseArgs, data: &Data, baseline: &Model) -> anyhow:
     }
     for ms in multisines {
         live.push_multisine(ms);
+    }
+    if by_samples {
+        for r in &fitted {
+            live.push_record(
+                SampledRecord::new(r.clone())
+                    .with_context(|| format!("{source}: record {}", r.step))?,
+            );
+        }
     }
     let f = live
         .findings()
@@ -190,7 +215,12 @@ fn print_summary(
     f: &PhasorFindings,
     note: Option<&str>,
 ) {
-    let steps = if f.multisine_steps == 0 {
+    let steps = if f.sampled_records > 0 {
+        format!(
+            "{} records with no steps (each fitted on its samples, the element force along the measured motion)",
+            f.sampled_records
+        )
+    } else if f.multisine_steps == 0 {
         format!("{} sine steps", f.steps)
     } else {
         format!(
@@ -200,7 +230,7 @@ fn print_summary(
         )
     };
     println!(
-        "{source}: baseline {} on {steps} of a {} setup; no records to simulate on, so the evidence is the {}",
+        "{source}: baseline {} on {steps} ({} setup); no records to simulate on, so the evidence is the {}",
         baseline.name,
         setup.kind(),
         f.findings.evidence.measure()

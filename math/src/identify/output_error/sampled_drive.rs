@@ -33,7 +33,7 @@ use super::lm::{self, Limits, Partial, Problem};
 use super::sandwich::sandwich_covariance;
 use crate::identify::{Identification, IdentifyError, Method, Parameter};
 use crate::measured_state::{
-    CUTOFF_MULTIPLE, MeasuredState, top_frequency_hz, white_noise_std_above,
+    CUTOFF_MULTIPLE, MeasuredState, noise_std, rms_about_mean as rms, top_frequency_hz,
 };
 use crate::model::Model;
 use crate::record::{Channel, Excitation, Record};
@@ -170,19 +170,6 @@ pub struct RecordsOutputError<'a> {
     state_scale: Vec<[f64; 2]>,
     start_states: Vec<[f64; 2]>,
     solver: SolverOptions,
-}
-
-fn rms(y: &[f64]) -> f64 {
-    let mean = y.iter().sum::<f64>() / y.len() as f64;
-    (y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / y.len() as f64).sqrt()
-}
-
-/// The noise std of `y` above `cutoff_hz`, floored at 1e-6 of its RMS (noise-free data would
-/// otherwise be weighted by round-off).
-fn noise_std(y: &[f64], sample_rate_hz: f64, cutoff_hz: f64) -> f64 {
-    white_noise_std_above(y, sample_rate_hz, cutoff_hz)
-        .unwrap_or(0.0)
-        .max(1e-6 * rms(y).max(f64::MIN_POSITIVE))
 }
 
 impl<'a> RecordsOutputError<'a> {
