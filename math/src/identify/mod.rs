@@ -368,13 +368,13 @@ impl Identification {
 }
 
 /// The moving mass of an element test whose mass is identified and whose acceleration is not
-/// measured, from the first-harmonic fit (`fd`, where the displacement's differentiated noise
-/// is small): [`FdMultiOptions::moving_mass_hint_kg`]. None where it does not apply or the fit
-/// gives no positive mass.
-fn moving_mass_hint(
+/// measured, from the first-harmonic fit of `analyses` (`fd`, where the displacement's
+/// differentiated noise is small): [`FdMultiOptions::moving_mass_hint_kg`], which fd-multi's
+/// identification of these steps takes (offline in [`identify`], live in the identifier
+/// node). None where it does not apply or the fit gives no positive mass.
+pub fn moving_mass_hint(
     model: &Model,
     setup: &Setup,
-    records: &[Record],
     analyses: &[HarmonicAnalysis],
     options: &FdMultiOptions,
 ) -> Option<f64> {
@@ -391,7 +391,7 @@ fn moving_mass_hint(
     {
         return None;
     }
-    let first = identify(model, setup, Method::Fd, records, analyses, options).ok()?;
+    let first = identify(model, setup, Method::Fd, &[], analyses, options).ok()?;
     first
         .extra_values(setup)
         .first()
@@ -535,7 +535,7 @@ pub fn identify(
     }
     if method == Method::FdMulti
         && options.moving_mass_hint_kg.is_none()
-        && let Some(hint) = moving_mass_hint(model, setup, records, analyses, options)
+        && let Some(hint) = moving_mass_hint(model, setup, analyses, options)
     {
         let hinted = FdMultiOptions {
             moving_mass_hint_kg: Some(hint),

@@ -316,6 +316,10 @@ impl IdentifierCore {
                         .map(|_| {
                             st.phasors.push(ph.clone());
                             st.multisine_lines.insert(step, ms.lines);
+                            // With multisines, `forcemap identify` weighs no moving-mass hint.
+                            if st.moving_mass_hint_kg.is_some() {
+                                st.rebuild_sine_equations(model, &step_setup, method, &options);
+                            }
                         })
                         .map_err(|e| e.to_string())
                 }
@@ -323,13 +327,25 @@ impl IdentifierCore {
             None => {
                 st.phasors.push(ph.clone());
                 prune_forgotten(&mut st.phasors, forgetting);
-                step_equations(model, &step_setup, method, &analysis, &options)
-                    .map_err(|e| e.to_string())
-                    .and_then(|blk| {
+                let hint = st.moving_mass_hint(model, &step_setup, method, forgetting, &options);
+                let options = forcemap_math::identify::FdMultiOptions {
+                    moving_mass_hint_kg: hint,
+                    ..options
+                };
+                let block = step_equations(model, &step_setup, method, &analysis, &options)
+                    .map_err(|e| e.to_string());
+                if hint == st.moving_mass_hint_kg {
+                    block.and_then(|blk| {
                         // The steps so far weigh less only once the new one has equations.
                         st.accumulator.forget(forgetting);
                         st.accumulator.add(&blk).map_err(|e| e.to_string())
                     })
+                } else {
+                    // Every kept step's weights change with the hint: written afresh (converged
+                    // only, so no forgetting), this step among them.
+                    st.rebuild_sine_equations(model, &step_setup, method, &options);
+                    block.map(|_| ())
+                }
             }
         };
         if let Err(e) = added {

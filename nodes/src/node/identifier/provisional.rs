@@ -58,7 +58,12 @@ impl IdentifierCore {
                 &fresh
             }
         };
-        let solved = step_equations(model, &setup, method, &analysis, &recipe.fd_options())
+        // Weighted as the accumulated steps are (their moving-mass hint).
+        let options = forcemap_math::identify::FdMultiOptions {
+            moving_mass_hint_kg: st.moving_mass_hint_kg,
+            ..recipe.fd_options()
+        };
+        let solved = step_equations(model, &setup, method, &analysis, &options)
             .and_then(|blk| {
                 st.accumulator
                     .with_provisional(self.parameters.tracking.factor_per_step(), &blk)

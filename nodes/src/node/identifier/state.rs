@@ -7,10 +7,10 @@ use std::collections::BTreeMap;
 use anyhow::{Context as _, bail};
 use forcemap_math::identify::{
     EquationAccumulator, FdMultiOptions, Identification, IdentifyError, IdentifyWarning, Method,
-    Weighting, accumulate_multisines,
+    Weighting, accumulate_multisines, moving_mass_hint, step_equations,
 };
 use forcemap_math::model::Model;
-use forcemap_math::phasor::MultisineAnalysis;
+use forcemap_math::phasor::{HarmonicAnalysis, MultisineAnalysis};
 use forcemap_math::recipe::{Setup, SetupSpec};
 use forcemap_msgs::builtin_interfaces::Time;
 use forcemap_msgs::msg::HarmonicPhasors;
@@ -42,6 +42,12 @@ pub struct IdentifierState {
     /// ones, in two passes, whenever theta is ([`IdentifierState::solve_with_flags`]).
     #[serde(default)]
     pub multisine_lines: BTreeMap<u32, Vec<usize>>,
+    /// The moving mass the accumulated fd-multi equations were weighted with
+    /// ([`FdMultiOptions::moving_mass_hint_kg`]: an element test whose mass is identified and
+    /// whose acceleration is not measured), the first-harmonic fit of the kept sine steps
+    /// ([`IdentifierState::moving_mass_hint`]); absent in older files (none).
+    #[serde(default)]
+    pub moving_mass_hint_kg: Option<f64>,
 }
 
 /// Version 2 added `setup_spec` and `phasors`. A version-1 file still resumes (its equations
@@ -70,7 +76,61 @@ impl IdentifierState {
             setup_spec: Some(spec.clone()),
             phasors: Vec::new(),
             multisine_lines: BTreeMap::new(),
+            moving_mass_hint_kg: None,
         }
+    }
+
+    /// The kept sine steps' analyses, in the order they were added (a step whose phasors do
+    /// not convert is left out: it gave no equations either).
+    pub fn sine_analyses(&self) -> Vec<HarmonicAnalysis> {
+        self.phasors
+            .iter()
+            .filter(|ph| ph.harmonic_cap != HarmonicPhasors::MULTISINE_CAP)
+            .filter_map(|ph| ph.to_analysis(Time::ZERO).ok())
+            .collect()
+    }
+
+    /// The moving mass fd-multi's equations of the kept steps are to be weighted with, as
+    /// `forcemap identify` weights the same steps (`identify::moving_mass_hint`): for fd-multi
+    /// on sine steps alone, converged (a tracking identifier's steps are weighed by their age,
+    /// which one fit over them all would not respect), with every step's phasors kept.
+    pub fn moving_mass_hint(
+        &self,
+        model: &Model,
+        setup: &Setup,
+        method: Method,
+        forgetting: f64,
+        options: &FdMultiOptions,
+    ) -> Option<f64> {
+        if method != Method::FdMulti
+            || forgetting < 1.0
+            || !self.multisine_lines.is_empty()
+            || !self.keeps_all_phasors()
+        {
+            return None;
+        }
+        moving_mass_hint(model, setup, &self.sine_analyses(), options)
+    }
+
+    /// The accumulated equations written afresh from the kept sine steps with `options` (a new
+    /// moving-mass hint changes every step's weights); a step that gives no equations is
+    /// skipped, as when it arrived.
+    pub fn rebuild_sine_equations(
+        &mut self,
+        model: &Model,
+        setup: &Setup,
+        method: Method,
+        options: &FdMultiOptions,
+    ) {
+        let mut acc = EquationAccumulator::new(model, setup, method);
+        for an in self.sine_analyses() {
+            if let Ok(blk) = step_equations(model, setup, method, &an, options) {
+                // A block of the right shape always adds.
+                let _ = acc.add(&blk);
+            }
+        }
+        self.accumulator = acc;
+        self.moving_mass_hint_kg = options.moving_mass_hint_kg;
     }
 
     /// Steps added so far: the accumulated ones and the multisine steps.
