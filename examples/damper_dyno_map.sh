@@ -12,28 +12,8 @@
 # Exits non-zero when an expected line of the output is missing or a parameter is off its truth.
 set -euo pipefail
 
-FORCEMAP="${FORCEMAP:-forcemap}"
-case "$FORCEMAP" in */*) FORCEMAP="$(cd "$(dirname "$FORCEMAP")" && pwd)/$(basename "$FORCEMAP")" ;; esac
-command -v "$FORCEMAP" >/dev/null || { echo "no forcemap binary: put it on PATH or set FORCEMAP" >&2; exit 2; }
-work="${1:-$(mktemp -d)}"
-mkdir -p "$work" && work="$(cd "$work" && pwd)" && cd "$work"
-
-say() { printf '\n== %s\n' "$*"; }
-run() { printf '$ forcemap %s\n' "$*"; "$FORCEMAP" "$@" 2>&1; }
-# expect FILE REGEX WHAT: the line must be in the output, or the example fails.
-expect() {
-    if grep -Eq -- "$2" "$1"; then echo "ok: $3"; else echo "FAILED: $3 (no line matching '$2' in $1)" >&2; exit 1; fi
-}
-# near FILE NAME TRUTH PERCENT: the parameter's row 'NAME value std r' lies within PERCENT of TRUTH.
-near() {
-    awk -v name="$2" -v truth="$3" -v tol="$4" '
-        $1 == name && NF == 4 { found = 1; err = ($2 - truth) / truth * 100
-            printf "%s %-6s = %.4f (truth %g, %+.2f %%)\n", (err <= tol && err >= -tol) ? "ok:" : "FAILED:", name, $2, truth, err
-            exit !(err <= tol && err >= -tol) }
-        END { if (!found) { print "FAILED: no row for " name; exit 1 } }' "$1"
-}
-
-echo "scratch directory: $work"
+source "$(dirname "$0")/lib.bash"
+cd "$WORK"
 
 say "1. The dyno's run (simulated, 40 dB SNR, seed 1) as forcemap's CSV"
 run simulate --system damper-dyno --snr-db 40 --csv dyno.csv

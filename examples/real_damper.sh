@@ -9,49 +9,36 @@
 # Exits non-zero when an expected line of the output is missing.
 set -euo pipefail
 
-FORCEMAP="${FORCEMAP:-forcemap}"
-case "$FORCEMAP" in */*) FORCEMAP="$(cd "$(dirname "$FORCEMAP")" && pwd)/$(basename "$FORCEMAP")" ;; esac
-command -v "$FORCEMAP" >/dev/null || { echo "no forcemap binary: put it on PATH or set FORCEMAP" >&2; exit 2; }
-repo="$(cd "$(dirname "$0")/.." && pwd)"
-work="${1:-$(mktemp -d)}"
-mkdir -p "$work" && work="$(cd "$work" && pwd)"
-# The data are read where they lie in the repository; what the example writes goes to $work.
-cd "$repo"
-
-say() { printf '\n== %s\n' "$*"; }
-run() { printf '$ forcemap %s\n' "$*"; "$FORCEMAP" "$@" 2>&1; }
-# expect FILE REGEX WHAT: the line must be in the output, or the example fails.
-expect() {
-    if grep -Eq -- "$2" "$1"; then echo "ok: $3"; else echo "FAILED: $3 (no line matching '$2' in $1)" >&2; exit 1; fi
-}
+source "$(dirname "$0")/lib.bash"
+# The data are read where they lie in the repository; what the example writes goes to $WORK.
+cd "$REPO"
 
 D=data/real/mr_damper_utfsm
 FIT=("$D/2mm5Hz0A.txt" "$D/25mm0x1Hz0A.txt" "$D/25mm0x25Hz0A.txt" "$D/25mm0x5Hz0A.txt")
 HELD=(--validate "$D/5mm3Hz0A.txt" --validate "$D/10mm1Hz0A.txt")
-echo "scratch directory: $work"
 
 say "1. The channel map of the lab's files: time [s], displacement [mm], velocity, force [N]"
 cat "$D/map.yaml"
 
 say "2. What forcemap finds in the six tests (columns, units, one sine record per file)"
-run info "$D"/*.txt --channels "$D/map.yaml" --plot "$work/drive_plots" | grep -v '^notice' | tee "$work/info.txt"
+run info "$D"/*.txt --channels "$D/map.yaml" --plot "$WORK/drive_plots" | grep -v '^notice' | tee "$WORK/info.txt"
 
 say "3. The damper model fitted to four tests, predicting the force of two held-out tests"
 # An MR damper's yield is no term of the damper model: identify warns that the form is wrong and
 # picks the estimator that predicts left-out tests best; the held-out NMSE says how well it does.
 run identify "${FIT[@]}" --channels "$D/map.yaml" --model damper "${HELD[@]}" \
-    | grep -v '^notice' | tee "$work/identify.txt"
+    | grep -v '^notice' | tee "$WORK/identify.txt"
 
 say "4. What a linear model misses, and which effect closes the gap (the same tests)"
 run diagnose "${FIT[@]}" --channels "$D/map.yaml" --model linear "${HELD[@]}" \
-    | grep -v '^notice' | tee "$work/diagnose.txt"
+    | grep -v '^notice' | tee "$WORK/diagnose.txt"
 
 say "Checks"
-expect "$work/info.txt" '^ +0 +sine ' "sine records found"
-expect "$work/identify.txt" '^held out: .*5mm3Hz0A\.txt record 0: force NMSE [0-9.]+ %' "held-out test 5 mm 3 Hz"
-expect "$work/identify.txt" '^held out: .*10mm1Hz0A\.txt record 0: force NMSE [0-9.]+ %' "held-out test 10 mm 1 Hz"
-expect "$work/identify.txt" '^dynamic stiffness K\*' "the dynamic stiffness table"
-expect "$work/diagnose.txt" '^verdict: explained by coulomb_friction' "the diagnosis' verdict"
-expect "$work/diagnose.txt" '^held-out record 0 \(sine\): force NMSE .* with linear -> .* with coulomb_friction' "held-out record 0 before and after"
-expect "$work/diagnose.txt" '^held-out record 1 \(sine\): force NMSE .* with linear -> .* with coulomb_friction' "held-out record 1 before and after"
+expect "$WORK/info.txt" '^ +0 +sine ' "sine records found"
+expect "$WORK/identify.txt" '^held out: .*5mm3Hz0A\.txt record 0: force NMSE [0-9.]+ %' "held-out test 5 mm 3 Hz"
+expect "$WORK/identify.txt" '^held out: .*10mm1Hz0A\.txt record 0: force NMSE [0-9.]+ %' "held-out test 10 mm 1 Hz"
+expect "$WORK/identify.txt" '^dynamic stiffness K\*' "the dynamic stiffness table"
+expect "$WORK/diagnose.txt" '^verdict: explained by coulomb_friction' "the diagnosis' verdict"
+expect "$WORK/diagnose.txt" '^held-out record 0 \(sine\): force NMSE .* with linear -> .* with coulomb_friction' "held-out record 0 before and after"
+expect "$WORK/diagnose.txt" '^held-out record 1 \(sine\): force NMSE .* with linear -> .* with coulomb_friction' "held-out record 1 before and after"
 echo "real_damper: all checks passed"

@@ -8,19 +8,9 @@
 # Exits non-zero when an expected line of the output is missing or a parameter is off its truth.
 set -euo pipefail
 
-FORCEMAP="${FORCEMAP:-forcemap}"
-case "$FORCEMAP" in */*) FORCEMAP="$(cd "$(dirname "$FORCEMAP")" && pwd)/$(basename "$FORCEMAP")" ;; esac
-command -v "$FORCEMAP" >/dev/null || { echo "no forcemap binary: put it on PATH or set FORCEMAP" >&2; exit 2; }
-repo="$(cd "$(dirname "$0")/.." && pwd)"
-work="${1:-$(mktemp -d)}"
-mkdir -p "$work" && work="$(cd "$work" && pwd)" && cd "$work"
+source "$(dirname "$0")/lib.bash"
+cd "$WORK"
 
-say() { printf '\n== %s\n' "$*"; }
-run() { printf '$ forcemap %s\n' "$*"; "$FORCEMAP" "$@" 2>&1; }
-# expect FILE REGEX WHAT: the line must be in the output, or the example fails.
-expect() {
-    if grep -Eq -- "$2" "$1"; then echo "ok: $3"; else echo "FAILED: $3 (no line matching '$2' in $1)" >&2; exit 1; fi
-}
 # near FILE NAME TRUTH PERCENT: the parameter's row 'NAME value std r' lies within PERCENT of TRUTH.
 near() {
     awk -v name="$2" -v truth="$3" -v tol="$4" '
@@ -29,8 +19,6 @@ near() {
             exit !(err <= tol && err >= -tol) }
         END { if (!found) { print "FAILED: no row for " name; exit 1 } }' "$1"
 }
-
-echo "scratch directory: $work"
 
 say "1. Simulate the rig to a test-bench CSV export (seed 1)"
 run simulate --snr-db 40 --csv rig.csv
@@ -41,7 +29,7 @@ run identify rig.csv --model coulomb --mass-kg 36 --plot plots | tee identify.tx
 ls plots
 
 say "3. The node graph that plays the same run live (its commands only: --dry-run)"
-run launch "$repo/launch_configs/rig_sim.launch.yaml" --dry-run | tee launch.txt
+run launch "$REPO/launch_configs/rig_sim.launch.yaml" --dry-run | tee launch.txt
 
 say "Checks"
 expect identify.txt '^k +[-0-9.e+]+ ' "k is printed"

@@ -12,22 +12,11 @@
 # Exits non-zero when the tracked table is missing or its last c is off the truth by more than 5 %.
 set -euo pipefail
 
-FORCEMAP="${FORCEMAP:-forcemap}"
-case "$FORCEMAP" in */*) FORCEMAP="$(cd "$(dirname "$FORCEMAP")" && pwd)/$(basename "$FORCEMAP")" ;; esac
-command -v "$FORCEMAP" >/dev/null || { echo "no forcemap binary: put it on PATH or set FORCEMAP" >&2; exit 2; }
-work="${1:-$(mktemp -d)}"
-mkdir -p "$work" && work="$(cd "$work" && pwd)" && cd "$work"
-
-say() { printf '\n== %s\n' "$*"; }
-run() { printf '$ forcemap %s\n' "$*"; "$FORCEMAP" "$@" 2>&1; }
-# expect FILE REGEX WHAT: the line must be in the output, or the example fails.
-expect() {
-    if grep -Eq -- "$2" "$1"; then echo "ok: $3"; else echo "FAILED: $3 (no line matching '$2' in $1)" >&2; exit 1; fi
-}
+source "$(dirname "$0")/lib.bash"
+cd "$WORK"
 
 C0=1750    # the simulated damper's damping [N s/m]
 FADE=0.025 # the share of C0 lost per step
-echo "scratch directory: $work"
 
 say "1. The dyno run, noise-free (for the velocity) and at 40 dB SNR (the measurement)"
 run simulate --system damper-dyno --csv clean.csv

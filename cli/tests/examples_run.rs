@@ -71,6 +71,11 @@ fn tracking() {
     run_example("tracking.sh");
 }
 
+#[test]
+fn friction_damper() {
+    run_example("friction_damper.sh");
+}
+
 /// Every script of `examples/` is one of the tests above and is named in its README.
 #[test]
 fn every_example_is_run_and_described() {
@@ -79,6 +84,7 @@ fn every_example_is_run_and_described() {
         "damper_dyno_map.sh",
         "real_damper.sh",
         "tracking.sh",
+        "friction_damper.sh",
     ];
     let readme = std::fs::read_to_string(repo().join("examples/README.md")).unwrap();
     for entry in std::fs::read_dir(repo().join("examples")).unwrap() {
