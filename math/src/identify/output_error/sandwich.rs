@@ -56,8 +56,12 @@ pub(crate) fn sandwich_covariance(
     }))
 }
 
-/// The first lag at which the residual's autocorrelation (pooled over the records) falls
-/// below its white-noise band `2 / sqrt(N)`; at most a tenth of the shortest record.
+/// The lag beyond which the residual is no longer correlated (pooled over the records): the
+/// last lag whose autocorrelation's magnitude reaches its white-noise band `2 / sqrt(N)`,
+/// looked for until the autocorrelation has stayed inside the band for as many lags again
+/// (a residual driven through a resonance oscillates: its autocorrelation crosses zero at a
+/// quarter period and comes back, and stopping at the first crossing understates the
+/// variance); at most a tenth of the shortest record.
 fn correlation_lag(blocks: &[Range<usize>], r: &[f64]) -> usize {
     let shortest = blocks.iter().map(ExactSizeIterator::len).min().unwrap_or(0);
     let variance: f64 = r.iter().map(|v| v * v).sum();
@@ -65,14 +69,19 @@ fn correlation_lag(blocks: &[Range<usize>], r: &[f64]) -> usize {
         return 0;
     }
     let band = 2.0 / (r.len() as f64).sqrt();
-    for l in 1..shortest / 10 {
+    let cap = shortest / 10;
+    let mut last_correlated = 0;
+    for l in 1..cap {
+        if l > 2 * last_correlated.max(1) {
+            break;
+        }
         let c: f64 = blocks
             .iter()
             .map(|b| (b.start..b.end - l).map(|i| r[i] * r[i + l]).sum::<f64>())
             .sum();
-        if c / variance < band {
-            return l;
+        if (c / variance).abs() >= band {
+            last_correlated = l;
         }
     }
-    shortest / 10
+    (last_correlated + 1).min(cap)
 }
