@@ -13,6 +13,10 @@
 //! jumps), that content counts as noise: the floor is then high, which makes "explained"
 //! harder, not easier.
 //!
+//! A base-excited rig's records with no steps are the element between base and mass seen the
+//! same way ([`element_view_of_rig`]): its force is what holds the mass, -m a_o, along the
+//! relative motion, with no moving mass of its own.
+//!
 //! A hysteresis candidate is fitted here too: its Bouc-Wen state integrated along the
 //! record's measured velocity from the record's start (the unscored guard lets it forget its
 //! start) is one more column, its coefficient alpha, as in the time-domain axis path.
@@ -24,8 +28,36 @@ use crate::identify::{StepEquations, td_range_equations};
 use crate::measured_state::{CUTOFF_MULTIPLE, MeasuredState, noise_std};
 use crate::model::Model;
 use crate::recipe::Setup;
-use crate::record::Record;
+use crate::record::{Channel, Record};
 use crate::signal::bouc_wen::HysteresisLaw;
+
+/// A base-excited rig's record as an element test of the element between base and mass: the
+/// relative displacement, and as the force the one that holds the mass `mass_kg`, -m a_o
+/// (m a_o + g(x, x') = 0), so that the element force g is fitted with no moving mass
+/// (`Setup::Element` with a moving mass of 0). Err names the missing channel.
+pub fn element_view_of_rig(record: &Record, mass_kg: f64) -> Result<Record, DiagnoseError> {
+    let channel = |c: Channel| {
+        record.channel(c).ok_or_else(|| {
+            DiagnoseError::NotRig(format!(
+                "record {} has no channel {} (the rig's records need the relative displacement and the mass acceleration)",
+                record.step,
+                c.name()
+            ))
+        })
+    };
+    let x = channel(Channel::RelativeDisplacementM)?;
+    let a = channel(Channel::MassAccelerationMps2)?;
+    Ok(Record {
+        step: record.step,
+        excitation: record.excitation.clone(),
+        sample_rate_hz: record.sample_rate_hz,
+        start_time_s: record.start_time_s,
+        channels: vec![
+            (Channel::RelativeDisplacementM, x.to_vec()),
+            (Channel::ForceN, a.iter().map(|a| -mass_kg * a).collect()),
+        ],
+    })
+}
 
 /// A record fitted sample by sample, with what its rows are weighted and scaled by.
 #[derive(Debug, Clone)]

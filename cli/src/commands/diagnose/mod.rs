@@ -4,10 +4,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
+use forcemap_math::diagnose::sampled_records::element_view_of_rig;
 use forcemap_math::diagnose::{self, DiagnoseOptions, DiagnosisDetail, Verdict};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::recipe::Setup;
-use forcemap_math::record::Record;
+use forcemap_math::record::{Excitation, Record};
 use forcemap_math::sim::{self, RunSpec};
 
 mod phasor_only;
@@ -110,6 +111,42 @@ fn demo_data() -> anyhow::Result<Data> {
     })
 }
 
+/// A rig's data with no sine steps (band-random records, road profiles) as the element between
+/// base and mass (`diagnose::sampled_records::element_view_of_rig`): their records fitted on
+/// their samples, the held-out ones predicted the same way; said on stderr. Other data as
+/// they are.
+fn rig_without_sine_steps_as_element(data: Data) -> anyhow::Result<Data> {
+    let Setup::BaseExcited { mass_kg } = data.setup else {
+        return Ok(data);
+    };
+    if data
+        .records
+        .iter()
+        .any(|r| matches!(r.excitation, Excitation::Sine { .. }))
+    {
+        return Ok(data);
+    }
+    let view = |records: &[Record]| -> anyhow::Result<Vec<Record>> {
+        records
+            .iter()
+            .map(|r| element_view_of_rig(r, mass_kg))
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("{}: the rig's records", data.source))
+    };
+    eprintln!(
+        "note: {}: the rig's records have no sine steps: each is fitted on its samples as the element between base and mass, its force the one that holds the {mass_kg} kg mass (-m a_o) along the relative motion; the rig's channel effects (exciter delay, sensor low-pass, a mass error) are not fitted this way",
+        data.source
+    );
+    Ok(Data {
+        records: view(&data.records)?,
+        validation: view(&data.validation)?,
+        setup: Setup::Element {
+            moving_mass_kg: Some(0.0),
+        },
+        source: data.source,
+    })
+}
+
 pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     // What the data are decides the path: a force-driven axis record goes to the time domain.
     let files = forcemap_io::input::expand_paths(&args.data)?;
@@ -155,6 +192,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
             polynomial_order: None,
         },
     )?;
+    let data = rig_without_sine_steps_as_element(data)?;
     // Without a rig to simulate held-out records on, the steps are the evidence.
     if data.setup.kind() != SetupKind::BaseExcited {
         if !args.holdout_steps.is_empty() {
