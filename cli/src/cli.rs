@@ -101,8 +101,9 @@ pub enum BenchCommand {
     /// them and measure samples/s without loss, last-sample-to-theta latency, CPU and RSS.
     Graph(BenchGraphArgs),
     /// Time `identify` on a rig CSV export stage by stage (CSV parsing, phasors, fit,
-    /// validation; medians over repeats) and, with --python, the numpy peer on the same file
-    /// (benches/numpy_peer.py), as a ratio.
+    /// validation; medians over repeats) with its throughput and peak memory and, with
+    /// --python, a peer on the same file (polars loading it, or the numpy fit script), as a
+    /// ratio.
     Identify(Box<BenchIdentifyArgs>),
 }
 
@@ -111,12 +112,26 @@ pub struct BenchIdentifyArgs {
     /// The identification to time (file, --model, --method, ... as for `forcemap identify`).
     #[command(flatten)]
     pub identify: IdentifyArgs,
-    /// A python with numpy to run the numpy peer with (not run without it).
+    /// A python to run the peer with (not run without it): with polars or numpy for the
+    /// load peer, with numpy for the fit peer.
     #[arg(long)]
     pub python: Option<PathBuf>,
+    /// The peer: the time polars (else numpy) needs to load the file (benches/load_peer.py),
+    /// or the numpy script that loads and fits it (benches/numpy_peer.py).
+    #[arg(long, value_enum, default_value_t = PeerArg::Load)]
+    pub peer: PeerArg,
     /// Repeats of each side (medians reported).
     #[arg(long, default_value_t = 7)]
     pub repeats: usize,
+}
+
+/// What `bench identify --python` compares identify with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PeerArg {
+    /// Loading the file into columns of floats (polars.read_csv, else numpy.loadtxt).
+    Load,
+    /// Loading and fitting the paper's first-harmonic equations with numpy.
+    Fit,
 }
 
 #[derive(Debug, Args)]

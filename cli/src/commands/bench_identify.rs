@@ -1,12 +1,14 @@
 //! `forcemap bench identify FILE`: how long `identify` takes on a rig CSV export, stage by stage
-//! (CSV parsing, phasors, fit, validation by simulation), medians over repeats, and the same file
-//! through the numpy peer a user would write (benches/numpy_peer.py: parse with numpy, fit the
-//! first harmonic of each step, solve the paper's equations) as a ratio. A benchmark, not a
-//! test: figures go in docs/benchmarks.md with the command that produced them.
+//! (CSV parsing, phasors, fit, validation by simulation), medians over repeats, its throughput
+//! (MB/s and rows/s of the whole identification) and the peak memory of the process; with
+//! `--python`, a peer on the same file as a ratio: the time polars (or, without it, numpy)
+//! needs to load the file (benches/load_peer.py), or the numpy script a user would write to load
+//! and fit it (benches/numpy_peer.py: fit the first harmonic of each step, solve the paper's
+//! equations). A benchmark, not a test: figures go in docs/benchmarks.md with the command that
+//! produced them.
 //!
-//! Each stage is timed twice: wall time, and the CPU time of the process (both forcemap and
-//! the peer run on one thread). On a shared machine the wall time of a stage is mostly waiting
-//! for a core; the CPU times compare the work.
+//! Each stage is timed twice: wall time, and the CPU time of the process. On a shared machine
+//! the wall time of a stage is mostly waiting for a core; the CPU times compare the work.
 
 use std::io::Write as _;
 use std::process::{Command, Stdio};
@@ -19,10 +21,11 @@ use forcemap_math::pipeline;
 use forcemap_math::recipe::Setup;
 use serde_json::json;
 
-use crate::cli::BenchIdentifyArgs;
+use crate::cli::{BenchIdentifyArgs, PeerArg};
 
-/// The numpy peer, shipped inside the binary so that the command works from any directory.
+/// The peers, shipped inside the binary so that the command works from any directory.
 const NUMPY_PEER: &str = include_str!("../../../benches/numpy_peer.py");
+const LOAD_PEER: &str = include_str!("../../../benches/load_peer.py");
 
 /// Seconds of each stage of one identification.
 #[derive(Debug, Clone, Copy, Default)]
@@ -94,14 +97,19 @@ fn median(mut v: Vec<f64>) -> f64 {
 type Theta = Vec<(String, f64)>;
 
 /// One identification as `forcemap identify` does it, timed by stage; returns the stages' wall
-/// and CPU seconds and theta.
-fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Theta)> {
+/// and CPU seconds, theta and the samples read.
+fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Theta, usize)> {
     let a = &args.identify;
     let path = the_file(args)?;
     let file = path.display().to_string();
     let t0 = Clocks::start();
     let import = forcemap_io::input::load(path)?;
     let (csv_s, csv_cpu_s) = t0.elapsed();
+    let rows = import
+        .records
+        .iter()
+        .map(forcemap_math::record::Record::len)
+        .sum();
     let recipe = super::identify::recipe(a, import.kind, &import.parameters, &file)?;
     let setup = recipe.setup.setup()?;
     let model = recipe.model.build()?;
@@ -146,20 +154,23 @@ fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Th
             validation_s: validation_cpu_s,
         },
         theta,
+        rows,
     ))
 }
 
-/// Median (parse, fit) seconds of the numpy peer and its parameters, from its JSON line.
-fn run_peer(
+/// Runs a peer `script` under `python` on the file with `extra` arguments and returns its JSON
+/// output.
+fn run_script(
     python: &std::path::Path,
+    script: &str,
     args: &BenchIdentifyArgs,
-    mass_kg: f64,
+    extra: &[String],
 ) -> anyhow::Result<serde_json::Value> {
     // `python - ARGS` runs the script from stdin.
     let mut child = Command::new(python)
         .arg("-")
         .arg(the_file(args)?)
-        .args(["--mass-kg", &mass_kg.to_string()])
+        .args(extra)
         .args(["--repeats", &args.repeats.to_string()])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -169,41 +180,75 @@ fn run_peer(
     child
         .stdin
         .take()
-        .context("the numpy peer's stdin")?
-        .write_all(NUMPY_PEER.as_bytes())
-        .context("passing the numpy peer script")?;
+        .context("the peer's stdin")?
+        .write_all(script.as_bytes())
+        .context("passing the peer script")?;
     let out = child
         .wait_with_output()
         .with_context(|| format!("running {}", python.display()))?;
     if !out.status.success() {
         bail!(
-            "the numpy peer failed under {} (does it have numpy?): {}",
+            "the peer failed under {} (does it have polars or numpy?): {}",
             python.display(),
             String::from_utf8_lossy(&out.stderr).trim()
         );
     }
     let v: serde_json::Value =
-        serde_json::from_slice(&out.stdout).context("reading the numpy peer's JSON output")?;
-    let times = |key: &str| -> anyhow::Result<Vec<f64>> {
-        v[key]
-            .as_array()
-            .and_then(|a| a.iter().map(serde_json::Value::as_f64).collect())
-            .with_context(|| format!("the numpy peer's output has no list '{key}'"))
+        serde_json::from_slice(&out.stdout).context("reading the peer's JSON output")?;
+    Ok(v)
+}
+
+/// The medians of a peer's list `key` of seconds.
+fn median_of(v: &serde_json::Value, key: &str) -> anyhow::Result<f64> {
+    let list: Vec<f64> = v[key]
+        .as_array()
+        .and_then(|a| a.iter().map(serde_json::Value::as_f64).collect())
+        .with_context(|| format!("the peer's output has no list '{key}'"))?;
+    Ok(median(list))
+}
+
+/// Median (parse, fit) seconds of the numpy peer and its parameters.
+fn run_fit_peer(
+    python: &std::path::Path,
+    args: &BenchIdentifyArgs,
+    mass_kg: f64,
+) -> anyhow::Result<serde_json::Value> {
+    let extra = ["--mass-kg".to_string(), mass_kg.to_string()];
+    let v = run_script(python, NUMPY_PEER, args, &extra)?;
+    let sums = |a: &str, b: &str| -> anyhow::Result<Vec<f64>> {
+        let list = |key: &str| -> anyhow::Result<Vec<f64>> {
+            v[key]
+                .as_array()
+                .and_then(|l| l.iter().map(serde_json::Value::as_f64).collect())
+                .with_context(|| format!("the numpy peer's output has no list '{key}'"))
+        };
+        Ok(list(a)?.iter().zip(list(b)?).map(|(p, f)| p + f).collect())
     };
-    let (parse, fit) = (times("parse_s")?, times("fit_s")?);
-    let total: Vec<f64> = parse.iter().zip(&fit).map(|(p, f)| p + f).collect();
-    let (parse_cpu, fit_cpu) = (times("parse_cpu_s")?, times("fit_cpu_s")?);
-    let total_cpu: Vec<f64> = parse_cpu.iter().zip(&fit_cpu).map(|(p, f)| p + f).collect();
     Ok(json!({
-        "parse_s": median(parse),
-        "fit_s": median(fit),
-        "total_s": median(total),
-        "parse_cpu_s": median(parse_cpu),
-        "fit_cpu_s": median(fit_cpu),
-        "total_cpu_s": median(total_cpu),
+        "parse_s": median_of(&v, "parse_s")?,
+        "fit_s": median_of(&v, "fit_s")?,
+        "total_s": median(sums("parse_s", "fit_s")?),
+        "parse_cpu_s": median_of(&v, "parse_cpu_s")?,
+        "fit_cpu_s": median_of(&v, "fit_cpu_s")?,
+        "total_cpu_s": median(sums("parse_cpu_s", "fit_cpu_s")?),
         "k": v["k"], "c": v["c"], "fd": v["fd"], "rows": v["rows"],
     }))
 }
+
+/// The peak resident memory of this process so far [bytes] (`VmHWM` of /proc/self/status;
+/// NaN where it cannot be read).
+fn own_peak_bytes() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("VmHWM:"))
+                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
+        })
+        .map_or(f64::NAN, |kib| kib * 1024.0)
+}
+
+const MIB: f64 = 1024.0 * 1024.0;
 
 /// The one file a benchmark times.
 fn the_file(args: &BenchIdentifyArgs) -> anyhow::Result<&std::path::Path> {
@@ -217,15 +262,22 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
     if args.repeats == 0 {
         bail!("--repeats must be at least 1");
     }
+    let file_bytes = std::fs::metadata(the_file(args)?)
+        .map(|m| m.len() as f64)
+        .unwrap_or(f64::NAN);
     let mut runs = Vec::with_capacity(args.repeats);
     let mut cpu_runs = Vec::with_capacity(args.repeats);
     let mut theta = Vec::new();
+    let mut rows = 0;
     for _ in 0..args.repeats {
-        let (stages, cpu, th) = identify_once(args)?;
+        let (stages, cpu, th, n) = identify_once(args)?;
         runs.push(stages);
         cpu_runs.push(cpu);
         theta = th;
+        rows = n;
     }
+    // Read before any peer runs: the peak of the identifications (the children's is apart).
+    let peak_bytes = own_peak_bytes();
     let med = |f: fn(&Stages) -> f64| median(runs.iter().map(f).collect());
     let med_cpu = |f: fn(&Stages) -> f64| median(cpu_runs.iter().map(f).collect());
     let ours = json!({
@@ -262,10 +314,43 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
         );
     }
     println!("  theta        {}", ours["theta"]);
+    let num = |v: &serde_json::Value, key: &str| v[key].as_f64().unwrap_or(f64::NAN);
+    let total_s = num(&ours, "total_s");
+    println!(
+        "  throughput   {:.1} MB/s, {:.3} M rows/s ({:.1} MB, {rows} rows, by the median total \
+         wall time); peak memory {:.1} MiB (VmHWM)",
+        file_bytes / total_s * 1e-6,
+        rows as f64 / total_s * 1e-6,
+        file_bytes * 1e-6,
+        peak_bytes / MIB
+    );
     let Some(python) = &args.python else {
-        println!("numpy peer not run: give --python PATH (a python with numpy)");
+        println!("peer not run: give --python PATH (a python with polars or numpy)");
         return Ok(());
     };
+    if args.peer == PeerArg::Load {
+        let peer = run_script(python, LOAD_PEER, args, &[])?;
+        let (load_s, load_cpu_s) = (median_of(&peer, "load_s")?, median_of(&peer, "load_cpu_s")?);
+        println!(
+            "load peer ({}, {}), medians of {} runs: load {:.2} ms (CPU {:.2} ms), {} rows, \
+             {:.1} MB/s; peak memory {:.1} MiB",
+            peer["loader"].as_str().unwrap_or("?"),
+            python.display(),
+            args.repeats,
+            load_s * 1e3,
+            load_cpu_s * 1e3,
+            peer["rows"],
+            file_bytes / load_s * 1e-6,
+            num(&peer, "peak_bytes") / MIB
+        );
+        println!(
+            "ratio load peer / forcemap identify (total): {:.2}x wall, {:.2}x CPU (above 1: \
+             identify is faster than loading alone)",
+            load_s / total_s,
+            load_cpu_s / num(&ours, "total_cpu_s")
+        );
+        return Ok(());
+    }
     let mass_kg = match args.identify.mass_kg {
         Some(m) => m,
         None => {
@@ -278,9 +363,8 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
             }
         }
     };
-    let peer = run_peer(python, args, mass_kg)?;
-    let num = |v: &serde_json::Value, key: &str| v[key].as_f64().unwrap_or(f64::NAN);
-    let ratio = num(&peer, "total_s") / num(&ours, "total_s");
+    let peer = run_fit_peer(python, args, mass_kg)?;
+    let ratio = num(&peer, "total_s") / total_s;
     let cpu_ratio = num(&peer, "total_cpu_s") / num(&ours, "total_cpu_s");
     println!(
         "numpy peer ({}), medians of {} runs: parse {:.2} ms (CPU {:.2}), fit {:.2} ms (CPU {:.2}), total {:.2} ms (CPU {:.2}); k {:.6e}, c {:.6e}, fd {:.6e}",
