@@ -64,24 +64,32 @@ pub struct Prepared<'a> {
     pub notices: Vec<String>,
 }
 
-/// Detects the dialect of `bytes` (a whole file) and prepares its text; `path` names the file
-/// in notices and errors.
-pub fn prepare<'a>(bytes: &'a [u8], path: &Path) -> Result<Prepared<'a>, CsvError> {
-    let byte_order_mark = bytes.starts_with(b"\xEF\xBB\xBF");
-    let body = if byte_order_mark { &bytes[3..] } else { bytes };
-    let lines = line_spans(body);
+/// What the first lines of a file say: how it is written, the notice of it, where its data
+/// start (the line after the header and the units row) and the header's cells.
+#[derive(Debug)]
+pub(crate) struct Head {
+    pub dialect: Dialect,
+    pub notices: Vec<String>,
+    /// The byte of the file's body (without a byte-order mark) where the data start; `None`
+    /// when the lines looked at end before them.
+    pub data_start: Option<usize>,
+    header_cells: Vec<String>,
+}
+
+/// Lines of a file's body that [`detect`] looks at: a file's head of this many complete lines
+/// (or the whole file) detects as the whole file does.
+pub(crate) const HEAD_LINES: usize = SAMPLE_LINES + 2;
+
+/// Detects the dialect from the first [`HEAD_LINES`] lines of `body` (a file without its
+/// byte-order mark); `None` for a file without lines.
+pub(crate) fn detect(
+    body: &[u8],
+    byte_order_mark: bool,
+    path: &Path,
+) -> Result<Option<Head>, CsvError> {
+    let lines = first_line_spans(body, HEAD_LINES);
     let Some(header) = lines.first().cloned() else {
-        return Ok(Prepared {
-            text: Cow::Borrowed(body),
-            dialect: Dialect {
-                separator: b',',
-                decimal_comma: false,
-                byte_order_mark,
-                crlf: false,
-                units: None,
-            },
-            notices: Vec::new(),
-        });
+        return Ok(None);
     };
     let crlf = body[..header.end].ends_with(b"\r\n");
     let sample: Vec<&[u8]> = lines
@@ -123,25 +131,27 @@ pub fn prepare<'a>(bytes: &'a [u8], path: &Path) -> Result<Prepared<'a>, CsvErro
     if let Some(d) = dialect.describe() {
         notices.push(format!("{}: read as {d}", path.display()));
     }
+    Ok(Some(Head {
+        dialect,
+        notices,
+        data_start: lines.get(data_from).map(|s| s.start),
+        header_cells,
+    }))
+}
 
-    // A last data line cut short: skipped, with its line number.
-    let mut end = body.len();
-    let last = lines
-        .iter()
-        .enumerate()
-        .skip(data_from)
-        .rev()
-        .find(|(_, s)| !is_blank(&body[s.start..s.end]));
-    if let Some((i, span)) = last {
-        let text = &body[span.start..span.end];
+impl Head {
+    /// Why the last data line is read as cut short by an interrupted recording, if it is:
+    /// `from_end` yields the data's lines that are not blank, last first.
+    pub fn cut_last_line<'b>(
+        &self,
+        mut from_end: impl Iterator<Item = &'b [u8]>,
+    ) -> Option<String> {
+        let (separator, decimal_comma) = (self.dialect.separator, self.dialect.decimal_comma);
+        let width = self.header_cells.len();
+        let text = from_end.next()?;
         let ends_line = text.ends_with(b"\n");
         let found = cells(text, separator);
-        let previous = lines[data_from..i]
-            .iter()
-            .rev()
-            .map(|s| &body[s.start..s.end])
-            .find(|l| !is_blank(l))
-            .map(|l| cells(l, separator));
+        let previous = from_end.next().map(|l| cells(l, separator));
         let number = |c: &str| {
             let c = if decimal_comma {
                 Cow::Owned(c.replace(',', "."))
@@ -152,44 +162,85 @@ pub fn prepare<'a>(bytes: &'a [u8], path: &Path) -> Result<Prepared<'a>, CsvErro
         };
         // Cut inside its last cell: the cell is not a number where the line before has one.
         let cut_cell = !ends_line
-            && found.len() == header_cells.len()
+            && found.len() == width
             && !found.last().is_some_and(|c| number(c))
             && previous.is_some_and(|p| p.last().is_some_and(|c| number(c)));
-        if found.len() < header_cells.len() || cut_cell {
-            end = span.start;
-            let why = if cut_cell {
-                "its last cell is not a number".to_string()
-            } else {
-                format!("{} of {} fields", found.len(), header_cells.len())
-            };
-            notices.push(format!(
-                "{}: line {}: skipped a truncated last line ({why}; the recording was \
-                 likely interrupted)",
-                path.display(),
-                i + 1
-            ));
+        if cut_cell {
+            Some("its last cell is not a number".to_string())
+        } else if found.len() < width {
+            Some(format!("{} of {width} fields", found.len()))
+        } else {
+            None
         }
+    }
+}
+
+/// The notice of a last line cut short, on line `line` (1-based), `why` from
+/// [`Head::cut_last_line`].
+pub(crate) fn cut_notice(path: &Path, line: usize, why: &str) -> String {
+    format!(
+        "{}: line {line}: skipped a truncated last line ({why}; the recording was likely \
+         interrupted)",
+        path.display()
+    )
+}
+
+/// Changes the decimal commas of data bytes to points.
+pub(crate) fn decimal_points(data: &mut [u8]) {
+    for b in data {
+        if *b == b',' {
+            *b = b'.';
+        }
+    }
+}
+
+/// Detects the dialect of `bytes` (a whole file) and prepares its text; `path` names the file
+/// in notices and errors.
+pub fn prepare<'a>(bytes: &'a [u8], path: &Path) -> Result<Prepared<'a>, CsvError> {
+    let byte_order_mark = bytes.starts_with(b"\xEF\xBB\xBF");
+    let body = if byte_order_mark { &bytes[3..] } else { bytes };
+    let Some(head) = detect(body, byte_order_mark, path)? else {
+        return Ok(Prepared {
+            text: Cow::Borrowed(body),
+            dialect: Dialect {
+                separator: b',',
+                decimal_comma: false,
+                byte_order_mark,
+                crlf: false,
+                units: None,
+            },
+            notices: Vec::new(),
+        });
+    };
+    let mut notices = head.notices.clone();
+
+    // A last data line cut short: skipped, with its line number (the line feeds before it,
+    // counted only here: the last lines are found from the end).
+    let mut end = body.len();
+    let data_start = head.data_start.unwrap_or(body.len());
+    let mut from_end =
+        LinesFromEnd::new(body, data_start).filter(|s| !is_blank(&body[s.start..s.end]));
+    let last = from_end.clone().next();
+    if let Some(why) = head.cut_last_line(from_end.by_ref().map(|s| &body[s.start..s.end]))
+        && let Some(span) = last
+    {
+        end = span.start;
+        let line = memchr::memchr_iter(b'\n', &body[..span.start]).count() + 1;
+        notices.push(cut_notice(path, line, &why));
     }
 
     let body = &body[..end];
-    let text = if decimal_comma {
+    let text = if head.dialect.decimal_comma {
         // Only the data: header names keep their commas.
-        let from = lines
-            .get(data_from)
-            .map_or(body.len(), |s| s.start.min(body.len()));
         let mut owned = body.to_vec();
-        for b in &mut owned[from..] {
-            if *b == b',' {
-                *b = b'.';
-            }
-        }
+        decimal_points(&mut owned[data_start.min(body.len())..]);
         Cow::Owned(owned)
     } else {
         Cow::Borrowed(body)
     };
     Ok(Prepared {
         text,
-        dialect,
+        dialect: head.dialect,
         notices,
     })
 }
@@ -208,6 +259,61 @@ pub(crate) fn line_spans(body: &[u8]) -> Vec<std::ops::Range<usize>> {
         spans.push(start..body.len());
     }
     spans
+}
+
+/// Byte ranges of the first `count` lines of `body`, as [`line_spans`] gives them.
+fn first_line_spans(body: &[u8], count: usize) -> Vec<std::ops::Range<usize>> {
+    let mut spans = Vec::with_capacity(count);
+    let mut start = 0;
+    for i in memchr::memchr_iter(b'\n', body) {
+        if spans.len() == count {
+            return spans;
+        }
+        spans.push(start..i + 1);
+        start = i + 1;
+    }
+    if start < body.len() && spans.len() < count {
+        spans.push(start..body.len());
+    }
+    spans
+}
+
+/// The lines of `body` that start at or after byte `from`, last first, as [`line_spans`]
+/// gives them.
+#[derive(Clone)]
+pub(crate) struct LinesFromEnd<'a> {
+    body: &'a [u8],
+    from: usize,
+    end: usize,
+}
+
+impl<'a> LinesFromEnd<'a> {
+    pub fn new(body: &'a [u8], from: usize) -> LinesFromEnd<'a> {
+        LinesFromEnd {
+            body,
+            from,
+            end: body.len(),
+        }
+    }
+}
+
+impl Iterator for LinesFromEnd<'_> {
+    type Item = std::ops::Range<usize>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.end == 0 {
+            return None;
+        }
+        // The line ends at `end` (with its line feed, if any); it starts after the line feed
+        // before that.
+        let start = memchr::memrchr(b'\n', &self.body[..self.end - 1]).map_or(0, |i| i + 1);
+        if start < self.from {
+            return None;
+        }
+        let span = start..self.end;
+        self.end = start;
+        Some(span)
+    }
 }
 
 pub(crate) fn is_blank(line: &[u8]) -> bool {

@@ -17,21 +17,29 @@ pub(super) fn label_warnings(
     driven: Channel,
     options: &SegmentOptions,
 ) -> Vec<String> {
+    // The check reads the driven channel only: the steps are copied with that channel alone.
     let mut steps: Vec<StepWithFrequency> = Vec::new();
     for (k, (record, frequency)) in found.iter().enumerate() {
         if !checked(k) {
             continue;
         }
+        let drive = record.channel(driven).unwrap_or_default();
         match steps.last_mut() {
             Some((last, _)) if k > 0 && labels[k - 1] == labels[k] && last.step == labels[k] => {
-                for ((_, x), (_, y)) in last.channels.iter_mut().zip(&record.channels) {
-                    x.extend_from_slice(y);
+                for (_, x) in &mut last.channels {
+                    x.extend_from_slice(drive);
                 }
             }
             _ => steps.push((
                 Record {
                     step: labels[k],
-                    ..record.clone()
+                    excitation: record.excitation.clone(),
+                    sample_rate_hz: record.sample_rate_hz,
+                    start_time_s: record.start_time_s,
+                    channels: record
+                        .channel(driven)
+                        .map(|x| vec![(driven, x.to_vec())])
+                        .unwrap_or_default(),
                 },
                 *frequency,
             )),

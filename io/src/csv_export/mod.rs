@@ -49,7 +49,8 @@
 //! ([`dialect`]); [`CsvImport::notices`] says what was found.
 //!
 //! Files: `contract` (column names, required columns, the header's layout), `dialect`,
-//! `multisine` (the multisine label columns), `sweep` (the sweep label columns), `read`,
+//! `multisine` (the multisine label columns), `sweep` (the sweep label columns), `read`, `rows`
+//! (the rows split in place), `row_steps` (rows into step records), `stream` (a file read chunk by chunk),
 //! `label_runs` (the label check over records of several rates), `write`, `error`.
 //!
 //! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
@@ -62,6 +63,9 @@ mod error;
 mod label_runs;
 pub mod multisine;
 mod read;
+mod row_steps;
+mod rows;
+mod stream;
 pub mod sweep;
 mod write;
 
@@ -72,6 +76,8 @@ pub use contract::{
 pub use error::CsvError;
 pub use multisine::{MULTISINE_BASE_COLUMN, MULTISINE_LINES_COLUMN};
 pub use read::{read_csv, read_csv_from};
+#[doc(hidden)]
+pub use stream::read_csv_in_chunks;
 pub use sweep::{SWEEP_END_COLUMN, SWEEP_LAW_COLUMN, SWEEP_START_COLUMN};
 pub(crate) use write::fmt_f64;
 pub use write::write_csv;
