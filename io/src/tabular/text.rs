@@ -52,6 +52,26 @@ fn split(line: &[u8], separator: Separator) -> Vec<String> {
     }
 }
 
+/// The cells of a data row as [`split`] gives them, found in place (no allocation) for a row
+/// that is UTF-8 without quotes or carriage returns; `false` (and `out` unspecified) for any
+/// other row, which [`split`] reads.
+fn split_in_place<'a>(line: &'a [u8], separator: Separator, out: &mut Vec<&'a str>) -> bool {
+    out.clear();
+    let Ok(text) = std::str::from_utf8(line) else {
+        return false;
+    };
+    match separator_byte(separator) {
+        Some(b) => {
+            if line.is_empty() || memchr::memchr3(b'"', b'\r', b'\n', line).is_some() {
+                return false;
+            }
+            out.extend(text.split(char::from(b)).map(str::trim_ascii));
+        }
+        None => out.extend(text.split_ascii_whitespace()),
+    }
+    true
+}
+
 fn is_number(cell: &str, decimal_comma: bool) -> bool {
     let c = cell.trim();
     if decimal_comma {
@@ -304,11 +324,21 @@ impl ColumnFile for TextColumns {
             format: FORMAT,
             message: format!("line {line}: {message}"),
         };
+        // A row's cells, borrowed from the file's bytes where they can be (`split_in_place`).
+        let mut in_place: Vec<&str> = Vec::with_capacity(width);
         for (r, line) in &self.rows {
             let raw = &self.bytes[r.clone()];
             let raw = raw.strip_suffix(b"\n").unwrap_or(raw);
             let raw = raw.strip_suffix(b"\r").unwrap_or(raw);
-            let cells = split(raw, self.separator);
+            let owned: Vec<String>;
+            let borrowed: Vec<&str>;
+            let cells: &[&str] = if split_in_place(raw, self.separator, &mut in_place) {
+                &in_place
+            } else {
+                owned = split(raw, self.separator);
+                borrowed = owned.iter().map(String::as_str).collect();
+                &borrowed
+            };
             if cells.len() != width {
                 return Err(fail(
                     *line,
@@ -444,6 +474,32 @@ mod tests {
             e.contains("t.txt: text: line 3: 'b': 'x' is not a number"),
             "{e}"
         );
+    }
+
+    proptest::proptest! {
+        /// A row split in place has the cells `split` gives it (the `csv` crate's, or the
+        /// whitespace runs'), or is left to `split`.
+        #[test]
+        fn cells_in_place_are_the_split_cells(
+            line in proptest::collection::vec(
+                proptest::sample::select(&b"1.5e-3 ,;\t\"\r\n\xc2\xa0\xff-x"[..]),
+                0..40,
+            ),
+            separator in proptest::sample::select(&[
+                Separator::Comma,
+                Separator::Semicolon,
+                Separator::Tab,
+                Separator::Whitespace,
+            ][..]),
+        ) {
+            let mut out = Vec::new();
+            if split_in_place(&line, separator, &mut out) {
+                let cells: Vec<String> = out.iter().map(|c| c.trim().to_string()).collect();
+                let reference: Vec<String> =
+                    split(&line, separator).iter().map(|c| c.trim().to_string()).collect();
+                proptest::prop_assert_eq!(cells, reference);
+            }
+        }
     }
 
     #[test]
