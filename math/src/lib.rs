@@ -20,6 +20,7 @@ pub mod identify;
 pub mod lstsq;
 pub mod measured_state;
 pub mod model;
+pub mod parallel;
 pub mod phasor;
 pub mod pipeline;
 pub mod recipe;

@@ -6,6 +6,7 @@ use thiserror::Error;
 
 use crate::identify::{self, FdMultiOptions, Identification, IdentifyError, Method};
 use crate::model::{IdentifiedModel, Model};
+use crate::parallel;
 use crate::phasor::{
     HarmonicAnalysis, MultisineAnalysis, MultisineError, MultisineOptions, PhasorError,
     PhasorOptions, analyse_multisine, analyse_record,
@@ -45,13 +46,19 @@ pub fn analyse_sine_steps(
     records: &[Record],
     options: &PhasorOptions,
 ) -> Result<(Vec<HarmonicAnalysis>, Vec<String>), PhasorError> {
-    let mut out = Vec::new();
-    let mut notes = Vec::new();
-    for r in records
+    let sines: Vec<&Record> = records
         .iter()
         .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
-    {
-        let (an, note) = analyse_sine_step(r, options)?;
+        .collect();
+    // Each step's analysis is its own: many steps are analysed on the machine's cores.
+    let samples = sines.iter().map(|r| r.len()).sum();
+    let min_part = parallel::min_part_of(samples, sines.len());
+    let analysed = parallel::try_in_parts(&sines, min_part, |part| {
+        part.iter().map(|r| analyse_sine_step(r, options)).collect()
+    })?;
+    let mut out = Vec::with_capacity(analysed.len());
+    let mut notes = Vec::new();
+    for (an, note) in analysed {
         notes.extend(note);
         out.push(an);
     }
@@ -314,11 +321,18 @@ pub fn validate_rig_on_random_records(
     mass_kg: f64,
     records: &[Record],
 ) -> Result<Vec<Validation>, PipelineError> {
-    records
+    let random: Vec<&Record> = records
         .iter()
         .filter(|r| matches!(r.excitation, Excitation::Random { .. }))
-        .map(|r| validate_rig(model, mass_kg, r))
-        .collect()
+        .collect();
+    // Each record's simulation is its own: many records are simulated on the machine's cores.
+    let samples = random.iter().map(|r| r.len()).sum();
+    let min_part = parallel::min_part_of(samples, random.len());
+    parallel::try_in_parts(&random, min_part, |part| {
+        part.iter()
+            .map(|r| validate_rig(model, mass_kg, r))
+            .collect()
+    })
 }
 
 /// [`validate_rig`] with a chosen base low-pass (None: the raw samples).

@@ -116,10 +116,7 @@ pub(super) fn analyse_in_windows(
     if starts.last().is_some_and(|&s| s + window < n) {
         starts.push(n - window);
     }
-    let fits: Vec<(usize, Option<SineFit>)> = starts
-        .iter()
-        .map(|&s| (s, fitter.fit(&x[s..s + window], s, WINDOW_ITERATIONS)))
-        .collect();
+    let fits = fit_windows(crate::parallel::threads(), x, &starts, window, fitter);
     let largest = fits
         .iter()
         .filter_map(|(_, f)| f.map(|f| f.total_rms))
@@ -162,6 +159,30 @@ pub(super) fn analyse_in_windows(
         windows,
         noise_rms,
     }
+}
+
+/// Each window's sine fit (windows of `window` samples at `starts`), the windows of a long
+/// series split over `threads` threads: the fits are independent of each other, so they are
+/// the fits of one loop.
+pub(super) fn fit_windows(
+    threads: usize,
+    x: &[f64],
+    starts: &[usize],
+    window: usize,
+    fitter: &mut SineFitter,
+) -> Vec<(usize, Option<SineFit>)> {
+    let fit = |fitter: &mut SineFitter, part: &[usize]| -> Vec<(usize, Option<SineFit>)> {
+        part.iter()
+            .map(|&s| (s, fitter.fit(&x[s..s + window], s, WINDOW_ITERATIONS)))
+            .collect()
+    };
+    let min_part = crate::parallel::min_part_of(x.len(), starts.len());
+    if threads < 2 || starts.len() < 2 * min_part {
+        return fit(fitter, starts);
+    }
+    crate::parallel::in_parts_on(threads, starts, min_part, |part| {
+        fit(&mut SineFitter::new(), part)
+    })
 }
 
 /// Two sine fits agree: frequency and amplitude within `sigmas` standard deviations (plus a
