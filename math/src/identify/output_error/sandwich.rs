@@ -56,7 +56,7 @@ pub(crate) fn sandwich_covariance(
     }))
 }
 
-/// The lag beyond which the residual is no longer correlated (pooled over the records): the
+/// The lag beyond which the residual is uncorrelated (pooled over the records): the
 /// last lag whose autocorrelation's magnitude reaches its white-noise band `2 / sqrt(N)`,
 /// looked for until the autocorrelation has stayed inside the band for as many lags again
 /// (a residual driven through a resonance oscillates: its autocorrelation crosses zero at a
