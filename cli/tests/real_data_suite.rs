@@ -233,9 +233,9 @@ fn diagnose_linear(dir: &Path, split: &Split) -> serde_json::Value {
 /// 5.73 -> 4.00 %). The Labcontrol damper: its gas preload (about 80 N) explains the gap in
 /// part, and every held-out test shrinks to under 40 % of its baseline NMSE (measured 28-38 %).
 /// The ARTS friction damper (each file one record, fitted on its samples): the friction's
-/// hysteresis loop (Bouc-Wen, yield 3.8 mm, saturated at about 10.5 kN) explains the gap, and
+/// hysteresis loop (Bouc-Wen, yield 4.5 mm, saturated at about 11.3 kN) explains the gap, and
 /// the held-out tests, the earthquake history among them, shrink to under 40 % (measured
-/// 17-36 %: 18.89 -> 6.81 %, 37.57 -> 6.42 %, 80.91 -> 28.22 %).
+/// 16-37 %: 18.89 -> 6.31 %, 37.57 -> 5.92 %, 80.91 -> 29.97 %).
 #[test]
 fn the_diagnosis_names_what_the_dampers_are_known_for() {
     let utfsm = &SPLITS[0];

@@ -371,7 +371,21 @@ pub fn search_blocks(
             }
         }
         let best = best
-            .map(|b| multisine_state::refine(b, |s| evaluate(&steps, baseline, effect, s).ok()));
+            .map(|b| multisine_state::refine(b, |s| evaluate(&steps, baseline, effect, s).ok()))
+            // The hysteresis family's Bouc-Wen shapes from the refined yield, as on sine steps.
+            .map(|b| {
+                let Ok(b) = super::hysteresis::refine(
+                    b,
+                    |c| &c.structure,
+                    |s| {
+                        Ok::<_, std::convert::Infallible>(
+                            evaluate(&steps, baseline, effect, s).ok(),
+                        )
+                    },
+                    |c| c.cv_percent,
+                );
+                b
+            });
         match best {
             Some(b) => candidates.push(b),
             None => dropped.push(DroppedEffect {
