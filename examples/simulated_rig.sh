@@ -11,15 +11,6 @@ set -euo pipefail
 source "$(dirname "$0")/lib.bash"
 cd "$WORK"
 
-# near FILE NAME TRUTH PERCENT: the parameter's row 'NAME value std r' lies within PERCENT of TRUTH.
-near() {
-    awk -v name="$2" -v truth="$3" -v tol="$4" '
-        $1 == name && NF == 4 { found = 1; err = ($2 - truth) / truth * 100
-            printf "%s %-4s = %.4f (truth %g, %+.2f %%)\n", (err <= tol && err >= -tol) ? "ok:" : "FAILED:", name, $2, truth, err
-            exit !(err <= tol && err >= -tol) }
-        END { if (!found) { print "FAILED: no row for " name; exit 1 } }' "$1"
-}
-
 say "1. Simulate the rig to a test-bench CSV export (seed 1)"
 run simulate --snr-db 40 --csv rig.csv
 head -n 3 rig.csv

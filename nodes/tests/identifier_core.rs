@@ -152,6 +152,57 @@ fn phasors_of_no_setup_are_refused_without_stopping_the_node() {
     assert_eq!(c.state().unwrap().accumulator.steps_added(), 1);
 }
 
+/// `records` without their acceleration channel.
+fn without_acceleration(records: &mut [forcemap_math::record::Record]) {
+    for r in records {
+        r.channels
+            .retain(|(c, _)| *c != forcemap_math::record::Channel::MassAccelerationMps2);
+    }
+}
+
+/// The phasor messages of `records`' harmonic analyses, in frame `frame`.
+fn phasors_of(records: &[forcemap_math::record::Record], frame: &str) -> Vec<HarmonicPhasors> {
+    records
+        .iter()
+        .map(|r| {
+            let a = analyse_record(r, &PhasorOptions::for_identification()).unwrap();
+            HarmonicPhasors::from_analysis(&a, RUN_START, Header::new(RUN_START, frame))
+        })
+        .collect()
+}
+
+/// The identifier's last theta after `messages`, fed in order.
+fn last_theta(
+    c: &mut forcemap_nodes::node::identifier::IdentifierCore,
+    messages: &[HarmonicPhasors],
+) -> forcemap_msgs::msg::IdentifiedParameters {
+    let mut last = None;
+    for ph in messages {
+        let o = c
+            .handle(Input::Phasors(Box::new(ph.clone())), RUN_START)
+            .unwrap();
+        last = thetas(&o).last().map(|t| (*t).clone()).or(last);
+    }
+    last.unwrap()
+}
+
+/// `forcemap identify`'s fd-multi theta of an element test's `records`.
+fn offline_element(
+    model: &Model,
+    moving_mass_kg: Option<f64>,
+    records: &[forcemap_math::record::Record],
+) -> forcemap_math::identify::Identification {
+    identify_records(
+        model,
+        &Setup::Element { moving_mass_kg },
+        Method::FdMulti,
+        records,
+        &PhasorOptions::for_identification(),
+        &FdMultiOptions::default(),
+    )
+    .unwrap()
+}
+
 /// The phasor messages of a simulated damper on a dyno (the element setup), with or without
 /// its acceleration channel.
 fn damper_phasor_messages(
@@ -182,18 +233,9 @@ fn damper_phasor_messages(
     };
     let mut records = run.simulate().unwrap();
     if !acceleration {
-        for r in &mut records {
-            r.channels
-                .retain(|(c, _)| *c != forcemap_math::record::Channel::MassAccelerationMps2);
-        }
+        without_acceleration(&mut records);
     }
-    let messages = records
-        .iter()
-        .map(|r| {
-            let a = analyse_record(r, &PhasorOptions::for_identification()).unwrap();
-            HarmonicPhasors::from_analysis(&a, RUN_START, Header::new(RUN_START, "dyno"))
-        })
-        .collect();
+    let messages = phasors_of(&records, "dyno");
     (records, messages)
 }
 
@@ -214,26 +256,9 @@ fn an_element_test_is_identified_live_as_offline() {
             entries.push(("mass_kg", ParamValue::Double(m)));
         }
         let mut c = core(&params(&entries));
-        let mut last = None;
-        for ph in &messages {
-            let o = c
-                .handle(Input::Phasors(Box::new(ph.clone())), RUN_START)
-                .unwrap();
-            last = thetas(&o).last().map(|t| (*t).clone()).or(last);
-        }
-        let last = last.unwrap();
+        let last = last_theta(&mut c, &messages);
         assert_eq!(last.parameter_names, names);
-        let offline = identify_records(
-            &model,
-            &Setup::Element {
-                moving_mass_kg: mass,
-            },
-            Method::FdMulti,
-            &records,
-            &PhasorOptions::for_identification(),
-            &FdMultiOptions::default(),
-        )
-        .unwrap();
+        let offline = offline_element(&model, mass, &records);
         for (live, off) in last.values.iter().zip(offline.theta()) {
             assert!(
                 ((live - off) / off).abs() < 1e-9,
@@ -372,42 +397,18 @@ fn multisine_phasors_are_not_taken_for_a_sine_step() {
 /// 0.1 % of the truth (k 20 kN/m, c 60 N s/m, s 5e7 N/m^3, m 2 kg).
 #[test]
 fn an_unknown_moving_mass_without_an_accelerometer_is_weighted_live_as_offline() {
-    use forcemap_math::record::Channel;
     use forcemap_math::sim::RunSpec;
     let mut records = RunSpec::shaker_sdof(Some(40.0), 1).simulate().unwrap();
-    for r in &mut records {
-        r.channels
-            .retain(|(c, _)| *c != Channel::MassAccelerationMps2);
-    }
-    let messages: Vec<HarmonicPhasors> = records
-        .iter()
-        .map(|r| {
-            let a = analyse_record(r, &PhasorOptions::for_identification()).unwrap();
-            HarmonicPhasors::from_analysis(&a, RUN_START, Header::new(RUN_START, "shaker"))
-        })
-        .collect();
+    without_acceleration(&mut records);
     let mut c = core(&params(&[("model", ParamValue::String("cubic".into()))]));
-    let mut last = None;
-    for ph in &messages {
-        let o = c
-            .handle(Input::Phasors(Box::new(ph.clone())), RUN_START)
-            .unwrap();
-        last = thetas(&o).last().map(|t| (*t).clone()).or(last);
-    }
-    let last = last.unwrap();
+    let last = last_theta(&mut c, &phasors_of(&records, "shaker"));
     let hint = c.state().unwrap().moving_mass_hint_kg.unwrap();
     assert!((hint / 2.0 - 1.0).abs() < 0.05, "hint {hint}");
-    let offline = identify_records(
+    let offline = offline_element(
         &Model::by_name("cubic", &ModelOptions::default()).unwrap(),
-        &Setup::Element {
-            moving_mass_kg: None,
-        },
-        Method::FdMulti,
+        None,
         &records,
-        &PhasorOptions::for_identification(),
-        &FdMultiOptions::default(),
-    )
-    .unwrap();
+    );
     assert_eq!(offline.method, "fd-multi");
     for ((live, off), truth) in last
         .values
