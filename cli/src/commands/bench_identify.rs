@@ -1,5 +1,5 @@
 //! `forcemap bench identify FILE`: how long `identify` takes on a rig CSV export, stage by stage
-//! (CSV parsing, phasors, fit, validation by simulation), medians over repeats, its throughput
+//! (reading the file, phasors, fit, validation by simulation), medians over repeats, its throughput
 //! (MB/s and rows/s of the whole identification) and the peak memory of the process; with
 //! `--python`, a peer on the same file as a ratio: the time polars (or, without it, numpy)
 //! needs to load the file (benches/load_peer.py), or the numpy script a user would write to load
@@ -258,13 +258,28 @@ fn the_file(args: &BenchIdentifyArgs) -> anyhow::Result<&std::path::Path> {
     }
 }
 
+/// The bytes of the input: a file's length, or the sum of a directory's files (a bag); NaN
+/// when it cannot be read.
+fn input_bytes(path: &std::path::Path) -> f64 {
+    fn bytes(path: &std::path::Path) -> std::io::Result<u64> {
+        let meta = std::fs::metadata(path)?;
+        if !meta.is_dir() {
+            return Ok(meta.len());
+        }
+        let mut sum = 0;
+        for entry in std::fs::read_dir(path)? {
+            sum += bytes(&entry?.path())?;
+        }
+        Ok(sum)
+    }
+    bytes(path).map_or(f64::NAN, |b| b as f64)
+}
+
 pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
     if args.repeats == 0 {
         bail!("--repeats must be at least 1");
     }
-    let file_bytes = std::fs::metadata(the_file(args)?)
-        .map(|m| m.len() as f64)
-        .unwrap_or(f64::NAN);
+    let file_bytes = input_bytes(the_file(args)?);
     let mut runs = Vec::with_capacity(args.repeats);
     let mut cpu_runs = Vec::with_capacity(args.repeats);
     let mut theta = Vec::new();
@@ -300,7 +315,7 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
     );
     println!("  {:<12} {:>10} {:>10}", "stage", "wall", "CPU");
     for (label, key) in [
-        ("CSV parsing", "csv"),
+        ("reading", "csv"),
         ("phasors", "phasors"),
         ("fit", "fit"),
         ("validation", "validation"),
@@ -382,4 +397,22 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
     );
     println!("ratio numpy peer / forcemap (total): {ratio:.1}x wall, {cpu_ratio:.1}x CPU");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::input_bytes;
+
+    /// A file's bytes are its length; a directory's (a bag) the sum of its files', nested
+    /// ones too; what does not exist is NaN.
+    #[test]
+    fn a_bag_directory_counts_its_files_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("a.mcap"), [0u8; 100]).unwrap();
+        std::fs::create_dir(dir.path().join("sub")).unwrap();
+        std::fs::write(dir.path().join("sub/metadata.yaml"), [0u8; 23]).unwrap();
+        assert_eq!(input_bytes(&dir.path().join("a.mcap")), 100.0);
+        assert_eq!(input_bytes(dir.path()), 123.0);
+        assert!(input_bytes(&dir.path().join("nothing")).is_nan());
+    }
 }
