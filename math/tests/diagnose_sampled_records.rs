@@ -100,7 +100,7 @@ fn diagnose(truth: Truth) -> (forcemap_math::diagnose::PhasorFindings, f64, f64)
         linear,
     );
     for step in 0..3 {
-        live.push_record(SampledRecord::new(record(truth, step)).unwrap());
+        live.push_record(SampledRecord::new(&record(truth, step)).unwrap());
     }
     let f = live.findings().unwrap();
     let held = MeasuredState::of(&record(truth, 3)).unwrap();

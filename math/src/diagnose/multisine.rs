@@ -264,7 +264,7 @@ fn scales(setup: &Setup, steps: &Steps) -> Result<Scales, DiagnoseError> {
     for r in steps.records {
         s.max_displacement_m = s.max_displacement_m.max(r.max_displacement_m);
         s.max_velocity_mps = s.max_velocity_mps.max(r.max_velocity_mps);
-        s.max_frequency_hz = s.max_frequency_hz.max(r.top_frequency_hz);
+        s.max_frequency_hz = s.max_frequency_hz.max(r.top_frequency_hz());
     }
     for ms in steps.multisines.iter() {
         let Some(x) = ms.channel(Channel::RelativeDisplacementM) else {
@@ -470,9 +470,7 @@ fn term_fit(steps: &Steps, model: &Model, theta: &[f64]) -> TermFit {
         terms: model.terms.clone(),
         theta: theta[..n].to_vec(),
         mass_kg,
-        hysteresis: steps
-            .hysteresis
-            .zip(theta.last().copied().filter(|_| steps.hysteresis.is_some())),
+        hysteresis: steps.hysteresis.zip(theta.last().copied()),
     }
 }
 

@@ -38,10 +38,12 @@ const SINGLE_CHANNELS: [Channel; 2] = [
 
 /// Why `s` is not fitted on these steps' equations; None when it is.
 pub(super) fn not_fitted_reason(s: &Structure, steps: &Steps) -> Option<String> {
+    // A hysteresis state and element terms, nothing else: its column is written into the rows.
     let hysteresis_alone = s.hysteresis.is_some()
-        && s.transform == Default::default()
-        && s.series_relaxation_s.is_none()
-        && !s.drift;
+        && super::multisine::is_extra_terms(&Structure {
+            hysteresis: None,
+            ..s.clone()
+        });
     if !steps.records.is_empty() {
         if hysteresis_alone && steps.sines.is_empty() && steps.multisines.is_empty() {
             return None;

@@ -1,8 +1,8 @@
 //! An element test's records with no steps (band-random, ramped sines, an earthquake history,
 //! a whole file as one record) in the block diagnosis ([`super::multisine`]): each record's
 //! equations are the time-domain rows of the element force along its measured motion
-//! (`identify::td_range_equations`, every scored sample), the rows the identification fits such
-//! records with, weighted by the measured force's noise so that a residual reads in units of
+//! (`identify::element_state_equations`, every scored sample), the rows the identification fits
+//! such records with, written from the record's measured state taken once, weighted by the measured force's noise so that a residual reads in units of
 //! the noise as on the sine steps' and the multisines' equations.
 //!
 //! The force's noise is estimated from its spectrum above the band the derivatives are taken
@@ -24,7 +24,7 @@
 use nalgebra::DMatrix;
 
 use super::DiagnoseError;
-use crate::identify::{StepEquations, td_range_equations};
+use crate::identify::{IdentifyError, StepEquations, element_state_equations};
 use crate::measured_state::{CUTOFF_MULTIPLE, MeasuredState, noise_std};
 use crate::model::Model;
 use crate::recipe::Setup;
@@ -59,25 +59,24 @@ pub fn element_view_of_rig(record: &Record, mass_kg: f64) -> Result<Record, Diag
     })
 }
 
-/// A record fitted sample by sample, with what its rows are weighted and scaled by.
+/// A record fitted sample by sample: its measured state, and what its rows are weighted and
+/// scaled by.
 #[derive(Debug, Clone)]
 pub struct SampledRecord {
-    pub record: Record,
+    /// The record's measured state: the rows' states, and the velocity the hysteresis state is
+    /// integrated along.
+    pub state: MeasuredState,
     /// The measured force's noise std [N].
     pub force_noise_n: f64,
     /// The largest displacement from its mean [m] and velocity [m/s] over the scored samples.
     pub max_displacement_m: f64,
     pub max_velocity_mps: f64,
-    /// The highest excitation frequency the derivatives were taken for [Hz].
-    pub top_frequency_hz: f64,
-    /// The record's measured state (the hysteresis state is integrated along its velocity).
-    pub state: MeasuredState,
 }
 
 impl SampledRecord {
     /// `record` (relative displacement and force) with its force noise and scales.
-    pub fn new(record: Record) -> Result<SampledRecord, DiagnoseError> {
-        let state = MeasuredState::of(&record)?;
+    pub fn new(record: &Record) -> Result<SampledRecord, DiagnoseError> {
+        let state = MeasuredState::of(record)?;
         let scored = state.scored.clone();
         let x = &state.displacement_m[scored.clone()];
         let mean = x.iter().sum::<f64>() / x.len() as f64;
@@ -87,19 +86,22 @@ impl SampledRecord {
         Ok(SampledRecord {
             force_noise_n: noise_std(
                 &state.force_n,
-                record.sample_rate_hz,
+                state.sample_rate_hz,
                 CUTOFF_MULTIPLE * state.top_frequency_hz,
             ),
             max_displacement_m,
             max_velocity_mps,
-            top_frequency_hz: state.top_frequency_hz,
             state,
-            record,
         })
     }
 
     pub fn step(&self) -> usize {
-        self.record.step
+        self.state.step
+    }
+
+    /// The highest excitation frequency the derivatives were taken for [Hz].
+    pub fn top_frequency_hz(&self) -> f64 {
+        self.state.top_frequency_hz
     }
 
     /// The hysteresis state of `law` along the record's measured velocity, every sample.
@@ -115,7 +117,18 @@ impl SampledRecord {
         setup: &Setup,
         hysteresis: Option<&HysteresisLaw>,
     ) -> Result<StepEquations, DiagnoseError> {
-        let mut b = td_range_equations(model, setup, &self.record, 0, self.record.len(), None)?;
+        let Setup::Element { moving_mass_kg } = setup else {
+            return Err(IdentifyError::Step {
+                step: self.step(),
+                problem: format!(
+                    "a record fitted on its samples is an element test's; this setup is {}",
+                    setup.kind()
+                ),
+            }
+            .into());
+        };
+        let n = self.state.force_n.len();
+        let mut b = element_state_equations(model, *moving_mass_kg, &self.state, 0, n, None)?;
         if let Some(law) = hysteresis {
             // The rows are the scored samples, in order (every sample of the scored part).
             let z = self.hysteresis_state(law);
@@ -174,7 +187,7 @@ mod tests {
             start_time_s: 0.0,
             channels: vec![(Channel::RelativeDisplacementM, x), (Channel::ForceN, f)],
         };
-        let r = SampledRecord::new(record).unwrap();
+        let r = SampledRecord::new(&record).unwrap();
         assert!(
             (r.force_noise_n / sigma - 1.0).abs() < 0.05,
             "{}",
@@ -199,7 +212,9 @@ mod tests {
         assert!((per_row / 0.5 - 1.0).abs() < 0.05, "{per_row}");
         assert_eq!(b.a.nrows() as f64, b.independent_equations);
         // The same rows the identification fits, scaled.
-        let plain = td_range_equations(&model, &setup, &r.record, 0, r.record.len(), None).unwrap();
+        let plain =
+            crate::identify::td_range_equations(&model, &setup, &record, 0, record.len(), None)
+                .unwrap();
         let w = 1.0 / (std::f64::consts::SQRT_2 * r.force_noise_n);
         assert!((b.b[10] - w * plain.b[10]).abs() < 1e-12 * plain.b[10].abs().max(1.0));
     }

@@ -45,7 +45,7 @@ pub use output_error::{
     ElementOutputError, RecordsOutputError, RigDrive, RigMisfit, RigOutputError, element_drive_of,
     records_drive, refine_output_error,
 };
-pub use td::{td_range_equations, td_step_equations};
+pub use td::{element_state_equations, td_range_equations, td_step_equations};
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};

@@ -97,11 +97,24 @@ fn element_range_equations(
     len: usize,
     points: Option<usize>,
 ) -> Result<StepEquations, IdentifyError> {
-    let step = rec.step;
     let state = MeasuredState::of(rec).map_err(|e| IdentifyError::Step {
-        step,
+        step: rec.step,
         problem: e.to_string(),
     })?;
+    element_state_equations(model, moving_mass_kg, &state, start, len, points)
+}
+
+/// [`element_range_equations`] on a record's measured state already taken (its derivatives
+/// are the costly part: a caller that writes the rows of several models keeps the state).
+pub fn element_state_equations(
+    model: &Model,
+    moving_mass_kg: Option<f64>,
+    state: &MeasuredState,
+    start: usize,
+    len: usize,
+    points: Option<usize>,
+) -> Result<StepEquations, IdentifyError> {
+    let step = state.step;
     let lo = start.max(state.scored.start);
     let hi = (start + len).min(state.scored.end);
     if hi < lo + 2 {

@@ -158,8 +158,7 @@ pub(super) fn run(args: &DiagnoseArgs, data: &Data, baseline: &Model) -> anyhow:
     if by_samples {
         for r in &fitted {
             live.push_record(
-                SampledRecord::new(r.clone())
-                    .with_context(|| format!("{source}: record {}", r.step))?,
+                SampledRecord::new(r).with_context(|| format!("{source}: record {}", r.step))?,
             );
         }
     }
