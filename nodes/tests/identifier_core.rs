@@ -171,21 +171,6 @@ fn phasors_of(records: &[forcemap_math::record::Record], frame: &str) -> Vec<Har
         .collect()
 }
 
-/// The identifier's last theta after `messages`, fed in order.
-fn last_theta(
-    c: &mut forcemap_nodes::node::identifier::IdentifierCore,
-    messages: &[HarmonicPhasors],
-) -> forcemap_msgs::msg::IdentifiedParameters {
-    let mut last = None;
-    for ph in messages {
-        let o = c
-            .handle(Input::Phasors(Box::new(ph.clone())), RUN_START)
-            .unwrap();
-        last = thetas(&o).last().map(|t| (*t).clone()).or(last);
-    }
-    last.unwrap()
-}
-
 /// `forcemap identify`'s fd-multi theta of an element test's `records`.
 fn offline_element(
     model: &Model,
@@ -256,7 +241,7 @@ fn an_element_test_is_identified_live_as_offline() {
             entries.push(("mass_kg", ParamValue::Double(m)));
         }
         let mut c = core(&params(&entries));
-        let last = last_theta(&mut c, &messages);
+        let last = fed(&mut c, &messages).unwrap();
         assert_eq!(last.parameter_names, names);
         let offline = offline_element(&model, mass, &records);
         for (live, off) in last.values.iter().zip(offline.theta()) {
@@ -401,7 +386,7 @@ fn an_unknown_moving_mass_without_an_accelerometer_is_weighted_live_as_offline()
     let mut records = RunSpec::shaker_sdof(Some(40.0), 1).simulate().unwrap();
     without_acceleration(&mut records);
     let mut c = core(&params(&[("model", ParamValue::String("cubic".into()))]));
-    let last = last_theta(&mut c, &phasors_of(&records, "shaker"));
+    let last = fed(&mut c, &phasors_of(&records, "shaker")).unwrap();
     let hint = c.state().unwrap().moving_mass_hint_kg.unwrap();
     assert!((hint / 2.0 - 1.0).abs() < 0.05, "hint {hint}");
     let offline = offline_element(

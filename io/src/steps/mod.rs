@@ -530,15 +530,8 @@ pub fn sine_amplitude_from_rms(level: f64) -> f64 {
     std::f64::consts::SQRT_2 * level
 }
 
-/// Root mean square of `x` about its mean (0 for no samples).
-pub fn rms_about_mean(x: &[f64]) -> f64 {
-    if x.is_empty() {
-        return 0.0;
-    }
-    let n = x.len() as f64;
-    let mean = x.iter().sum::<f64>() / n;
-    (x.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt()
-}
+/// Root mean square of `x` about its mean (0 for no samples): the mathematics' one.
+pub use forcemap_math::measured_state::rms_about_mean;
 
 #[cfg(test)]
 mod tests;
