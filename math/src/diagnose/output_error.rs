@@ -48,12 +48,12 @@ pub const OUTPUT_ERROR_EFFECTS: [Effect; 2] = [Effect::CoulombFriction, Effect::
 /// enough to push an underestimated Stribeck friction (phasor fit) from third to fourth place.
 pub const OUTPUT_ERROR_TOP: usize = 4;
 
-/// The RK4 sub-step of the refits' simulations (the truth simulators take 0.1 ms). Candidates
-/// are compared on misfits that differ by parts in a thousand; RK4's error at 0.5 ms on the
-/// rig's 13 Hz mode is parts in a million. Five times fewer sub-steps made the refits of
-/// Stribeck laws with small velocities affordable (wide seed 1 case 59: 49 s for its three
-/// exponents at 0.1 ms).
-pub const REFIT_MAX_SUBSTEP_S: f64 = 5e-4;
+/// The RK4 sub-step of the diagnosis's simulations: the refits and the held-out replays (the
+/// truth simulators take 0.1 ms). Candidates are compared on misfits that differ by parts in a
+/// thousand; RK4's error at 0.5 ms on the rig's 13 Hz mode is parts in a million. Five times
+/// fewer sub-steps made the refits of Stribeck laws with small velocities affordable (wide
+/// seed 1 case 59: 49 s for its three exponents at 0.1 ms).
+pub const DIAGNOSIS_MAX_SUBSTEP_S: f64 = 5e-4;
 
 /// A Stribeck excess the phasor fit shows: fs at least this many of its standard deviations.
 /// The phasor score of a Stribeck candidate is the biased one (the slow-slip band left out), so
@@ -272,7 +272,7 @@ fn with_stribeck_law(fitted: &Fitted, law: StribeckVelocity) -> Fitted {
 }
 
 /// The output-error problem of `model` on the sine steps, as every refit runs it (the fitted
-/// sine drive, [`REFIT_MAX_SUBSTEP_S`]).
+/// sine drive, [`DIAGNOSIS_MAX_SUBSTEP_S`]).
 fn problem_of<'a>(
     steps: &SineSteps<'a>,
     model: &Model,
@@ -284,7 +284,7 @@ fn problem_of<'a>(
         steps.analyses,
         RigDrive::FittedSine,
     )?
-    .with_max_substep_s(REFIT_MAX_SUBSTEP_S))
+    .with_max_substep_s(DIAGNOSIS_MAX_SUBSTEP_S))
 }
 
 /// The output-error misfit of `model` fitted from `theta`.

@@ -3,13 +3,14 @@
 //! for extra parameters.
 
 use super::effects::Transform;
+use super::output_error::DIAGNOSIS_MAX_SUBSTEP_S;
 use super::sensor::{apply_samples, undo_samples};
 use crate::element::Element;
 use crate::pipeline::{VALIDATION_BASE_LOWPASS_HZ, nmse_percent};
 use crate::record::{Channel, Record};
 use crate::signal::differentiate::central_difference_at_rate;
 use crate::signal::lowpass::zero_phase_lowpass;
-use crate::sim::{ReplayOptions, RigInitial, SimError, simulate_on_sampled_base};
+use crate::sim::{ReplayOptions, RigInitial, SimError, SolverOptions, simulate_on_sampled_base};
 
 /// The prediction of one held-out record.
 #[derive(Debug, Clone)]
@@ -114,6 +115,10 @@ pub fn predict_record(
             mass_velocity_mps: mass_velocity,
         },
         prefilter: None,
+        solver: SolverOptions {
+            max_substep_s: DIAGNOSIS_MAX_SUBSTEP_S,
+            ..SolverOptions::default()
+        },
         ..ReplayOptions::default()
     };
     let resp = simulate_on_sampled_base(
