@@ -2,12 +2,15 @@
 //! the channel transformations of the candidate effects (the Bouc-Wen state over a cycle is
 //! [`crate::signal::bouc_wen::steady_cycle`]).
 
+use std::sync::{Arc, Mutex};
+
 use num_complex::Complex64;
 
 use super::sensor::{self, SensorFilter};
 use crate::identify::{IdentifyError, element_harmonics};
 use crate::phasor::HarmonicAnalysis;
 use crate::recipe::Setup;
+use crate::signal::bouc_wen::{self, HysteresisLaw};
 
 /// One period of a settled sine step on a uniform grid.
 #[derive(Debug, Clone)]
@@ -43,6 +46,66 @@ pub struct StepCycle {
     /// stick force, set-valued, that no model of the state describes; fits and scores leave
     /// the step out for every model alike.
     pub stuck: bool,
+    /// The Bouc-Wen states already integrated over this cycle's velocity, by law.
+    pub hysteresis_states: HysteresisStates,
+}
+
+/// Bouc-Wen states over one cycle, remembered by law: the search asks for the same law's state
+/// on the same cycle many times (the yield search, its shapes, the pairs, the final fits), and
+/// each is three periods of RK4. An entry is used only for the exact velocity and period it was
+/// integrated over, so a cycle whose velocity is changed after cloning cannot be given a stale
+/// state; a clone starts empty.
+#[derive(Debug, Default)]
+pub struct HysteresisStates(Mutex<Vec<HysteresisEntry>>);
+
+#[derive(Debug)]
+struct HysteresisEntry {
+    law: HysteresisLaw,
+    period_s: f64,
+    velocity_mps: Vec<f64>,
+    state_m: Arc<Vec<f64>>,
+}
+
+impl Clone for HysteresisStates {
+    fn clone(&self) -> Self {
+        HysteresisStates::default()
+    }
+}
+
+impl HysteresisStates {
+    /// [`bouc_wen::steady_cycle`] of `law` over `velocity_mps` and `period_s`, integrated once.
+    pub fn steady_cycle(
+        &self,
+        velocity_mps: &[f64],
+        period_s: f64,
+        law: &HysteresisLaw,
+    ) -> Arc<Vec<f64>> {
+        let same = |e: &HysteresisEntry| {
+            e.law == *law
+                && e.period_s.to_bits() == period_s.to_bits()
+                && e.velocity_mps.len() == velocity_mps.len()
+                && e.velocity_mps
+                    .iter()
+                    .zip(velocity_mps)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+        };
+        if let Some(e) = self.lock().iter().find(|e| same(e)) {
+            return e.state_m.clone();
+        }
+        let state_m = Arc::new(bouc_wen::steady_cycle(velocity_mps, period_s, law));
+        self.lock().push(HysteresisEntry {
+            law: *law,
+            period_s,
+            velocity_mps: velocity_mps.to_vec(),
+            state_m: state_m.clone(),
+        });
+        state_m
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<HysteresisEntry>> {
+        // A panic while the list was held leaves it valid (entries are pushed whole).
+        self.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
 }
 
 /// Steps whose relative displacement amplitude is below this fraction of the largest step's
@@ -143,6 +206,7 @@ pub fn step_cycle(
         force_response,
         force_harmonic_noise_n: eh.force_noise.iter().map(|s| s * mass_factor).collect(),
         stuck: false,
+        hysteresis_states: HysteresisStates::default(),
     })
 }
 
@@ -163,5 +227,37 @@ mod tests {
             assert!((h[n] - c[n]).norm() < 1e-12);
         }
         assert!(h[3].norm() < 1e-12);
+    }
+
+    #[test]
+    fn remembered_hysteresis_states_are_those_of_their_own_velocity_and_law() {
+        let l = 64;
+        let period_s = 0.5;
+        let v: Vec<f64> = (0..l)
+            .map(|i| -0.05 * (std::f64::consts::TAU * i as f64 / l as f64).sin())
+            .collect();
+        let law = HysteresisLaw::yield_law(0.001);
+        let states = HysteresisStates::default();
+        let first = states.steady_cycle(&v, period_s, &law);
+        assert_eq!(*first, bouc_wen::steady_cycle(&v, period_s, &law));
+        assert!(Arc::ptr_eq(&first, &states.steady_cycle(&v, period_s, &law)));
+        // Another law, period or velocity is integrated afresh, not taken from the list.
+        let other_law = HysteresisLaw::yield_law(0.002);
+        assert_eq!(
+            *states.steady_cycle(&v, period_s, &other_law),
+            bouc_wen::steady_cycle(&v, period_s, &other_law)
+        );
+        assert_eq!(
+            *states.steady_cycle(&v, 0.25, &law),
+            bouc_wen::steady_cycle(&v, 0.25, &law)
+        );
+        let w: Vec<f64> = v.iter().map(|x| 2.0 * x).collect();
+        assert_eq!(
+            *states.steady_cycle(&w, period_s, &law),
+            bouc_wen::steady_cycle(&w, period_s, &law)
+        );
+        assert_ne!(*states.steady_cycle(&w, period_s, &law), *first);
+        // A clone starts empty: a cycle copied and then changed cannot inherit stale states.
+        assert!(states.clone().lock().is_empty());
     }
 }

@@ -15,7 +15,7 @@ use crate::basis::Term;
 use crate::element::{Element, Friction};
 use crate::lstsq::{self, LstsqError};
 use crate::model::Model;
-use crate::signal::bouc_wen::{self, HysteresisLaw};
+use crate::signal::bouc_wen::HysteresisLaw;
 
 /// Grid points with |x'| below this fraction of the step's peak |x'| are left out of fits and
 /// scores, for every model alike: near a reversal a friction force is set-valued (stick) and
@@ -60,11 +60,11 @@ pub(super) fn columns(terms: &[Arc<dyn Term>], s: &Structure, c: &StepCycle) -> 
         _ => None,
     };
     if let Some(law) = &s.hysteresis {
-        cols.push(bouc_wen::steady_cycle(
-            &c.velocity_mps,
-            1.0 / c.frequency_hz,
-            law,
-        ));
+        cols.push(
+            c.hysteresis_states
+                .steady_cycle(&c.velocity_mps, 1.0 / c.frequency_hz, law)
+                .to_vec(),
+        );
     }
     cols.extend(drift_col);
     // The measured force is rebuilt from harmonics 0..=N only; a model force is compared in
@@ -422,6 +422,7 @@ impl Element for FittedElement {
 mod tests {
     use super::*;
     use crate::basis::StribeckVelocity;
+    use crate::signal::bouc_wen;
 
     #[test]
     fn as_measured_applies_the_response_per_harmonic() {
@@ -485,6 +486,7 @@ mod tests {
                     force_response: None,
                     force_harmonic_noise_n: vec![0.1; l / 2 + 1],
                     stuck: k == 2,
+                    hysteresis_states: Default::default(),
                 }
             })
             .collect()
