@@ -174,6 +174,22 @@ impl QrAccumulator {
         Ok(())
     }
 
+    /// Adds the equations `other` holds, as its factor's rows [R | Q^T b] plus the residual
+    /// outside them: the least squares of both sets of rows, equal to adding `other`'s rows
+    /// here to rounding. Factors of blocks merged this way serve leave-one-block-out fits
+    /// without factoring every other block's rows again for each.
+    pub fn merge(&mut self, other: &QrAccumulator) -> Result<(), LstsqError> {
+        assert_eq!(other.cols, self.cols, "one column per parameter");
+        let a = DMatrix::from_row_slice(other.r_rows, other.cols, &other.r);
+        let b = DVector::from_column_slice(&other.qtb);
+        let rows = self.rows;
+        self.add_rows(&a, &b)?;
+        self.rows = rows + other.rows;
+        self.rss_outside += other.rss_outside;
+        self.forgotten += other.forgotten;
+        Ok(())
+    }
+
     /// Norm of each column of the equations so far (that of A, since Q is orthogonal).
     pub fn column_norms(&self) -> Vec<f64> {
         (0..self.cols)
@@ -418,6 +434,67 @@ mod tests {
         for (j, nrm) in acc.column_norms().iter().enumerate() {
             assert!((nrm / a.column(j).norm() - 1.0).abs() < 1e-12);
         }
+    }
+
+    /// Blocks factored apart and merged give the fit of all their rows: theta, residual,
+    /// standard deviations and equation count; a block left out gives the fit of the others.
+    #[test]
+    fn merged_blocks_are_the_fit_of_their_rows() {
+        let n = 60;
+        let a = DMatrix::from_fn(n, 3, |r, c| {
+            let x = r as f64 * 0.29;
+            match c {
+                0 => x.sin() * 1e3,
+                1 => x.cos(),
+                _ => (x * 0.7).cos() * 1e-4,
+            }
+        });
+        let b = DVector::from_fn(n, |r, _| {
+            2.0 * a[(r, 0)] - 3.0 * a[(r, 1)] + 5e4 * a[(r, 2)] + 0.01 * ((r * 5 % 13) as f64 - 6.0)
+        });
+        let names = names(&["k", "c", "s"]);
+        // Blocks of 2 rows (fewer than the columns), 18 and 40.
+        let bounds = [(0, 2), (2, 18), (20, 40)];
+        let block = |&(r0, len): &(usize, usize)| {
+            let mut acc = QrAccumulator::new(3);
+            acc.add_rows(&a.rows(r0, len).into_owned(), &b.rows(r0, len).into_owned())
+                .unwrap();
+            acc
+        };
+        let blocks: Vec<QrAccumulator> = bounds.iter().map(block).collect();
+        let close = |got: &Solution, want: &Solution| {
+            assert_eq!(got.equations, want.equations);
+            for j in 0..3 {
+                assert!(
+                    (got.theta[j] / want.theta[j] - 1.0).abs() < 1e-10,
+                    "theta {j}"
+                );
+                assert!((got.std()[j] / want.std()[j] - 1.0).abs() < 1e-8, "std {j}");
+            }
+            assert!((got.residual_rms / want.residual_rms - 1.0).abs() < 1e-8);
+        };
+        let mut all = QrAccumulator::new(3);
+        blocks.iter().for_each(|blk| all.merge(blk).unwrap());
+        let mut direct = QrAccumulator::new(3);
+        direct.add_rows(&a, &b).unwrap();
+        close(
+            &all.solve(&names, 1.0).unwrap(),
+            &direct.solve(&names, 1.0).unwrap(),
+        );
+        // Without the middle block: the fit of the first and last blocks' rows.
+        let mut out = QrAccumulator::new(3);
+        out.merge(&blocks[0]).unwrap();
+        out.merge(&blocks[2]).unwrap();
+        let mut rows = QrAccumulator::new(3);
+        for k in [0, 2] {
+            let (r0, len) = bounds[k];
+            rows.add_rows(&a.rows(r0, len).into_owned(), &b.rows(r0, len).into_owned())
+                .unwrap();
+        }
+        close(
+            &out.solve(&names, 1.0).unwrap(),
+            &rows.solve(&names, 1.0).unwrap(),
+        );
     }
 
     /// The state survives a JSON round trip bit for bit (the identifier persists it).

@@ -104,7 +104,9 @@ impl HysteresisStates {
 
     fn lock(&self) -> std::sync::MutexGuard<'_, Vec<HysteresisEntry>> {
         // A panic while the list was held leaves it valid (entries are pushed whole).
-        self.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+        self.0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 }
 
@@ -240,7 +242,10 @@ mod tests {
         let states = HysteresisStates::default();
         let first = states.steady_cycle(&v, period_s, &law);
         assert_eq!(*first, bouc_wen::steady_cycle(&v, period_s, &law));
-        assert!(Arc::ptr_eq(&first, &states.steady_cycle(&v, period_s, &law)));
+        assert!(Arc::ptr_eq(
+            &first,
+            &states.steady_cycle(&v, period_s, &law)
+        ));
         // Another law, period or velocity is integrated afresh, not taken from the list.
         let other_law = HysteresisLaw::yield_law(0.002);
         assert_eq!(
