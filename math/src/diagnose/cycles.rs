@@ -124,9 +124,7 @@ pub fn synthesize(c: &[Complex64], l: usize, scale: impl Fn(usize) -> Complex64)
     for (n, cn) in c.iter().enumerate().take(l / 2) {
         buf[n] = cn * scale(n);
     }
-    rustfft::FftPlanner::new()
-        .plan_fft_inverse(l)
-        .process(&mut buf);
+    crate::signal::fft::inverse(l).process(&mut buf);
     buf.iter().map(|b| b.re).collect()
 }
 
@@ -134,9 +132,7 @@ pub fn synthesize(c: &[Complex64], l: usize, scale: impl Fn(usize) -> Complex64)
 pub fn harmonics_of(h: &[f64], n: usize) -> Vec<Complex64> {
     let l = h.len();
     let mut buf: Vec<Complex64> = h.iter().map(|v| Complex64::new(*v, 0.0)).collect();
-    rustfft::FftPlanner::new()
-        .plan_fft_forward(l)
-        .process(&mut buf);
+    crate::signal::fft::forward(l).process(&mut buf);
     (0..=n.min(l / 2 - 1))
         .map(|k| buf[k] * if k == 0 { 1.0 } else { 2.0 } / l as f64)
         .collect()

@@ -275,9 +275,7 @@ pub(crate) fn synthesize_grid(
     for (n, cn) in c.iter().enumerate() {
         buf[n] = cn * scale(n);
     }
-    rustfft::FftPlanner::new()
-        .plan_fft_inverse(l)
-        .process(&mut buf);
+    crate::signal::fft::inverse(l).process(&mut buf);
     buf.iter().map(|b| b.re).collect()
 }
 
@@ -388,7 +386,7 @@ fn fd_multi_equations(
         notes.push(format!("step {step}: no slip samples; left out"));
         return Ok(empty(notes, term_rms));
     }
-    let fft = rustfft::FftPlanner::new().plan_fft_forward(l);
+    let fft = crate::signal::fft::forward(l);
     // Harmonics of the basis functions over the slip samples.
     let mut hh: Vec<Vec<Complex64>> = model
         .terms

@@ -152,7 +152,7 @@ fn multisine_block(
         an.lines.clone()
     };
     let top = eq_bins[eq_bins.len() - 1];
-    let fft = rustfft::FftPlanner::new().plan_fft_forward(l);
+    let fft = crate::signal::fft::forward(l);
     let mut term_rms = Vec::with_capacity(model.terms.len() + 1);
     let mut columns: Vec<Vec<Complex64>> = Vec::with_capacity(model.terms.len() + 1);
     for t in &model.terms {

@@ -418,7 +418,7 @@ pub(crate) struct PeriodAverager {
 impl PeriodAverager {
     pub(crate) fn new(samples_per_period: usize) -> PeriodAverager {
         let n = samples_per_period;
-        let fft = rustfft::FftPlanner::new().plan_fft_forward(n);
+        let fft = crate::signal::fft::forward(n);
         let scratch = vec![Complex64::new(0.0, 0.0); fft.get_inplace_scratch_len()];
         PeriodAverager {
             n,

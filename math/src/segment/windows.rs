@@ -1,11 +1,9 @@
 //! Step 1 and 2 of the segmentation: overlapping windows, each fitted with one sine and
 //! classed, then grouped into runs of agreeing windows (see the module docs of `segment`).
 
-use num_complex::Complex64;
-use rustfft::FftPlanner;
-
 use super::SegmentOptions;
 use super::sine_fit::{SineFit, SineFitter};
+use num_complex::Complex64;
 
 /// Gauss-Newton iterations of a window's fit: from the interpolated DFT peak, enough for
 /// the features to be exact to rounding.
@@ -79,7 +77,7 @@ pub(super) fn lowest_line_period(x: &[f64]) -> Option<f64> {
         .chain(std::iter::repeat(Complex64::new(0.0, 0.0)))
         .take(m)
         .collect();
-    FftPlanner::new().plan_fft_forward(m).process(&mut buf);
+    crate::signal::fft::forward(m).process(&mut buf);
     let power: Vec<f64> = buf[..=m / 2].iter().map(Complex64::norm_sqr).collect();
     // Bins below 2 hold what is left of a trend, not a line.
     let first = 2.min(m / 2);

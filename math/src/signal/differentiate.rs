@@ -88,9 +88,7 @@ pub fn detrended_spectrum(y: &[f64]) -> Vec<num_complex::Complex64> {
         .enumerate()
         .map(|(i, v)| num_complex::Complex64::new(v - y[0] - slope * i as f64, 0.0))
         .collect();
-    rustfft::FftPlanner::new()
-        .plan_fft_forward(n)
-        .process(&mut buf);
+    super::fft::forward(n).process(&mut buf);
     buf
 }
 
@@ -102,7 +100,6 @@ pub fn band_limited_derivative(y: &[f64], fs: f64, cutoff_hz: f64, order: u32) -
     let n = y.len();
     let slope = (y[n - 1] - y[0]) / (n - 1) as f64;
     let mut buf = detrended_spectrum(y);
-    let mut planner = rustfft::FftPlanner::new();
     for (k, b) in buf.iter_mut().enumerate() {
         // Signed bin frequency.
         let kk = if k <= n / 2 {
@@ -118,7 +115,7 @@ pub fn band_limited_derivative(y: &[f64], fs: f64, cutoff_hz: f64, order: u32) -
                 num_complex::Complex64::new(0.0, std::f64::consts::TAU * f).powu(order) / n as f64;
         }
     }
-    planner.plan_fft_inverse(n).process(&mut buf);
+    super::fft::inverse(n).process(&mut buf);
     buf.iter()
         .enumerate()
         .map(|(i, b)| {

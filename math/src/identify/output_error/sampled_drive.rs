@@ -91,9 +91,7 @@ fn off_line_share(r: &Record, c: Channel) -> Option<f64> {
     }
     let tail = &y[y.len() - periods * per..];
     let mut buf: Vec<Complex64> = tail.iter().map(|v| Complex64::new(*v, 0.0)).collect();
-    rustfft::FftPlanner::new()
-        .plan_fft_forward(buf.len())
-        .process(&mut buf);
+    crate::signal::fft::forward(buf.len()).process(&mut buf);
     let (mut on, mut off) = (0.0, 0.0);
     for (k, b) in buf.iter().enumerate().take(buf.len() / 2).skip(1) {
         let line = k % periods == 0 && lines.binary_search(&(k / periods)).is_ok();
