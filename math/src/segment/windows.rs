@@ -71,14 +71,18 @@ pub(super) fn lowest_line_period(x: &[f64]) -> Option<f64> {
     let n = x.len();
     let m = n.next_power_of_two();
     let mean = x.iter().sum::<f64>() / n as f64;
-    let mut buf: Vec<Complex64> = x
-        .iter()
-        .map(|v| Complex64::new(v - mean, 0.0))
-        .chain(std::iter::repeat(Complex64::new(0.0, 0.0)))
-        .take(m)
-        .collect();
-    crate::signal::fft::forward(m).process(&mut buf);
-    let power: Vec<f64> = buf[..=m / 2].iter().map(Complex64::norm_sqr).collect();
+    // The real-input transform: half the memory of a complex one over the whole series (the
+    // series is a whole file's drive channel, millions of samples).
+    let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(m);
+    let mut input = fft.make_input_vec();
+    for (slot, v) in input.iter_mut().zip(x) {
+        *slot = v - mean;
+    }
+    let mut spectrum = fft.make_output_vec();
+    fft.process(&mut input, &mut spectrum)
+        .expect("buffers made by the plan");
+    drop(input);
+    let power: Vec<f64> = spectrum.iter().map(Complex64::norm_sqr).collect();
     // Bins below 2 hold what is left of a trend, not a line.
     let first = 2.min(m / 2);
     let peak = power[first..].iter().copied().fold(0.0, f64::max);
