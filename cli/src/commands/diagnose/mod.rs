@@ -13,6 +13,7 @@ use forcemap_math::sim::{self, RunSpec};
 
 mod phasor_only;
 mod plots;
+mod rig_records;
 mod time_domain;
 
 use crate::cli::DiagnoseArgs;
@@ -113,18 +114,21 @@ fn demo_data() -> anyhow::Result<Data> {
 
 /// A rig's data with no sine steps (band-random records, road profiles) as the element between
 /// base and mass (`diagnose::sampled_records::element_view_of_rig`): their records fitted on
-/// their samples, the held-out ones predicted the same way; said on stderr. Other data as
-/// they are.
-fn rig_without_sine_steps_as_element(data: Data) -> anyhow::Result<Data> {
+/// their samples, the held-out ones predicted the same way; said on stderr. The rig's own
+/// records are returned beside the view, for the output-error refits ([`rig_records`]). Other
+/// data as they are.
+fn rig_without_sine_steps_as_element(
+    data: Data,
+) -> anyhow::Result<(Data, Option<rig_records::RigRecords>)> {
     let Setup::BaseExcited { mass_kg } = data.setup else {
-        return Ok(data);
+        return Ok((data, None));
     };
     if data
         .records
         .iter()
         .any(|r| matches!(r.excitation, Excitation::Sine { .. }))
     {
-        return Ok(data);
+        return Ok((data, None));
     }
     let view = |records: &[Record]| -> anyhow::Result<Vec<Record>> {
         records
@@ -137,14 +141,20 @@ fn rig_without_sine_steps_as_element(data: Data) -> anyhow::Result<Data> {
         "note: {}: the rig's records have no sine steps: each is fitted on its samples as the element between base and mass, its force the one that holds the {mass_kg} kg mass (-m a_o) along the relative motion; the rig's channel effects (exciter delay, sensor low-pass, a mass error) are not fitted this way",
         data.source
     );
-    Ok(Data {
+    let view_data = Data {
         records: view(&data.records)?,
         validation: view(&data.validation)?,
         setup: Setup::Element {
             moving_mass_kg: Some(0.0),
         },
         source: data.source,
-    })
+    };
+    let rig = rig_records::RigRecords {
+        records: data.records,
+        validation: data.validation,
+        mass_kg,
+    };
+    Ok((view_data, Some(rig)))
 }
 
 pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
@@ -192,7 +202,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
             polynomial_order: None,
         },
     )?;
-    let data = rig_without_sine_steps_as_element(data)?;
+    let (data, rig) = rig_without_sine_steps_as_element(data)?;
     // Without a rig to simulate held-out records on, the steps are the evidence.
     if data.setup.kind() != SetupKind::BaseExcited {
         if !args.holdout_steps.is_empty() {
@@ -201,7 +211,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
                 data.source
             );
         }
-        return phasor_only::run(args, &data, &baseline);
+        return phasor_only::run(args, &data, &baseline, rig.as_ref());
     }
     let pb = super::progress_spinner();
     pb.set_message(format!("diagnosing {} against {}", model_name, data.source));

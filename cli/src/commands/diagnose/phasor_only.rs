@@ -109,7 +109,14 @@ fn held_out(f: &PhasorFindings, records: &[&Record]) -> anyhow::Result<Vec<HeldO
         .collect()
 }
 
-pub(super) fn run(args: &DiagnoseArgs, data: &Data, baseline: &Model) -> anyhow::Result<()> {
+/// `rig`: a base-excited rig's own records when `data` are their element view; the baseline
+/// and the named effect are then refitted by output error on them ([`super::rig_records`]).
+pub(super) fn run(
+    args: &DiagnoseArgs,
+    data: &Data,
+    baseline: &Model,
+    rig: Option<&super::rig_records::RigRecords>,
+) -> anyhow::Result<()> {
     let source = data.source.as_str();
     // Sine steps and multisine records are fitted; sweep and band-random records, in the data
     // or in --validate, are held out. Data with neither are fitted on their records' samples.
@@ -167,16 +174,25 @@ pub(super) fn run(args: &DiagnoseArgs, data: &Data, baseline: &Model) -> anyhow:
         .with_context(|| format!("{source}: diagnosing a {} setup", setup.kind()))?;
     let held =
         held_out(&f, &heldout_records).with_context(|| format!("{source}: held-out records"))?;
+    let refits = match rig {
+        Some(rig) => super::rig_records::refit(rig, baseline, &f)
+            .with_context(|| format!("{source}: the rig's records"))?,
+        None => Vec::new(),
+    };
     if args.json {
         let mut v = serde_json::to_value(&f)?;
         v["baseline_model"] = baseline.name.clone().into();
         v["setup"] = setup.kind().to_string().into();
         v["notes"] = note.iter().cloned().collect::<Vec<_>>().into();
         v["heldout"] = serde_json::to_value(&held)?;
+        if rig.is_some() {
+            v["output_error_refits"] = serde_json::to_value(&refits)?;
+        }
         println!("{v}");
     } else {
         print_summary(source, &setup, baseline, &f, note.as_deref());
         print_held_out(&held, baseline);
+        super::rig_records::print(&refits);
     }
     if let Some(dir) = &args.report {
         write_report(dir, source, baseline, &f)?;
