@@ -15,15 +15,38 @@ use std::time::{Duration, Instant};
 
 use common::*;
 
-fn launch(domain_id: u16, args: &[String]) -> (std::process::Child, Arc<Mutex<Vec<String>>>) {
+/// The launch's stdout lines as they arrive: a thread reads them (echoing each to stderr).
+struct Lines {
+    lines: Arc<Mutex<Vec<String>>>,
+    reader: std::thread::JoinHandle<()>,
+}
+
+impl Lines {
+    /// The lines read so far.
+    fn so_far(&self) -> std::sync::MutexGuard<'_, Vec<String>> {
+        self.lines.lock().unwrap()
+    }
+
+    /// Every line, read to the end of the output: call it once the launch has ended (when
+    /// `wait` returns, the reader can still be behind by the last lines). A process that
+    /// still held the output open would keep the reader waiting: after 10 s the lines so far.
+    fn all(self) -> Vec<String> {
+        let t0 = Instant::now();
+        while !self.reader.is_finished() && t0.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        if self.reader.is_finished() {
+            self.reader.join().unwrap();
+        }
+        self.lines.lock().unwrap().clone()
+    }
+}
+
+fn launch(domain_id: u16, args: &[String]) -> (std::process::Child, Lines) {
     launch_file("rig_sim.launch.yaml", domain_id, args)
 }
 
-fn launch_file(
-    file: &str,
-    domain_id: u16,
-    args: &[String],
-) -> (std::process::Child, Arc<Mutex<Vec<String>>>) {
+fn launch_file(file: &str, domain_id: u16, args: &[String]) -> (std::process::Child, Lines) {
     let mut child = Command::new(forcemap())
         .arg("launch")
         .arg(repo().join("launch_configs").join(file))
@@ -36,13 +59,13 @@ fn launch_file(
     let lines = Arc::new(Mutex::new(Vec::new()));
     let l = lines.clone();
     let out = child.stdout.take().unwrap();
-    std::thread::spawn(move || {
+    let reader = std::thread::spawn(move || {
         for line in BufReader::new(out).lines().map_while(Result::ok) {
             eprintln!("{line}");
             l.lock().unwrap().push(line);
         }
     });
-    (child, lines)
+    (child, Lines { lines, reader })
 }
 
 #[test]
@@ -65,7 +88,7 @@ fn simulated_rig_runs_end_to_end_through_the_graph() {
         std::thread::sleep(Duration::from_millis(50));
     };
     assert!(status.success());
-    let lines = lines.lock().unwrap().clone();
+    let lines = lines.all();
     for prefix in [
         "[sensor] ",
         "[harmonic] ",
@@ -109,8 +132,7 @@ fn ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished() {
     );
     let t0 = Instant::now();
     while !lines
-        .lock()
-        .unwrap()
+        .so_far()
         .iter()
         .any(|l| l.starts_with("[sensor] step 1:"))
     {
@@ -139,7 +161,7 @@ fn ctrl_c_stops_every_node_cleanly_and_the_bag_is_finished() {
         std::thread::sleep(Duration::from_millis(50));
     };
     assert!(status.success(), "{status}");
-    let lines = lines.lock().unwrap().clone();
+    let lines = lines.all();
     assert!(
         lines
             .iter()
@@ -268,7 +290,7 @@ fn four_corners_in_one_graph_are_each_identified() {
     );
     let status = child.wait().unwrap();
     assert!(status.success(), "{status}");
-    let lines = lines.lock().unwrap().clone();
+    let lines = lines.all();
     for c in corners {
         for kind in ["sensor", "harmonic", "identifier", "monitor"] {
             let label = format!("{c}/{kind}");
