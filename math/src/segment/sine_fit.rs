@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use nalgebra::{Matrix4, Vector4};
 use num_complex::Complex64;
-use rustfft::{Fft, FftPlanner};
+use rustfft::Fft;
 
 /// Zero-padding factor of the initial DFT: the interpolated peak is then within a small
 /// fraction of a bin of the true frequency, well inside Gauss-Newton's basin.
@@ -72,9 +72,10 @@ impl SineFit {
     }
 }
 
-/// DFT plans by length, so that the many windows of a segmentation share them.
+/// DFT plans by length, so that the many windows of a segmentation share them (kept here as
+/// well as by `signal::fft`, which builds plans longer than its limit afresh: a segmentation's
+/// padded windows can be longer).
 pub struct SineFitter {
-    planner: FftPlanner<f64>,
     plans: Vec<(usize, Arc<dyn Fft<f64>>)>,
 }
 
@@ -86,17 +87,14 @@ impl Default for SineFitter {
 
 impl SineFitter {
     pub fn new() -> SineFitter {
-        SineFitter {
-            planner: FftPlanner::new(),
-            plans: Vec::new(),
-        }
+        SineFitter { plans: Vec::new() }
     }
 
     fn plan(&mut self, len: usize) -> Arc<dyn Fft<f64>> {
         if let Some((_, p)) = self.plans.iter().find(|(l, _)| *l == len) {
             return Arc::clone(p);
         }
-        let p = self.planner.plan_fft_forward(len);
+        let p = crate::signal::fft::forward(len);
         self.plans.push((len, Arc::clone(&p)));
         p
     }
