@@ -286,12 +286,34 @@ pub struct IdentifyArgs {
     /// each record's measured motion; prints each record's force NMSE [%] and RMS error [N].
     #[arg(long, value_name = "FILE")]
     pub validate: Vec<PathBuf>,
+    /// What an element test's bench controlled, for records of any excitation (no steps),
+    /// whose samples cannot tell: force (a shaker driving a mass; its displacement is simulated
+    /// under the measured force) or displacement (a dyno's stroke; the force is predicted along
+    /// it). Default: the channel a labelled multisine's distortion shows, else displacement.
+    #[arg(long, value_enum)]
+    pub drive: Option<DriveArg>,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
     /// Write SVG plots here: the force-state map of the fit and the validation time traces.
     #[arg(long)]
     pub plot: Option<PathBuf>,
+}
+
+/// What an element test's bench controlled (`--drive`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DriveArg {
+    Force,
+    Displacement,
+}
+
+impl From<DriveArg> for forcemap_math::sim::element::ElementDrive {
+    fn from(d: DriveArg) -> Self {
+        match d {
+            DriveArg::Force => Self::Force,
+            DriveArg::Displacement => Self::Displacement,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

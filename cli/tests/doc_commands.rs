@@ -142,7 +142,8 @@ fn words(text: &str) -> Option<Vec<String>> {
 }
 
 /// Repository paths a command names (a word under one of the committed directories), with the
-/// shell's braces and globs left to the shell: the directory part before them must exist.
+/// shell's braces and globs left to the shell: the directory part before them must exist; a
+/// record selection after `#` is not part of the path.
 fn missing_paths(words: &[String]) -> Vec<String> {
     const ROOTS: [&str; 6] = [
         "data/",
@@ -155,6 +156,8 @@ fn missing_paths(words: &[String]) -> Vec<String> {
     let mut missing = Vec::new();
     for w in words {
         let w = w.split_once('=').map_or(w.as_str(), |(_, v)| v);
+        // `FILE#NAMES` picks records of FILE (named in its map): FILE must exist.
+        let w = w.split_once('#').map_or(w, |(file, _)| file);
         if !ROOTS.iter().any(|r| w.starts_with(r)) {
             continue;
         }

@@ -83,6 +83,7 @@ fn identify_nmse(fit: &[Record], held: &[Record], weighting: Weighting) -> Vec<f
     let model = Model::by_name("damper", &ModelOptions::default()).expect("a built-in model");
     let setup = Setup::Element {
         moving_mass_kg: None,
+        drive: None,
     };
     let id = identify_records(
         &model,

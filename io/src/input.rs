@@ -11,6 +11,7 @@ use crate::channel_map::MapFile;
 use crate::csv_export::{CsvImport, read_csv};
 use crate::foreign_bag::read_foreign_bag;
 use crate::rig_bag::{RigBag, RigBagReader, read_rig_bag};
+use crate::table_map::RecordMaking;
 use forcemap_math::recipe::SetupKind;
 
 /// Records and what came with them.
@@ -196,7 +197,14 @@ fn of_bag_of_kind(path: &Path, bag: RigBag, kind: SetupKind) -> anyhow::Result<L
 /// As [`load`]; with a channel map (`channels`), `path` is read through it: a bag recorded
 /// by a bench's own tools through a topic map ([`crate::foreign_bag`]), a text, MDF4, TDMS
 /// or MAT file through a map of its columns ([`crate::tabular`]).
+///
+/// `FILE#NAME[,NAME...]` (where no file of that whole name exists) reads only the records the
+/// map names so (`table: {records: [{name: NAME, rows: [FIRST, LAST]}, ...]}`): a benchmark's
+/// estimation and test sections from one file, say.
 pub fn load_mapped(path: &Path, channels: Option<&Path>) -> anyhow::Result<Loaded> {
+    if let Some((file, names)) = record_selection(path) {
+        return load_selected(path, &file, &names, channels);
+    }
     let Some(map_path) = channels else {
         return load(path);
     };
@@ -224,6 +232,72 @@ pub fn load_mapped(path: &Path, channels: Option<&Path>) -> anyhow::Result<Loade
             Ok(of_import(path, crate::tabular::read_mapped(path, &map)?))
         }
     }
+}
+
+/// `FILE#NAME,...` split into the file and the record names, when `path` names no file itself
+/// and `FILE` does.
+fn record_selection(path: &Path) -> Option<(PathBuf, Vec<String>)> {
+    if path.exists() {
+        return None;
+    }
+    let text = path.to_str()?;
+    let (file, names) = text.rsplit_once('#')?;
+    let file = PathBuf::from(file);
+    file.exists().then(|| {
+        (
+            file,
+            names.split(',').map(|n| n.trim().to_string()).collect(),
+        )
+    })
+}
+
+/// The records `names` of `file`, read through the map that names them, numbered from 0 in the
+/// map's order.
+fn load_selected(
+    path: &Path,
+    file: &Path,
+    names: &[String],
+    channels: Option<&Path>,
+) -> anyhow::Result<Loaded> {
+    let named = match channels.map(MapFile::read).transpose()? {
+        Some(MapFile::Columns(map)) => match &map.records {
+            RecordMaking::Rows(rows) => rows.clone(),
+            _ => Vec::new(),
+        },
+        _ => Vec::new(),
+    };
+    if named.is_empty() {
+        anyhow::bail!(
+            "{}: no file of this name, and {} names no records to pick after '#' (a map of \
+             columns with table: {{records: [{{name: NAME, rows: [FIRST, LAST]}}, ...]}})",
+            path.display(),
+            channels.map_or("no channel map".to_string(), |m| format!(
+                "the map {}",
+                m.display()
+            ))
+        );
+    }
+    let mut wanted = Vec::new();
+    for n in names {
+        match named.iter().position(|r| &r.name == n) {
+            Some(i) => wanted.push(i),
+            None => anyhow::bail!(
+                "{}: the map names no record '{n}' (it names {})",
+                path.display(),
+                named
+                    .iter()
+                    .map(|r| r.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        }
+    }
+    let mut loaded = load_mapped(file, channels)?;
+    loaded.records.retain(|r| wanted.contains(&r.step));
+    for (k, r) in loaded.records.iter_mut().enumerate() {
+        r.step = k;
+    }
+    Ok(loaded)
 }
 
 /// As [`load_measured`]; with a channel map, the steps of a bench's own bag.

@@ -111,10 +111,40 @@ pub struct TableMap {
     pub step: Option<ColumnSource>,
     pub frequency_hz: Option<ColumnSource>,
     pub text: TextOptions,
-    /// Each file is one record of any excitation (`table: {records: whole}`): no step finding,
-    /// for records that are not stepped sines (a road or earthquake profile, a sine test with
+    /// How the file's samples make records (`table: {records: ...}`).
+    pub records: RecordMaking,
+}
+
+/// How a file's samples make records.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum RecordMaking {
+    /// Steps found where the drive changes, or the file's own step labels (`records: steps`).
+    #[default]
+    Steps,
+    /// Each file is one record of any excitation (`records: whole`): no step finding, for
+    /// records that are not stepped sines (a road or earthquake profile, a sine test with
     /// ramps), which `identify` fits sample by sample.
-    pub whole_records: bool,
+    Whole,
+    /// One record of any excitation per named range of rows, in the map's order; rows outside
+    /// every range are left out. For a file that holds several tests back to back (a
+    /// benchmark's estimation and test sections, runs separated by rests).
+    Rows(Vec<NamedRows>),
+}
+
+impl RecordMaking {
+    /// Whether the records are the map's rather than found in the drive (no step finding).
+    pub fn by_map(&self) -> bool {
+        !matches!(self, RecordMaking::Steps)
+    }
+}
+
+/// A record the map cuts from a file: its name and its rows (the file's samples counted from
+/// 1, both ends included).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct NamedRows {
+    pub name: String,
+    pub first_row: usize,
+    pub last_row: usize,
 }
 
 /// The `table:` block as written.
@@ -126,7 +156,22 @@ pub(crate) struct TextOptionsForm {
     decimal_comma: Option<bool>,
     #[serde(default)]
     skip_lines: usize,
-    records: Option<String>,
+    records: Option<RecordsForm>,
+}
+
+/// `table.records` as written: a way (`steps`, `whole`) or a list of named row ranges.
+#[derive(Deserialize)]
+#[serde(untagged)]
+pub(crate) enum RecordsForm {
+    Way(String),
+    Rows(Vec<NamedRowsForm>),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct NamedRowsForm {
+    name: String,
+    rows: [usize; 2],
 }
 
 impl TableMap {
@@ -143,22 +188,12 @@ impl TableMap {
             step: None,
             frequency_hz: None,
             text: TextOptions::default(),
-            whole_records: false,
+            records: RecordMaking::Steps,
         };
         if let Some(mut t) = text {
-            map.whole_records = match t.records.take().as_deref() {
-                None | Some("steps") => false,
-                Some("whole") => true,
-                Some(other) => {
-                    return Err(ChannelMapError::Entry {
-                        file: file.to_string(),
-                        entry: "table.records".into(),
-                        problem: format!(
-                            "'{other}' is not a way to make records (steps: found where the drive changes; whole: each file one record)"
-                        ),
-                    });
-                }
-            };
+            if let Some(form) = t.records.take() {
+                map.records = record_making(file, form)?;
+            }
             map.text = text_options(file, t)?;
         }
         for (name, e) in entries {
@@ -220,6 +255,15 @@ impl TableMap {
                 ),
             });
         }
+        if map.step.is_some() && matches!(map.records, RecordMaking::Rows(_)) {
+            return Err(ChannelMapError::Invalid {
+                file: file.to_string(),
+                problem: format!(
+                    "the map names its records by rows (table.records) and also maps the label \
+                     {STEP_LABEL}: the records are one or the other"
+                ),
+            });
+        }
         map.channels
             .sort_by_key(|(c, _)| Channel::ALL.iter().position(|a| a == c));
         Ok(map)
@@ -239,6 +283,66 @@ impl TableMap {
             .chain(self.step.iter().map(|s| (STEP_LABEL, s)))
             .chain(self.frequency_hz.iter().map(|s| (FREQUENCY_LABEL, s)))
     }
+}
+
+fn record_making(file: &str, form: RecordsForm) -> Result<RecordMaking, ChannelMapError> {
+    let err = |problem: String| ChannelMapError::Entry {
+        file: file.to_string(),
+        entry: "table.records".into(),
+        problem,
+    };
+    let rows = match form {
+        RecordsForm::Way(w) => {
+            return match w.as_str() {
+                "steps" => Ok(RecordMaking::Steps),
+                "whole" => Ok(RecordMaking::Whole),
+                other => Err(err(format!(
+                    "'{other}' is not a way to make records (steps: found where the drive \
+                     changes; whole: each file one record; or a list of \
+                     {{name: NAME, rows: [FIRST, LAST]}})"
+                ))),
+            };
+        }
+        RecordsForm::Rows(rows) => rows,
+    };
+    if rows.is_empty() {
+        return Err(err("an empty list of records".into()));
+    }
+    let mut out: Vec<NamedRows> = Vec::with_capacity(rows.len());
+    for r in rows {
+        let [first_row, last_row] = r.rows;
+        let name = r.name.trim().to_string();
+        if name.is_empty() || name.contains([',', '#']) {
+            return Err(err(format!(
+                "'{}' is not a record name (not empty, no ',' or '#')",
+                r.name
+            )));
+        }
+        if out.iter().any(|o| o.name == name) {
+            return Err(err(format!("record '{name}' is named twice")));
+        }
+        if first_row < 1 || last_row < first_row {
+            return Err(err(format!(
+                "record '{name}': rows [{first_row}, {last_row}] are not a range of rows \
+                 (counted from 1, first <= last)"
+            )));
+        }
+        if let Some(prev) = out.last()
+            && first_row <= prev.last_row
+        {
+            return Err(err(format!(
+                "record '{name}' (rows from {first_row}) starts inside or before record '{}' \
+                 (rows to {}); list the records in the file's order, without overlap",
+                prev.name, prev.last_row
+            )));
+        }
+        out.push(NamedRows {
+            name,
+            first_row,
+            last_row,
+        });
+    }
+    Ok(RecordMaking::Rows(out))
 }
 
 fn text_options(file: &str, t: TextOptionsForm) -> Result<TextOptions, ChannelMapError> {

@@ -370,3 +370,66 @@ fn a_json_matrix_read_whole_is_one_record_of_the_samples() {
         "{e}"
     );
 }
+
+/// A map that names records by rows (`table.records` as a list) cuts one file into them, in
+/// the map's order, leaving the rows between out; `FILE#NAMES` picks some; rows beyond the file,
+/// overlapping records and unknown names are errors naming what is wrong.
+#[test]
+fn records_named_by_rows_cut_one_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("bench.csv");
+    let mut text = String::from("x,F\n");
+    for k in 0..40 {
+        text.push_str(&format!("{},{}\n", (k as f64 * 0.3).sin(), k));
+    }
+    std::fs::write(&csv, text).unwrap();
+    let map = |records: &str| {
+        let p = dir.path().join("map.yaml");
+        std::fs::write(
+            &p,
+            format!(
+                "channels:\n  time_s: {{sample_rate_hz: 100}}\n  relative_displacement_m: {{channel: x, unit: m}}\n  force_n: {{channel: F, unit: N}}\ntable:\n  records:\n{records}"
+            ),
+        )
+        .unwrap();
+        p
+    };
+    let m = map("    - {name: a, rows: [3, 12]}\n    - {name: b, rows: [21, 40]}\n");
+    let all = forcemap_io::input::load_files(std::slice::from_ref(&csv), Some(&m)).unwrap();
+    assert_eq!(all.records.len(), 2);
+    assert_eq!(
+        (all.records[0].len(), all.records[1].len()),
+        (10, 20),
+        "rows 3-12 and 21-40"
+    );
+    // Row 3 holds F = 2, row 21 F = 20.
+    let force = |r: &forcemap_math::record::Record| r.channel(Channel::ForceN).unwrap()[0];
+    assert_eq!(
+        (force(&all.records[0]), force(&all.records[1])),
+        (2.0, 20.0)
+    );
+    let picked = PathBuf::from(format!("{}#b", csv.display()));
+    let b = forcemap_io::input::load_files(&[picked], Some(&m)).unwrap();
+    assert_eq!(b.records.len(), 1);
+    assert_eq!((b.records[0].step, force(&b.records[0])), (0, 20.0));
+    let unknown = PathBuf::from(format!("{}#c", csv.display()));
+    let e = forcemap_io::input::load_files(&[unknown], Some(&m))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no record 'c'") && e.contains("a, b"), "{e}");
+    let beyond = map("    - {name: a, rows: [3, 41]}\n");
+    let e = format!(
+        "{:#}",
+        forcemap_io::input::load_files(std::slice::from_ref(&csv), Some(&beyond)).unwrap_err()
+    );
+    assert!(e.contains("record 'a'") && e.contains("40 rows"), "{e}");
+    let overlap = map("    - {name: a, rows: [3, 12]}\n    - {name: b, rows: [12, 20]}\n");
+    let e = format!(
+        "{:#}",
+        forcemap_io::input::load_files(&[csv], Some(&overlap)).unwrap_err()
+    );
+    assert!(
+        e.contains("table.records") && e.contains("without overlap"),
+        "{e}"
+    );
+}

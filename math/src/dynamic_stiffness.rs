@@ -168,6 +168,7 @@ mod tests {
         let records = run.simulate().expect("simulating the element test");
         let setup = Setup::Element {
             moving_mass_kg: Some(0.0),
+            drive: None,
         };
         records
             .iter()
@@ -255,6 +256,7 @@ mod tests {
         let records = run.simulate().expect("simulating the element test");
         let unknown = Setup::Element {
             moving_mass_kg: None,
+            drive: None,
         };
         for r in &records {
             let an = analyse_record(r, &PhasorOptions::for_identification()).expect("analysed");

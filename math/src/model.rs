@@ -34,6 +34,20 @@ pub const MODEL_NAMES: &[(&str, &str)] = &[
     ),
 ];
 
+/// Appended to a model's name (`cubic+offset`), a constant force term `offset` [N] added to its
+/// terms: a load cell's zero error, a drive signal's DC, a preload the model does not hold.
+pub const OFFSET_SUFFIX: &str = "+offset";
+
+/// Whether `name` names a model: one of [`MODEL_NAMES`], with or without [`OFFSET_SUFFIX`] (a
+/// model that holds a constant already takes none).
+pub fn is_model_name(name: &str) -> bool {
+    let (base, offset) = match name.strip_suffix(OFFSET_SUFFIX) {
+        Some(base) => (base, true),
+        None => (name, false),
+    };
+    MODEL_NAMES.iter().any(|(n, _)| *n == base) && !(offset && base == "damper")
+}
+
 #[derive(Debug, Clone, Error, PartialEq)]
 pub enum ModelError {
     #[error("unknown model '{name}'; known models: {known}")]
@@ -51,7 +65,8 @@ impl ModelError {
                 .iter()
                 .map(|(n, _)| *n)
                 .collect::<Vec<_>>()
-                .join(", "),
+                .join(", ")
+                + &format!(" (each but damper also with {OFFSET_SUFFIX})"),
         }
     }
 }
@@ -81,6 +96,13 @@ impl Model {
     }
 
     pub fn by_name(name: &str, options: &ModelOptions) -> Result<Model, ModelError> {
+        if let Some(base) = name.strip_suffix(OFFSET_SUFFIX)
+            && is_model_name(name)
+        {
+            let mut terms: Vec<Arc<dyn Term>> = vec![Arc::new(Constant)];
+            terms.extend(Model::by_name(base, options)?.terms);
+            return Ok(Model::new(name, terms));
+        }
         let atan = || -> Result<Arc<dyn Term>, ModelError> {
             match options.atan_slope_s_per_m {
                 Some(m) if m > 0.0 && m.is_finite() => {
@@ -224,6 +246,27 @@ impl Element for IdentifiedModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_offset_suffix_adds_a_constant_term_first() {
+        let o = ModelOptions::default();
+        let m = Model::by_name("cubic+offset", &o).unwrap();
+        let symbols: Vec<String> = m.terms.iter().map(|t| t.symbol()).collect();
+        let cubic: Vec<String> = Model::by_name("cubic", &o)
+            .unwrap()
+            .terms
+            .iter()
+            .map(|t| t.symbol())
+            .collect();
+        assert_eq!(symbols[0], "offset");
+        assert_eq!(symbols[1..], cubic[..]);
+        assert_eq!(m.name, "cubic+offset");
+        // damper holds its offset already; an unknown base stays unknown.
+        for bad in ["damper+offset", "quartic+offset", "cubic+offset+offset"] {
+            assert!(!is_model_name(bad), "{bad}");
+            assert!(Model::by_name(bad, &o).is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn linear_coefficients_are_the_smooth_force() {

@@ -146,7 +146,10 @@ pub fn identify_analysed(
     }
     analyses.extend(sweeps);
     let multisine_options = MultisineOptions::default();
-    if let Setup::Element { moving_mass_kg } = setup
+    if let Setup::Element {
+        moving_mass_kg,
+        drive,
+    } = setup
         && analyses.is_empty()
     {
         let sampled = sample_records(records, &multisine_options);
@@ -155,7 +158,8 @@ pub fn identify_analysed(
                 && !multisine_too_short(r, &multisine_options)
         });
         if !sampled.is_empty() && !periodic {
-            let mut id = identify_element_sample_records(model, *moving_mass_kg, method, &sampled)?;
+            let mut id =
+                identify_element_sample_records(model, *moving_mass_kg, *drive, method, &sampled)?;
             id.warnings.splice(0..0, notes);
             return Ok((id, analyses));
         }

@@ -81,6 +81,7 @@ fn a_cubic_spring_fitted_on_multisines_predicts_the_random_record() {
     let f = diagnose(
         Setup::Element {
             moving_mass_kg: None,
+            drive: None,
         },
         &records[..2],
     );
@@ -131,6 +132,7 @@ fn coulomb_friction_fitted_on_dyno_steps_predicts_a_sweep() {
     let f = diagnose(
         Setup::Element {
             moving_mass_kg: Some(0.8),
+            drive: None,
         },
         fitted,
     );

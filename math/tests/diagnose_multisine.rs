@@ -31,6 +31,7 @@ fn diagnose(records: &[Record], baseline: &str) -> PhasorFindings {
     let mut d = PhasorDiagnosis::new(
         Setup::Element {
             moving_mass_kg: None,
+            drive: None,
         },
         model,
     );
@@ -133,6 +134,7 @@ fn the_true_model_is_adequate_and_two_realisations_suffice() {
     let mut one = PhasorDiagnosis::new(
         Setup::Element {
             moving_mass_kg: None,
+            drive: None,
         },
         Model::by_name("linear", &ModelOptions::default()).expect("a model"),
     );

@@ -34,6 +34,7 @@ fn diagnose(records: &[Record]) -> PhasorFindings {
     let mut d = PhasorDiagnosis::new(
         Setup::Element {
             moving_mass_kg: None,
+            drive: None,
         },
         model,
     );

@@ -96,6 +96,7 @@ fn diagnose(truth: Truth) -> (forcemap_math::diagnose::PhasorFindings, f64, f64)
     let mut live = PhasorDiagnosis::new(
         Setup::Element {
             moving_mass_kg: None,
+            drive: None,
         },
         linear,
     );

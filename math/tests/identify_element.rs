@@ -138,7 +138,8 @@ fn the_element_setup_is_recognised_from_its_channels_and_resolved() {
     assert_eq!(
         SetupKind::Element.resolve(&SetupConstants::default()),
         Ok(SetupSpec::Element {
-            moving_mass_kg: None
+            moving_mass_kg: None,
+            drive: None
         })
     );
     assert!(
@@ -169,6 +170,7 @@ fn the_moving_mass_is_identified_without_an_accelerometer() {
         &Model::by_name("cubic", &ModelOptions::default()).unwrap(),
         &Setup::Element {
             moving_mass_kg: None,
+            drive: None,
         },
         Method::FdMulti,
         &records,

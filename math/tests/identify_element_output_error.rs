@@ -54,12 +54,14 @@ fn identify(
 fn dyno_setup() -> Setup {
     Setup::Element {
         moving_mass_kg: Some(DYNO_MASS_KG),
+        drive: None,
     }
 }
 
 fn sdof_setup() -> Setup {
     Setup::Element {
         moving_mass_kg: None,
+        drive: None,
     }
 }
 
@@ -263,7 +265,7 @@ fn at_truth_with_true_noise<T>(
         Channel::MassAccelerationMps2,
     ]
     .map(|c| run_rms(&clean, c).unwrap() / 10f64.powf(snr_db / 20.0));
-    let Setup::Element { moving_mass_kg } = (b.setup)() else {
+    let Setup::Element { moving_mass_kg, .. } = (b.setup)() else {
         panic!("element setup")
     };
     let problem = ElementOutputError::new(

@@ -218,7 +218,8 @@ fn identify_cubic(records: &[Record]) -> Vec<(String, f64, f64)> {
     assert_eq!(
         setup,
         Setup::Element {
-            moving_mass_kg: None
+            moving_mass_kg: None,
+            drive: None
         }
     );
     let model = Model::by_name("cubic", &ModelOptions::default()).expect("model");
@@ -363,6 +364,7 @@ fn spread_over_seeds() {
     let model = Model::by_name("cubic", &ModelOptions::default()).expect("model");
     let setup = Setup::Element {
         moving_mass_kg: None,
+        drive: None,
     };
     for distortion in [true, false] {
         let mut worst = [0.0f64; 4];
@@ -411,6 +413,7 @@ fn a_known_mass_and_the_excited_lines_alone_give_the_truth_too() {
     let model = Model::by_name("cubic", &ModelOptions::default()).expect("model");
     let setup = Setup::Element {
         moving_mass_kg: Some(MASS_KG),
+        drive: None,
     };
     for options in [
         FdMultiOptions {

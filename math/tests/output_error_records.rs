@@ -63,6 +63,7 @@ fn a_force_driven_duffing_oscillator_is_identified_from_one_period_multisines() 
             &model,
             &Setup::Element {
                 moving_mass_kg: Some(MASS_KG),
+                drive: None,
             },
             Method::FdMulti,
             fitted,
@@ -79,6 +80,7 @@ fn a_force_driven_duffing_oscillator_is_identified_from_one_period_multisines() 
             &model,
             &Setup::Element {
                 moving_mass_kg: Some(MASS_KG),
+                drive: None,
             },
             Method::Td {
                 points_per_step: None,
@@ -162,6 +164,7 @@ fn a_displacement_driven_element_on_random_strokes_is_the_force_least_squares() 
     let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
     let setup = Setup::Element {
         moving_mass_kg: Some(0.8),
+        drive: None,
     };
     let identify = |method| {
         identify_records(

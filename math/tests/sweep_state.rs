@@ -132,6 +132,7 @@ fn linear_errors(windows: &[HarmonicAnalysis]) -> [f64; 2] {
     let model = Model::by_name("linear", &ModelOptions::default()).expect("model");
     let setup = Setup::Element {
         moving_mass_kg: Some(MASS_KG),
+        drive: None,
     };
     let blocks: Vec<_> = windows
         .iter()

@@ -23,6 +23,7 @@ fn tracked_c(factor: f64, snr_db: f64) -> Vec<f64> {
     let model = Model::by_name("damper", &ModelOptions::default()).expect("model");
     let setup = Setup::Element {
         moving_mass_kg: Some(0.8),
+        drive: None,
     };
     let mut acc = EquationAccumulator::new(&model, &setup, Method::FdMulti);
     let frequencies_hz = [1.0, 2.0, 4.0, 8.0];

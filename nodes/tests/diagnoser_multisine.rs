@@ -38,6 +38,7 @@ fn offline(records: &[Record]) -> PhasorFindings {
     let mut d = PhasorDiagnosis::new(
         Setup::Element {
             moving_mass_kg: None,
+            drive: None,
         },
         Model::by_name("linear", &ModelOptions::default()).unwrap(),
     );

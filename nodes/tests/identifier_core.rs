@@ -179,7 +179,10 @@ fn offline_element(
 ) -> forcemap_math::identify::Identification {
     identify_records(
         model,
-        &Setup::Element { moving_mass_kg },
+        &Setup::Element {
+            moving_mass_kg,
+            drive: None,
+        },
         Method::FdMulti,
         records,
         &PhasorOptions::for_identification(),
@@ -258,7 +261,8 @@ fn an_element_test_is_identified_live_as_offline() {
         assert_eq!(
             recipe.setup,
             SetupSpec::Element {
-                moving_mass_kg: mass
+                moving_mass_kg: mass,
+                drive: None
             }
         );
     }

@@ -49,6 +49,7 @@ fn offline(records: &[Record], method: Method) -> Identification {
         &model,
         &Setup::Element {
             moving_mass_kg: None,
+            drive: None,
         },
         method,
         records,

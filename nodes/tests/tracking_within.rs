@@ -124,7 +124,8 @@ fn live_track(
     assert_eq!(
         c.recipe().unwrap().setup,
         SetupSpec::Element {
-            moving_mass_kg: Some(MOVING_MASS_KG)
+            moving_mass_kg: Some(MOVING_MASS_KG),
+            drive: None
         }
     );
     fed.thetas
@@ -282,6 +283,7 @@ fn the_live_track_within_steps_is_the_offline_track_and_follows_a_fading_damper(
     let model = Model::by_name("damper", &ModelOptions::default()).unwrap();
     let setup = Setup::Element {
         moving_mass_kg: Some(MOVING_MASS_KG),
+        drive: None,
     };
     println!(
         "{STEPS} steps of {} s, c falling {} %; update period, forgetting factor: lag, max |error| and RMS error after the lag, thetas",

@@ -8,7 +8,7 @@ use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::{HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
 use forcemap_math::recipe::Setup;
-use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind, Tracking};
+use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind, SetupSpec, Tracking};
 use forcemap_math::record::Excitation;
 use forcemap_math::sim::ElementDrive;
 use serde_json::json;
@@ -41,7 +41,7 @@ pub fn recipe(
         Some(p) => read_params(p, None)?,
         None => Params::new(),
     };
-    let setup = super::resolve_setup(
+    let mut setup = super::resolve_setup(
         kind,
         args.mass_kg,
         &params,
@@ -49,6 +49,15 @@ pub fn recipe(
         carried,
         file,
     )?;
+    if let Some(named) = args.drive {
+        match &mut setup {
+            SetupSpec::Element { drive, .. } => *drive = Some(named.into()),
+            _ => anyhow::bail!(
+                "{file}: --drive names what an element test's bench controlled; these data are a \
+                 {kind} setup's"
+            ),
+        }
+    }
     let model = args.model.parse::<ModelSpec>()?.with_options(ModelOptions {
         atan_slope_s_per_m: args.atan_m.or(params.opt_f64("atan_m")?),
         polynomial_order: args.poly_order,
@@ -218,12 +227,16 @@ fn held_out_validations(
         for r in &records {
             let context = || format!("{file}: validating on record {}", r.step);
             let held = match setup {
-                Setup::Element { moving_mass_kg } => {
+                Setup::Element {
+                    moving_mass_kg,
+                    drive,
+                } => {
                     // The identified mass, when it is, follows theta.
                     let mass = moving_mass_kg.or_else(|| theta.get(model.terms.len()).copied());
                     let v = pipeline::validate_element(&fitted, mass.unwrap_or(0.0), r)
                         .with_context(context)?;
-                    let forced = records_drive(&[r]) == ElementDrive::Force
+                    let forced = drive.unwrap_or_else(|| records_drive(&[r]))
+                        == ElementDrive::Force
                         && !matches!(r.excitation, Excitation::Sine { .. });
                     let simulated = if forced {
                         Some(

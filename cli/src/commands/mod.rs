@@ -49,6 +49,11 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
             for (name, what) in forcemap_math::model::MODEL_NAMES {
                 println!("{name:<20} {what}");
             }
+            println!(
+                "{:<20} the model NAME with a constant force term offset (a load cell's zero \
+                 error, a drive's DC, a preload): cubic+offset",
+                format!("NAME{}", forcemap_math::model::OFFSET_SUFFIX)
+            );
             Ok(())
         }
     }

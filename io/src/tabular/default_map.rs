@@ -10,7 +10,7 @@ use super::resolve::format_error;
 use super::{ColumnFile, ColumnInfo};
 use crate::csv_export::{FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN};
 use crate::table::{TableError, contract_column};
-use crate::table_map::{ColumnRef, ColumnSource, TableMap, TextOptions, TimeSource};
+use crate::table_map::{ColumnRef, ColumnSource, RecordMaking, TableMap, TextOptions, TimeSource};
 
 /// The map of a file whose columns are named as forcemap names them: each such column, in
 /// one group (several groups with forcemap names are refused, naming them).
@@ -22,7 +22,7 @@ pub fn default_map(file: &dyn ColumnFile, path: &Path) -> Result<TableMap, Table
         step: None,
         frequency_hz: None,
         text: TextOptions::default(),
-        whole_records: false,
+        records: RecordMaking::Steps,
     };
     let columns = file.columns();
     let named: Vec<(&'static str, &ColumnInfo)> = columns

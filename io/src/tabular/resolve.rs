@@ -8,7 +8,7 @@ use super::{ColumnFile, ColumnInfo, RawValues, TimeBase};
 use crate::channel_map::{FREQUENCY_LABEL, STEP_LABEL, TIME_LABEL};
 use crate::csv_export::{CsvImport, FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN};
 use crate::table::{RowPlaces, SampleTable, TableError};
-use crate::table_map::{ColumnRef, ColumnSource, TableMap, TimeSource};
+use crate::table_map::{ColumnRef, ColumnSource, NamedRows, RecordMaking, TableMap, TimeSource};
 use crate::units::{Quantity, parse_unit, unit_in_name};
 
 /// Column names that are a file's time when the map names none (case does not matter).
@@ -462,6 +462,33 @@ pub fn pick(file: &dyn ColumnFile, path: &Path, map: &TableMap) -> Result<Picks,
     })
 }
 
+/// The samples (0-based) the map's named records keep, each with its record's index; an error
+/// names the record whose rows the file does not have.
+fn rows_of_records(
+    file: &dyn ColumnFile,
+    path: &Path,
+    map_file: &str,
+    records: &[NamedRows],
+    samples: usize,
+) -> Result<Vec<(usize, usize)>, TableError> {
+    let mut kept = Vec::new();
+    for (index, r) in records.iter().enumerate() {
+        if r.last_row > samples {
+            return Err(format_error(
+                file,
+                path,
+                format!(
+                    "record '{}' of the map {map_file} ends at row {}, but the file has {samples} \
+                     rows",
+                    r.name, r.last_row
+                ),
+            ));
+        }
+        kept.extend((r.first_row - 1..r.last_row).map(|k| (k, index)));
+    }
+    Ok(kept)
+}
+
 /// Reads the picked columns of `file` into the CSV contract's rows and through its reader.
 pub fn read_through(
     file: &mut dyn ColumnFile,
@@ -521,17 +548,37 @@ pub fn read_through(
             ),
         );
     }
-    if map.whole_records && map.step.is_none() {
-        // One step of unknown excitation: frequency 0 labels a record that is not a sine.
-        table.columns.push((STEP_COLUMN, vec![0.0; n]));
-        table.columns.push((FREQUENCY_COLUMN, vec![0.0; n]));
+    // Frequency 0 labels a record that is not a sine.
+    let mut kept_lines: Option<Vec<u64>> = None;
+    match &map.records {
+        RecordMaking::Steps => {}
+        RecordMaking::Whole => {
+            if map.step.is_none() {
+                table.columns.push((STEP_COLUMN, vec![0.0; n]));
+                table.columns.push((FREQUENCY_COLUMN, vec![0.0; n]));
+            }
+        }
+        RecordMaking::Rows(records) => {
+            let kept = rows_of_records(&*file, path, &map.file, records, n)?;
+            for (_, values) in &mut table.columns {
+                *values = kept.iter().map(|&(k, _)| values[k]).collect();
+            }
+            let steps = kept.iter().map(|&(_, r)| r as f64).collect();
+            table.columns.push((STEP_COLUMN, steps));
+            table
+                .columns
+                .push((FREQUENCY_COLUMN, vec![0.0; kept.len()]));
+            kept_lines = file
+                .row_lines()
+                .map(|lines| kept.iter().map(|&(k, _)| lines[k]).collect());
+        }
     }
-    let places = match file.row_lines() {
+    let places = match kept_lines.as_deref().or(file.row_lines()) {
         Some(lines) => RowPlaces::Lines(lines),
         None => RowPlaces::Samples,
     };
     let mut import = table.into_import(path, file.format(), places)?;
-    if map.whole_records {
+    if map.records.by_map() {
         // The step label is the map's, not the file's: checking it against the drive says
         // nothing (a sine test read as one record is not mislabelled).
         import

@@ -19,6 +19,7 @@ pub fn dyno_identification(
         &model,
         &Setup::Element {
             moving_mass_kg: Some(0.8),
+            drive: None,
         },
         Method::FdMulti,
         records,

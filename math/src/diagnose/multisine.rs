@@ -463,6 +463,7 @@ fn term_fit(steps: &Steps, model: &Model, theta: &[f64]) -> TermFit {
     let mass_kg = match steps.setup {
         Setup::Element {
             moving_mass_kg: Some(m),
+            ..
         } => *m,
         _ => theta.get(n).copied().unwrap_or(0.0),
     };

@@ -264,6 +264,7 @@ impl PhasorDiagnosis {
     fn term_fit(&self, f: &Fitted) -> Option<TermFit> {
         let Setup::Element {
             moving_mass_kg: Some(m),
+            ..
         } = self.setup
         else {
             return None;

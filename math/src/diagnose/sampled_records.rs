@@ -117,7 +117,7 @@ impl SampledRecord {
         setup: &Setup,
         hysteresis: Option<&HysteresisLaw>,
     ) -> Result<StepEquations, DiagnoseError> {
-        let Setup::Element { moving_mass_kg } = setup else {
+        let Setup::Element { moving_mass_kg, .. } = setup else {
             return Err(IdentifyError::Step {
                 step: self.step(),
                 problem: format!(
@@ -196,6 +196,7 @@ mod tests {
         let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
         let setup = Setup::Element {
             moving_mass_kg: Some(0.0),
+            drive: None,
         };
         let b = r.equations(&model, &setup, None).unwrap();
         let symbols: Vec<String> = model.terms.iter().map(|t| t.symbol()).collect();

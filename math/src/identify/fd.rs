@@ -138,7 +138,7 @@ pub fn element_harmonics(
                 }
             }
         }
-        Setup::Element { moving_mass_kg } => {
+        Setup::Element { moving_mass_kg, .. } => {
             let f = an.channel(Channel::ForceN).ok_or_else(|| {
                 missing(step, Channel::ForceN, "the element test measures its force")
             })?;

@@ -385,7 +385,8 @@ pub fn moving_mass_hint(
     if !matches!(
         setup,
         Setup::Element {
-            moving_mass_kg: None
+            moving_mass_kg: None,
+            ..
         }
     ) || !derived
     {

@@ -93,7 +93,7 @@ fn multisine_block(
 ) -> Result<StepEquations, IdentifyError> {
     let step = an.step;
     let fail = |problem: String| IdentifyError::Step { step, problem };
-    let Setup::Element { moving_mass_kg } = setup else {
+    let Setup::Element { moving_mass_kg, .. } = setup else {
         return Err(fail(
             "multisine equations are written for the element setup only (force and displacement measured across the element)".into(),
         ));

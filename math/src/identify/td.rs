@@ -187,7 +187,7 @@ pub fn td_range_equations(
     let step = rec.step;
     let mass_kg = match setup {
         Setup::BaseExcited { mass_kg } => mass_kg,
-        Setup::Element { moving_mass_kg } => {
+        Setup::Element { moving_mass_kg, .. } => {
             return element_range_equations(model, *moving_mass_kg, rec, start, len, points);
         }
         Setup::DrivePoint { .. } => {

@@ -137,16 +137,20 @@ pub fn sample_records<'a>(records: &'a [Record], options: &MultisineOptions) -> 
 /// Identifies an element test's `model` on `records` (none of them sine steps, sweeps or
 /// periodic multisines) over all their samples: the time-domain fit of the force along the
 /// measured motion, then, unless `method` is the time-domain one, output error
-/// ([`RecordsOutputError`]) when the records say the force was the drive
-/// ([`records_drive`]); with a displacement drive the time-domain fit is the output-error
+/// ([`RecordsOutputError`]) when the force was the drive (`drive`, as the user names it, else
+/// as the records say, [`records_drive`]); with a displacement drive the time-domain fit is the output-error
 /// estimate already (the force is the output, linear in theta).
 pub fn identify_element_sample_records(
     model: &Model,
     moving_mass_kg: Option<f64>,
+    drive: Option<ElementDrive>,
     method: Method,
     records: &[&Record],
 ) -> Result<identify::Identification, PipelineError> {
-    let setup = Setup::Element { moving_mass_kg };
+    let setup = Setup::Element {
+        moving_mass_kg,
+        drive,
+    };
     let td = Method::Td {
         points_per_step: None,
     };
@@ -162,7 +166,7 @@ pub fn identify_element_sample_records(
     if matches!(method, Method::Td { .. }) {
         return Ok(start);
     }
-    let mut id = match records_drive(records) {
+    let mut id = match drive.unwrap_or_else(|| records_drive(records)) {
         ElementDrive::Displacement => {
             let mut id = start;
             id.method = Method::OutputError.name();

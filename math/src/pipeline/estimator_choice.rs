@@ -68,6 +68,7 @@ fn predicted_nmse(
     let mass_kg = match setup {
         Setup::Element {
             moving_mass_kg: Some(m),
+            ..
         } => *m,
         _ => theta.get(p).copied().unwrap_or(0.0),
     };
@@ -197,6 +198,7 @@ mod tests {
             &Model::by_name(model, &ModelOptions::default()).unwrap(),
             &Setup::Element {
                 moving_mass_kg: Some(0.8),
+                drive: None,
             },
             Method::FdMulti,
             &records,

@@ -20,7 +20,7 @@ mod setup;
 pub use setup::{Setup, SetupConstants, SetupKind, SetupSpec, SubstructureSpec, check_mass_kg};
 
 use crate::identify::{FdMultiOptions, Method, Weighting};
-use crate::model::{MODEL_NAMES, Model, ModelError, ModelOptions};
+use crate::model::{Model, ModelError, ModelOptions, is_model_name};
 use crate::phasor::PhasorOptions;
 
 /// Why a recipe cannot be made.
@@ -112,9 +112,10 @@ impl ModelSpec {
 impl FromStr for ModelSpec {
     type Err = ModelError;
 
-    /// A model name of [`MODEL_NAMES`], without options.
+    /// A model name of [`MODEL_NAMES`] (or one with [`crate::model::OFFSET_SUFFIX`]), without
+    /// options.
     fn from_str(name: &str) -> Result<ModelSpec, ModelError> {
-        if MODEL_NAMES.iter().any(|(n, _)| *n == name) {
+        if is_model_name(name) {
             Ok(ModelSpec {
                 name: name.to_string(),
                 atan_slope_s_per_m: None,
@@ -313,7 +314,7 @@ mod tests {
         }
         assert_eq!("uniform".parse::<Weighting>(), Ok(Weighting::Uniform));
         assert!("none".parse::<Weighting>().is_err());
-        for (name, _) in MODEL_NAMES {
+        for (name, _) in crate::model::MODEL_NAMES {
             assert_eq!(name.parse::<ModelSpec>().unwrap().name, *name);
         }
         let e = "quadratic".parse::<ModelSpec>().unwrap_err().to_string();

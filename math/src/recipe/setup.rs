@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::RecipeError;
 use crate::frf::LinearSubstructure;
 use crate::record::Channel;
+use crate::sim::element::ElementDrive;
 
 /// The kinds of setup forcemap identifies, as the channels of the data show them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -119,6 +120,7 @@ impl SetupKind {
             // No mass given: the moving mass is identified with the element.
             SetupKind::Element => Ok(SetupSpec::Element {
                 moving_mass_kg: constants.mass_kg.map(check_moving_mass_kg).transpose()?,
+                drive: None,
             }),
         }
     }
@@ -230,9 +232,12 @@ pub enum SetupSpec {
     DrivePoint {
         substructure: SubstructureSpec,
     },
-    /// `moving_mass_kg` None: identified (parameter `m`).
+    /// `moving_mass_kg` None: identified (parameter `m`). `drive`: what the bench controlled,
+    /// where the user names it (None: decided from the data).
     Element {
         moving_mass_kg: Option<f64>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        drive: Option<ElementDrive>,
     },
 }
 
@@ -254,8 +259,12 @@ impl SetupSpec {
             SetupSpec::DrivePoint { substructure } => Setup::DrivePoint {
                 substructure: substructure.build()?,
             },
-            SetupSpec::Element { moving_mass_kg } => Setup::Element {
+            SetupSpec::Element {
+                moving_mass_kg,
+                drive,
+            } => Setup::Element {
                 moving_mass_kg: moving_mass_kg.map(check_moving_mass_kg).transpose()?,
+                drive: *drive,
             },
         })
     }
@@ -268,9 +277,11 @@ impl fmt::Display for SetupSpec {
             SetupSpec::DrivePoint { .. } => f.write_str("drive point of a linear substructure"),
             SetupSpec::Element {
                 moving_mass_kg: Some(m),
+                ..
             } => write!(f, "element test, moving mass {m} kg"),
             SetupSpec::Element {
                 moving_mass_kg: None,
+                ..
             } => f.write_str("element test, moving mass identified"),
         }
     }
@@ -284,8 +295,13 @@ pub enum Setup {
     /// Force-driven structure with the element at the drive point of a known linear
     /// substructure (eqs. 21-22): X_d = alpha_dd (F - G).
     DrivePoint { substructure: LinearSubstructure },
-    /// Element test: F = m a + g(x, x'), with the moving mass known or (None) identified.
-    Element { moving_mass_kg: Option<f64> },
+    /// Element test: F = m a + g(x, x'), with the moving mass known or (None) identified, and
+    /// what the bench controlled where the user names it (`drive`; None: decided from the
+    /// data, [`crate::identify::records_drive`]).
+    Element {
+        moving_mass_kg: Option<f64>,
+        drive: Option<ElementDrive>,
+    },
 }
 
 impl Setup {
@@ -303,6 +319,7 @@ impl Setup {
         match self {
             Setup::Element {
                 moving_mass_kg: None,
+                ..
             } => &["m"],
             _ => &[],
         }
@@ -317,10 +334,12 @@ impl Setup {
             (
                 Setup::Element {
                     moving_mass_kg: None,
+                    drive,
                 },
                 Some(m),
             ) => Setup::Element {
                 moving_mass_kg: Some(*m),
+                drive: *drive,
             },
             _ => self.clone(),
         }

@@ -146,6 +146,7 @@ fn rig_without_sine_steps_as_element(
         validation: view(&data.validation)?,
         setup: Setup::Element {
             moving_mass_kg: Some(0.0),
+            drive: None,
         },
         source: data.source,
     };

@@ -60,7 +60,7 @@ pub fn refine_output_error(
             RigOutputError::new(model, *mass_kg, records, analyses, RigDrive::FittedSine)?
                 .refine(first)
         }
-        Setup::Element { moving_mass_kg } => element_test::ElementOutputError::new(
+        Setup::Element { moving_mass_kg, .. } => element_test::ElementOutputError::new(
             model,
             *moving_mass_kg,
             records,

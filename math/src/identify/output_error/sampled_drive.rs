@@ -463,9 +463,17 @@ impl<'a> RecordsOutputError<'a> {
         record: &Record,
     ) -> Result<Vec<f64>, IdentifyError> {
         let problem = RecordsOutputError::forced(model, moving_mass_kg, &[record])?;
+        let np = problem.p_element();
+        // With the mass known, values after theta (an identified mass already folded into
+        // `moving_mass_kg`) are not parameters of this simulation.
+        let element = element.get(..np).ok_or_else(|| {
+            step_error(
+                record.step,
+                format!("{} parameter values for {np} parameters", element.len()),
+            )
+        })?;
         let mut full = element.to_vec();
         full.extend(problem.start_states[0]);
-        let np = problem.p_element();
         let states = Partial {
             inner: &problem,
             full: full.clone(),

@@ -1,0 +1,133 @@
+//! The real-data suite's force-driven set: the Silverbox electronic Duffing oscillator
+//! (`data/real/silverbox/`, one file of ten multisine records and a test record, named in its
+//! map). `forcemap identify` with its defaults on the ten multisines (output error, the force
+//! named as the drive: the records have no steps, and the input's distortion-free lines cannot
+//! show it), scored on the test record ("arrow") by simulating its displacement under the
+//! measured force; beside it the plain reference: the time-domain least squares of the same
+//! terms and the mass along the measured motion (`common/reference.rs`), simulated and scored
+//! the same way.
+//!
+//! `cargo test --release -p forcemap_cli --test real_silverbox -- --nocapture` prints the rows of
+//! docs/results.md.
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
+)]
+
+mod common;
+#[path = "common/reference.rs"]
+#[allow(
+    dead_code,
+    reason = "the force NMSE is the damper sets'; this set scores displacement"
+)]
+mod reference;
+
+use std::path::{Path, PathBuf};
+
+use forcemap_io::input::load_files;
+use forcemap_math::model::{Model, ModelOptions};
+use forcemap_math::pipeline::validate_forced_element;
+use forcemap_math::record::Record;
+
+fn dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../data/real/silverbox")
+}
+
+/// `SNLS80mV.csv#NAMES`: the records of the file the map names so.
+fn selection(names: &str) -> String {
+    format!("{}#{names}", dir().join("SNLS80mV.csv").display())
+}
+
+fn multisines() -> String {
+    selection(
+        &(1..=10)
+            .map(|k| format!("multisine{k}"))
+            .collect::<Vec<_>>()
+            .join(","),
+    )
+}
+
+fn records(selected: &str) -> Vec<Record> {
+    load_files(&[PathBuf::from(selected)], Some(&dir().join("map.yaml")))
+        .unwrap()
+        .records
+}
+
+/// `forcemap identify` on the multisines with `model`, the force as the drive: theta (with
+/// the mass) and the RMS error of the arrow's displacement simulated under its force [V].
+fn forcemap_on_arrow(model: &str) -> (Vec<f64>, f64) {
+    let map = dir().join("map.yaml").display().to_string();
+    let (fit, held) = (multisines(), selection("arrow"));
+    let o = common::forcemap(&[
+        "identify",
+        &fit,
+        "--channels",
+        &map,
+        "--model",
+        model,
+        "--drive",
+        "force",
+        "--validate",
+        &held,
+        "--json",
+    ]);
+    assert!(o.status.success(), "{model}: {}", common::stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    let theta = v["parameters"]
+        .as_array()
+        .expect("parameters in the JSON")
+        .iter()
+        .map(|p| p["value"].as_f64().unwrap())
+        .collect();
+    let rms = v["held_out"][0]["simulated"]["rms_error_m"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("{model}: the arrow simulated: {v}"));
+    (theta, rms)
+}
+
+/// The Silverbox's cubic stiffness, identified by output error from the ten multisines,
+/// predicts the arrow's 40 400 samples within 0.455 mV RMS (its output's RMS is 53 mV; asserted
+/// under 0.6 mV), 3.3 times better than the same model's least squares along the measured
+/// motion (1.489 mV), whose cubic coefficient comes out 12 % lower (the velocity and
+/// acceleration are differentiated from a displacement sampled 9 times per period of the
+/// 68 Hz resonance). The linear model with an offset misses by 14.3 mV, more than ten times the
+/// cubic's (asserted): the hardening spring is what the hardware is known for.
+#[test]
+fn the_silverbox_duffing_oscillator_predicts_its_test_record() {
+    let fit = records(&multisines());
+    let held = records(&selection("arrow"));
+    assert_eq!((fit.len(), held.len()), (10, 1));
+    assert!(fit.iter().all(|r| r.len() == 8592), "each multisine's rows");
+    assert_eq!(held[0].len(), 40_400);
+    println!("| model | forcemap (default) RMS [mV] | least squares RMS [mV] | ratio |");
+    println!("|---|---|---|---|");
+    let mut rms = Vec::new();
+    for name in ["cubic+offset", "linear+offset"] {
+        let model = Model::by_name(name, &ModelOptions::default()).unwrap();
+        let (theta, ours) = forcemap_on_arrow(name);
+        let ls = reference::least_squares_theta(&model, true, &fit);
+        let reference = validate_forced_element(&model, None, &ls, &held[0])
+            .unwrap()
+            .rms_error_m;
+        println!(
+            "| `{name}` | {:.3} | {:.3} | {:.3} |",
+            1e3 * ours,
+            1e3 * reference,
+            ours / reference
+        );
+        println!("  theta {theta:?}; least squares {ls:?}");
+        assert!(ours <= reference, "{name}: {ours} against {reference}");
+        if name == "cubic+offset" {
+            // offset, k, c, s, m: a hardening spring.
+            assert!(theta[3] > 0.0, "{theta:?}");
+        }
+        rms.push(ours);
+    }
+    assert!(rms[0] < 0.6e-3, "cubic: {} V", rms[0]);
+    assert!(
+        rms[1] > 10.0 * rms[0],
+        "linear {} against cubic {}",
+        rms[1],
+        rms[0]
+    );
+}
