@@ -533,6 +533,12 @@ pub struct DiagnoseArgs {
     /// The built-in demo: the linear "sim" against simulated rig data with Coulomb friction.
     #[arg(long, conflicts_with_all = ["data", "validate"])]
     pub demo: bool,
+    /// What an element test's bench controlled, for records with no steps (as identify's
+    /// --drive): with force, the baseline and the named effect are also refitted by output
+    /// error (the mass simulated under each record's measured force) and the held-out records'
+    /// displacement simulated.
+    #[arg(long, value_enum)]
+    pub drive: Option<DriveArg>,
 }
 
 #[derive(Debug, Args)]

@@ -9,11 +9,11 @@ use forcemap_math::diagnose::{self, DiagnoseOptions, DiagnosisDetail, Verdict};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::recipe::Setup;
 use forcemap_math::record::{Excitation, Record};
-use forcemap_math::sim::{self, RunSpec};
+use forcemap_math::sim::{self, ElementDrive, RunSpec};
 
+mod output_error_refits;
 mod phasor_only;
 mod plots;
-mod rig_records;
 mod time_domain;
 
 use crate::cli::DiagnoseArgs;
@@ -115,11 +115,11 @@ fn demo_data() -> anyhow::Result<Data> {
 /// A rig's data with no sine steps (band-random records, road profiles) as the element between
 /// base and mass (`diagnose::sampled_records::element_view_of_rig`): their records fitted on
 /// their samples, the held-out ones predicted the same way; said on stderr. The rig's own
-/// records are returned beside the view, for the output-error refits ([`rig_records`]). Other
-/// data as they are.
+/// records are returned beside the view, for the output-error refits ([`output_error_refits`]).
+/// Other data as they are.
 fn rig_without_sine_steps_as_element(
     data: Data,
-) -> anyhow::Result<(Data, Option<rig_records::RigRecords>)> {
+) -> anyhow::Result<(Data, Option<output_error_refits::SimulatedRecords>)> {
     let Setup::BaseExcited { mass_kg } = data.setup else {
         return Ok((data, None));
     };
@@ -150,12 +150,51 @@ fn rig_without_sine_steps_as_element(
         },
         source: data.source,
     };
-    let rig = rig_records::RigRecords {
+    let rig = output_error_refits::SimulatedRecords {
         records: data.records,
         validation: data.validation,
-        mass_kg,
+        simulation: output_error_refits::Simulation::Rig { mass_kg },
     };
     Ok((view_data, Some(rig)))
+}
+
+/// An element test's data with the drive the user names: with the force, its records with no
+/// steps are kept for the output-error refits (the mass simulated under each record's measured
+/// force, [`output_error_refits`]); the setup carries the drive either way.
+fn force_driven_records(
+    mut data: Data,
+    named: ElementDrive,
+) -> anyhow::Result<(Data, Option<output_error_refits::SimulatedRecords>)> {
+    let Setup::Element {
+        moving_mass_kg,
+        drive,
+    } = &mut data.setup
+    else {
+        bail!(
+            "{}: --drive names what an element test's bench controlled; these data are a {} setup's",
+            data.source,
+            data.setup.kind()
+        );
+    };
+    *drive = Some(named);
+    let moving_mass_kg = *moving_mass_kg;
+    let stepless = |records: &[Record]| -> Vec<Record> {
+        records
+            .iter()
+            .filter(|r| matches!(r.excitation, Excitation::Random { .. }))
+            .cloned()
+            .collect()
+    };
+    let records = stepless(&data.records);
+    if named != ElementDrive::Force || records.is_empty() {
+        return Ok((data, None));
+    }
+    let simulated = output_error_refits::SimulatedRecords {
+        records,
+        validation: stepless(&data.validation),
+        simulation: output_error_refits::Simulation::Forced { moving_mass_kg },
+    };
+    Ok((data, Some(simulated)))
 }
 
 pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
@@ -203,7 +242,10 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
             polynomial_order: None,
         },
     )?;
-    let (data, rig) = rig_without_sine_steps_as_element(data)?;
+    let (data, simulated) = match args.drive.map(ElementDrive::from) {
+        Some(drive) => force_driven_records(data, drive)?,
+        None => rig_without_sine_steps_as_element(data)?,
+    };
     // Without a rig to simulate held-out records on, the steps are the evidence.
     if data.setup.kind() != SetupKind::BaseExcited {
         if !args.holdout_steps.is_empty() {
@@ -212,7 +254,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
                 data.source
             );
         }
-        return phasor_only::run(args, &data, &baseline, rig.as_ref());
+        return phasor_only::run(args, &data, &baseline, simulated.as_ref());
     }
     let pb = super::progress_spinner();
     pb.set_message(format!("diagnosing {} against {}", model_name, data.source));

@@ -109,13 +109,14 @@ fn held_out(f: &PhasorFindings, records: &[&Record]) -> anyhow::Result<Vec<HeldO
         .collect()
 }
 
-/// `rig`: a base-excited rig's own records when `data` are their element view; the baseline
-/// and the named effect are then refitted by output error on them ([`super::rig_records`]).
+/// `simulated`: records whose motion the model can simulate (a base-excited rig's own records
+/// when `data` are their element view, a force-driven element test's); the baseline and the
+/// named effect are then refitted by output error on them ([`super::output_error_refits`]).
 pub(super) fn run(
     args: &DiagnoseArgs,
     data: &Data,
     baseline: &Model,
-    rig: Option<&super::rig_records::RigRecords>,
+    simulated: Option<&super::output_error_refits::SimulatedRecords>,
 ) -> anyhow::Result<()> {
     let source = data.source.as_str();
     // Sine steps and multisine records are fitted; sweep and band-random records, in the data
@@ -174,9 +175,9 @@ pub(super) fn run(
         .with_context(|| format!("{source}: diagnosing a {} setup", setup.kind()))?;
     let held =
         held_out(&f, &heldout_records).with_context(|| format!("{source}: held-out records"))?;
-    let refits = match rig {
-        Some(rig) => super::rig_records::refit(rig, baseline, &f)
-            .with_context(|| format!("{source}: the rig's records"))?,
+    let refits = match simulated {
+        Some(sim) => super::output_error_refits::refit(sim, baseline, &f)
+            .with_context(|| format!("{source}: the output-error refits"))?,
         None => Vec::new(),
     };
     if args.json {
@@ -185,14 +186,16 @@ pub(super) fn run(
         v["setup"] = setup.kind().to_string().into();
         v["notes"] = note.iter().cloned().collect::<Vec<_>>().into();
         v["heldout"] = serde_json::to_value(&held)?;
-        if rig.is_some() {
+        if simulated.is_some() {
             v["output_error_refits"] = serde_json::to_value(&refits)?;
         }
         println!("{v}");
     } else {
         print_summary(source, &setup, baseline, &f, note.as_deref());
         print_held_out(&held, baseline);
-        super::rig_records::print(&refits);
+        if let Some(sim) = simulated {
+            super::output_error_refits::print(sim, &refits);
+        }
     }
     if let Some(dir) = &args.report {
         write_report(dir, source, baseline, &f)?;

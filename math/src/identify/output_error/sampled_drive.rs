@@ -34,6 +34,7 @@ use super::sandwich::sandwich_covariance;
 use crate::identify::{Identification, IdentifyError, Method, Parameter};
 use crate::measured_state::{
     CUTOFF_MULTIPLE, MeasuredState, noise_std, rms_about_mean as rms, top_frequency_hz,
+    white_noise_std_above,
 };
 use crate::model::Model;
 use crate::record::{Channel, Excitation, Record};
@@ -167,7 +168,27 @@ pub struct RecordsOutputError<'a> {
     /// Scale of each record's two initial-state numbers (the RMS of those states).
     state_scale: Vec<[f64; 2]>,
     start_states: Vec<[f64; 2]>,
+    /// Compared channels whose noise no record could measure (no band above
+    /// [`CUTOFF_MULTIPLE`] times the excitation's top frequency below the Nyquist frequency):
+    /// their weight is the floor of [`noise_std`], and the misfit says nothing of the noise.
+    noise_unmeasured: Vec<Channel>,
     solver: SolverOptions,
+}
+
+/// The channels among `compared` whose noise [`white_noise_std_above`] cannot measure on any
+/// of the records (`(samples, sample rate, cut-off)` per channel and record).
+fn unmeasured(compared: &[(Channel, &[f64], f64, f64)]) -> Vec<Channel> {
+    let mut out: Vec<Channel> = Vec::new();
+    for (c, _, _, _) in compared {
+        let measured = compared
+            .iter()
+            .filter(|(d, ..)| d == c)
+            .any(|(_, y, fs, cutoff)| white_noise_std_above(y, *fs, *cutoff).is_some());
+        if !measured && !out.contains(c) {
+            out.push(*c);
+        }
+    }
+    out
 }
 
 impl<'a> RecordsOutputError<'a> {
@@ -179,6 +200,7 @@ impl<'a> RecordsOutputError<'a> {
         records: &[&'a Record],
     ) -> Result<Self, IdentifyError> {
         let mut parts = Vec::new();
+        let mut noise_bands = Vec::new();
         for r in records {
             let state = MeasuredState::of(r).map_err(|e| step_error(r.step, e.to_string()))?;
             let x = &state.displacement_m;
@@ -193,19 +215,28 @@ impl<'a> RecordsOutputError<'a> {
                 ],
                 starting_state(x, fs, state.top_frequency_hz),
             ));
+            noise_bands.push((
+                Channel::RelativeDisplacementM,
+                r.channel(Channel::RelativeDisplacementM).unwrap_or(&[]),
+                fs,
+                cutoff,
+            ));
         }
-        Self::new(
+        let mut problem = Self::new(
             model,
             SampledDrive::Force { moving_mass_kg },
             records,
             parts,
-        )
+        )?;
+        problem.noise_unmeasured = unmeasured(&noise_bands);
+        Ok(problem)
     }
 
     /// The problem of a base-excited rig's `records` (base and relative displacement and mass
     /// acceleration) with the mass `mass_kg`.
     pub fn rig(model: &Model, mass_kg: f64, records: &[&'a Record]) -> Result<Self, IdentifyError> {
         let mut parts = Vec::new();
+        let mut noise_bands = Vec::new();
         for r in records {
             let channel = |c: Channel| {
                 r.channel(c).ok_or_else(|| {
@@ -237,8 +268,12 @@ impl<'a> RecordsOutputError<'a> {
                 ],
                 [rel0, mass_v0],
             ));
+            noise_bands.push((Channel::MassAccelerationMps2, acc, fs, cutoff));
+            noise_bands.push((Channel::RelativeDisplacementM, rel, fs, cutoff));
         }
-        Self::new(model, SampledDrive::Base { mass_kg }, records, parts)
+        let mut problem = Self::new(model, SampledDrive::Base { mass_kg }, records, parts)?;
+        problem.noise_unmeasured = unmeasured(&noise_bands);
+        Ok(problem)
     }
 
     #[allow(
@@ -278,6 +313,7 @@ impl<'a> RecordsOutputError<'a> {
             blocks,
             state_scale,
             start_states,
+            noise_unmeasured: Vec::new(),
             solver: SolverOptions::default(),
         })
     }
@@ -425,12 +461,22 @@ impl<'a> RecordsOutputError<'a> {
                 "mass acceleration and relative displacement",
             ),
         };
-        warnings.push(format!(
-            "output error: the mass simulated under the measured {input} of {} record(s), each from its fitted initial state; {} samples, RMS misfit {rms:.3} noise std",
+        let simulated = format!(
+            "output error: the mass simulated under the measured {input} of {} record(s), each from its fitted initial state; {} samples",
             self.records.len(),
             fit.residual.len()
-        ));
-        if rms * rms > 2.0 {
+        );
+        if !self.noise_unmeasured.is_empty() {
+            let names: Vec<&str> = self.noise_unmeasured.iter().map(|c| c.name()).collect();
+            warnings.push(format!(
+                "{simulated}; RMS misfit {}: the noise of {} cannot be measured (the records hold no band above {CUTOFF_MULTIPLE} times their excitation's top frequency below the Nyquist frequency), so the misfit is not compared with noise; held-out records measure the fit",
+                self.misfit_in_units(&fit.residual),
+                names.join(" and ")
+            ));
+        } else {
+            warnings.push(format!("{simulated}, RMS misfit {rms:.3} noise std"));
+        }
+        if self.noise_unmeasured.is_empty() && rms * rms > 2.0 {
             warnings.push(format!(
                 "output error: the simulated model misses the measured {outputs} by {rms:.1} noise std (RMS); the model's form may not describe these data (try diagnose)"
             ));
@@ -451,6 +497,30 @@ impl<'a> RecordsOutputError<'a> {
             fit_quality: None,
             warnings,
         }
+    }
+
+    /// The RMS of `residual` (rows divided by each channel's noise std) in each compared
+    /// channel's own unit: "relative_displacement_m 4.553e-4".
+    fn misfit_in_units(&self, residual: &[f64]) -> String {
+        let mut per: Vec<(Channel, f64, usize)> = Vec::new();
+        let blocks = self.compared.iter().flatten().zip(&self.blocks);
+        for ((c, sigma), rows) in blocks {
+            let sum: f64 = residual[rows.clone()]
+                .iter()
+                .map(|r| (r * sigma).powi(2))
+                .sum();
+            match per.iter_mut().find(|(d, ..)| d == c) {
+                Some((_, s, n)) => {
+                    *s += sum;
+                    *n += rows.len();
+                }
+                None => per.push((*c, sum, rows.len())),
+            }
+        }
+        per.iter()
+            .map(|(c, s, n)| format!("{} {:.3e}", c.name(), (s / (*n).max(1) as f64).sqrt()))
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 
     /// The displacement of a force-driven `record` (not among the fitted ones) predicted by

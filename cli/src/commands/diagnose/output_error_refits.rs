@@ -1,0 +1,189 @@
+//! Records with no sine steps whose motion the model can simulate: a base-excited rig's (the
+//! mass under each record's measured base displacement) and a force-driven element test's (the
+//! mass under each record's measured force, where the user names the force as the drive). They
+//! are diagnosed along the measured motion (`phasor_only`: the rig as the element between base
+//! and mass), then the baseline and the named effect are refitted by output error, the fit
+//! `identify` runs on such records, and the held-out records predicted by simulation.
+//!
+//! Why both: the fit along the measured motion is quick and ranks every candidate, but its
+//! velocity and acceleration are differentiated from the noisy, sampled displacement, which
+//! biases a friction level low (errors in the variables) or a stiffness term where the
+//! resonance has few samples per period; the simulation takes the motion from the model and
+//! has no such bias, at seconds per model.
+
+use forcemap_math::diagnose::PhasorFindings;
+use forcemap_math::identify::Method;
+use forcemap_math::model::{IdentifiedModel, Model};
+use forcemap_math::pipeline::{
+    identify_element_sample_records, identify_random_records, validate_forced_element,
+    validate_rig_on_random_records,
+};
+use forcemap_math::recipe::Setup;
+use forcemap_math::record::Record;
+use forcemap_math::sim::ElementDrive;
+
+use anyhow::Context as _;
+
+/// What the records' simulation drives.
+pub(super) enum Simulation {
+    /// A base-excited rig of this mass, under the measured base displacement.
+    Rig { mass_kg: f64 },
+    /// A force-driven element test, under the measured force (the moving mass known, or None:
+    /// fitted).
+    Forced { moving_mass_kg: Option<f64> },
+}
+
+/// The records the refits simulate, kept beside what the diagnosis fits along the motion.
+pub(super) struct SimulatedRecords {
+    pub records: Vec<Record>,
+    pub validation: Vec<Record>,
+    pub simulation: Simulation,
+}
+
+impl SimulatedRecords {
+    /// What is simulated and compared, for the printed line.
+    fn what(&self) -> (&'static str, &'static str, &'static str) {
+        match self.simulation {
+            Simulation::Rig { .. } => (
+                "the mass simulated under each record's measured base displacement",
+                "mass-acceleration",
+                "m/s^2",
+            ),
+            Simulation::Forced { .. } => (
+                "the mass simulated under each record's measured force",
+                "displacement",
+                "m",
+            ),
+        }
+    }
+}
+
+/// One model refitted by output error on the records.
+#[derive(Debug, Clone, serde::Serialize)]
+pub(super) struct Refit {
+    pub model: String,
+    /// (name, value, std).
+    pub parameters: Vec<(String, f64, f64)>,
+    /// Held-out NMSE of the simulated channel (the rig's mass acceleration, eq. 27; a
+    /// force-driven element's displacement) per validation record [%].
+    pub heldout_nmse_percent: Vec<f64>,
+    /// Held-out RMS error of that channel in its own unit (m/s^2; m).
+    pub heldout_rms_error: Vec<f64>,
+}
+
+/// The baseline and, when the diagnosis names an effect made of extra element terms, the
+/// baseline with them, each refitted by output error on `sim`'s records and simulated on its
+/// held-out records. An effect with an internal state or a channel transformation (hysteresis,
+/// a lag) is not a model `identify` fits: only the baseline is refitted then.
+pub(super) fn refit(
+    sim: &SimulatedRecords,
+    baseline: &Model,
+    f: &PhasorFindings,
+) -> anyhow::Result<Vec<Refit>> {
+    let named = f
+        .findings
+        .top_effect
+        .and_then(|e| f.ranked_effects.iter().find(|r| r.effect == e))
+        .and_then(|r| {
+            let fit = r.fit.as_ref()?;
+            let extra = fit.terms.len() > baseline.terms.len() && fit.hysteresis.is_none();
+            extra.then(|| {
+                Model::new(
+                    format!("{} + {}", baseline.name, r.effect.name()),
+                    fit.terms.clone(),
+                )
+            })
+        });
+    std::iter::once(baseline.clone())
+        .chain(named)
+        .map(|model| {
+            let pb = super::super::progress_spinner();
+            pb.set_message(format!("refitting {} by output error", model.name));
+            let refit = refit_one(sim, &model);
+            pb.finish_and_clear();
+            refit
+        })
+        .collect()
+}
+
+fn refit_one(sim: &SimulatedRecords, model: &Model) -> anyhow::Result<Refit> {
+    let refitting = || format!("refitting {} by output error", model.name);
+    let simulating = || format!("simulating {} on the held-out records", model.name);
+    let (id, held) = match sim.simulation {
+        Simulation::Rig { mass_kg } => {
+            let setup = Setup::BaseExcited { mass_kg };
+            let id = identify_random_records(model, &setup, Method::OutputError, &sim.records)
+                .with_context(refitting)?;
+            let fitted = IdentifiedModel::new(model.clone(), id.theta());
+            let held = validate_rig_on_random_records(&fitted, mass_kg, &sim.validation)
+                .with_context(simulating)?
+                .iter()
+                .map(|v| (v.nmse_percent, v.rms_error_mps2))
+                .collect::<Vec<_>>();
+            (id, held)
+        }
+        Simulation::Forced { moving_mass_kg } => {
+            let refs: Vec<&Record> = sim.records.iter().collect();
+            let id = identify_element_sample_records(
+                model,
+                moving_mass_kg,
+                Some(ElementDrive::Force),
+                Method::OutputError,
+                &refs,
+            )
+            .with_context(refitting)?;
+            let theta = id.theta();
+            let held = sim
+                .validation
+                .iter()
+                .map(|r| {
+                    validate_forced_element(model, moving_mass_kg, &theta, r)
+                        .map(|v| (v.nmse_percent, v.rms_error_m))
+                })
+                .collect::<Result<Vec<_>, _>>()
+                .with_context(simulating)?;
+            (id, held)
+        }
+    };
+    Ok(Refit {
+        model: model.name.clone(),
+        parameters: id
+            .parameters
+            .iter()
+            .map(|p| (p.name.clone(), p.value, p.std))
+            .collect(),
+        heldout_nmse_percent: held.iter().map(|h| h.0).collect(),
+        heldout_rms_error: held.iter().map(|h| h.1).collect(),
+    })
+}
+
+pub(super) fn print(sim: &SimulatedRecords, refits: &[Refit]) {
+    if refits.is_empty() {
+        return;
+    }
+    let (how, channel, unit) = sim.what();
+    println!("refitted by output error on the records ({how}):");
+    for r in refits {
+        let params: Vec<String> = r
+            .parameters
+            .iter()
+            .map(|(n, v, s)| format!("{n} {v:.5e} +/- {s:.1e}"))
+            .collect();
+        let held: Vec<String> = r
+            .heldout_nmse_percent
+            .iter()
+            .zip(&r.heldout_rms_error)
+            .map(|(nmse, rms)| format!("{nmse:.2} % (RMS {rms:.3e} {unit})"))
+            .collect();
+        println!(
+            "  {}: {}; held-out {channel} NMSE {}",
+            r.model,
+            params.join(", "),
+            if held.is_empty() {
+                "- (no held-out records)".to_string()
+            } else {
+                held.join(", ")
+            }
+        );
+    }
+}
