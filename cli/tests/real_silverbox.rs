@@ -178,7 +178,7 @@ fn the_diagnosis_names_the_silverbox_cubic_stiffness() {
         .iter()
         .map(|r| r["heldout_rms_error"][0].as_f64().unwrap())
         .collect();
-    println!("Silverbox arrow simulated: {:?} V RMS", rms);
+    println!("Silverbox arrow simulated: {rms:?} V RMS");
     assert_eq!(
         refits.len(),
         2,
