@@ -5,6 +5,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::identify::IdentifyError;
+use crate::parallel;
 
 /// Gauss-Newton (Levenberg-Marquardt) iterations; the fd-multi start is close, so 2-3 suffice.
 const ITERATIONS: usize = 10;
@@ -14,8 +15,8 @@ const MAX_STEP: f64 = 0.05;
 const FD_STEP: f64 = 1e-5;
 
 /// A setup's output-error problem: residuals `(measured - simulated) / noise std` of the
-/// parameters `p`.
-pub(crate) trait Problem {
+/// parameters `p`. Sync: the Jacobian's columns are simulated on the machine's cores.
+pub(crate) trait Problem: Sync {
     fn residual(&self, p: &[f64]) -> Result<Vec<f64>, IdentifyError>;
 
     /// Groups of parameters whose finite differences may share one simulation because each
@@ -99,13 +100,23 @@ pub(crate) fn jacobian(
 ) -> Result<DMatrix<f64>, IdentifyError> {
     let np = p.len();
     let mut jac = DMatrix::zeros(r.len(), np);
-    for group in problem.column_groups(np) {
-        let mut pp = p.to_vec();
-        for &j in &group {
-            pp[j] += scale[j] * FD_STEP;
-        }
-        let rp = problem.residual(&pp)?;
-        for &j in &group {
+    let groups = problem.column_groups(np);
+    // Each group's simulation is its own: a long problem's are run on the machine's cores
+    // (the same residuals as one loop).
+    let min_part = parallel::min_part_of(r.len() * groups.len(), groups.len());
+    let shifted = parallel::try_in_parts(&groups, min_part, |part| {
+        part.iter()
+            .map(|group| {
+                let mut pp = p.to_vec();
+                for &j in group {
+                    pp[j] += scale[j] * FD_STEP;
+                }
+                problem.residual(&pp)
+            })
+            .collect()
+    })?;
+    for (group, rp) in groups.iter().zip(shifted) {
+        for &j in group {
             for i in problem.rows(j, r.len()) {
                 jac[(i, j)] = -(rp[i] - r[i]) / FD_STEP;
             }

@@ -25,26 +25,47 @@ pub(crate) fn sandwich_covariance(
     let r = &fit.residual;
     let lag = correlation_lag(blocks, r);
     let mut meat = DMatrix::<f64>::zeros(np, np);
+    // Flat rows and sums, no matrix per sample, and only the parameters that move the block's
+    // rows (another record's initial state adds exact zeros): the same products, added in the
+    // same order.
+    let mut scores: Vec<f64> = Vec::new();
+    let mut sum: Vec<f64> = Vec::new();
     for block in blocks {
-        let scores: Vec<nalgebra::DVector<f64>> = block
-            .clone()
-            .map(|i| jac.row(i).transpose() * r[i])
+        let active: Vec<usize> = (0..np)
+            .filter(|&j| block.clone().any(|i| jac[(i, j)] != 0.0))
             .collect();
-        for l in 0..=lag.min(scores.len().saturating_sub(1)) {
+        let k = active.len();
+        scores.clear();
+        for i in block.clone() {
+            scores.extend(active.iter().map(|&j| jac[(i, j)] * r[i]));
+        }
+        let n = block.len();
+        for l in 0..=lag.min(n.saturating_sub(1)) {
             let w = if l == 0 {
                 1.0
             } else {
                 1.0 - l as f64 / (lag + 1) as f64
             };
-            let mut sum = DMatrix::<f64>::zeros(np, np);
-            for i in 0..scores.len() - l {
-                sum += &scores[i] * scores[i + l].transpose();
+            sum.clear();
+            sum.resize(k * k, 0.0);
+            for i in 0..n - l {
+                let (now, later) = (&scores[i * k..][..k], &scores[(i + l) * k..][..k]);
+                for (a, sa) in now.iter().enumerate() {
+                    let row = &mut sum[a * k..][..k];
+                    for (acc, sb) in row.iter_mut().zip(later) {
+                        *acc += sa * sb;
+                    }
+                }
             }
-            meat += if l == 0 {
-                sum * w
-            } else {
-                (&sum + sum.transpose()) * w
-            };
+            for (a, &ja) in active.iter().enumerate() {
+                for (b, &jb) in active.iter().enumerate() {
+                    meat[(ja, jb)] += if l == 0 {
+                        sum[a * k + b] * w
+                    } else {
+                        (sum[a * k + b] + sum[b * k + a]) * w
+                    };
+                }
+            }
         }
     }
     let bread = (jac.transpose() * &jac)
