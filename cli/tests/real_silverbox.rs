@@ -186,3 +186,32 @@ fn the_diagnosis_names_the_silverbox_cubic_stiffness() {
     );
     assert!(rms[1] < rms[0] / 10.0, "{refits:?}");
 }
+
+/// `forcemap info` lists the records the map names, by name: all eleven of the file, or those a
+/// `FILE#NAME,...` picks (in the map's order, as they are read).
+#[test]
+fn info_names_the_records_the_map_cuts() {
+    let map = dir().join("map.yaml").display().to_string();
+    let names = |path: &str| -> Vec<String> {
+        let o = common::forcemap(&["info", path, "--channels", &map, "--json"]);
+        assert!(o.status.success(), "{path}: {}", common::stderr(&o));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+        v["files"][0]["records"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["name"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let whole = dir().join("SNLS80mV.csv").display().to_string();
+    let all = names(&whole);
+    assert_eq!(all.len(), 11);
+    assert_eq!(
+        (all[0].as_str(), all[10].as_str()),
+        ("arrow", "multisine10")
+    );
+    assert_eq!(
+        names(&selection("multisine2,arrow")),
+        ["arrow", "multisine2"]
+    );
+}

@@ -236,7 +236,7 @@ pub fn load_mapped(path: &Path, channels: Option<&Path>) -> anyhow::Result<Loade
 
 /// `FILE#NAME,...` split into the file and the record names, when `path` names no file itself
 /// and `FILE` does.
-fn record_selection(path: &Path) -> Option<(PathBuf, Vec<String>)> {
+pub fn record_selection(path: &Path) -> Option<(PathBuf, Vec<String>)> {
     if path.exists() {
         return None;
     }

@@ -4,7 +4,8 @@ use std::path::Path;
 
 use anyhow::Context as _;
 use forcemap_io::channel_map::MapFile;
-use forcemap_io::input::{FileFormat, expand_paths, is_bag, load_mapped};
+use forcemap_io::input::{FileFormat, expand_paths, is_bag, load_mapped, record_selection};
+use forcemap_io::table_map::RecordMaking;
 use forcemap_io::tabular::ColumnInfo;
 use forcemap_math::record::{Excitation, Record};
 use serde_json::{Value, json};
@@ -68,9 +69,26 @@ fn describe(e: &Excitation) -> (&'static str, Option<f64>, f64) {
     }
 }
 
-fn record_json(r: &Record) -> Value {
+/// The names of the records `path` gives, in their order, when the map cuts its file into named
+/// records by rows (`FILE#NAME,...`: the names picked, in the map's order); empty otherwise.
+fn record_names(path: &Path, map: Option<&MapFile>) -> Vec<String> {
+    let Some(MapFile::Columns(map)) = map else {
+        return Vec::new();
+    };
+    let RecordMaking::Rows(rows) = &map.records else {
+        return Vec::new();
+    };
+    let picked = record_selection(path).map(|(_, names)| names);
+    rows.iter()
+        .map(|r| r.name.clone())
+        .filter(|n| picked.as_ref().is_none_or(|p| p.contains(n)))
+        .collect()
+}
+
+fn record_json(r: &Record, name: Option<&String>) -> Value {
     let (kind, frequency_hz, level) = describe(&r.excitation);
     json!({
+        "name": name,
         "step": r.step,
         "kind": kind,
         "frequency_hz": frequency_hz,
@@ -91,7 +109,9 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     }
     let mut out = Vec::new();
     for (i, path) in files.iter().enumerate() {
-        let listed = columns(path, map.as_ref())?;
+        let file = record_selection(path).map_or_else(|| path.clone(), |(file, _)| file);
+        let listed = columns(&file, map.as_ref())?;
+        let names = record_names(path, map.as_ref());
         let loaded = load_mapped(path, args.channels.as_deref())?;
         let driven = loaded.kind.driven_channel();
         if let Some(dir) = &args.plot {
@@ -120,7 +140,12 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
                 })).collect::<Vec<_>>()),
                 "setup": loaded.kind.to_string(),
                 "driven_channel": driven.name(),
-                "records": loaded.records.iter().map(record_json).collect::<Vec<_>>(),
+                "records": loaded
+                    .records
+                    .iter()
+                    .enumerate()
+                    .map(|(k, r)| record_json(r, names.get(k)))
+                    .collect::<Vec<_>>(),
             }));
             continue;
         }
@@ -147,8 +172,8 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             driven.name()
         );
         println!("  records: {}", loaded.records.len());
-        println!(
-            "    {:>4}  {:<9} {:>13} {:>12} {:>10} {:>10} {:>10} {:>8}",
+        let header = format!(
+            "    {:>4}  {:<9} {:>13} {:>12} {:>10} {:>10} {:>10} {:>8}  {}",
             "step",
             "kind",
             "frequency[Hz]",
@@ -156,19 +181,23 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             "rate[Hz]",
             "start[s]",
             "length[s]",
-            "samples"
+            "samples",
+            if names.is_empty() { "" } else { "name" }
         );
-        for r in &loaded.records {
+        println!("{}", header.trim_end());
+        for (k, r) in loaded.records.iter().enumerate() {
             let (kind, f, level) = describe(&r.excitation);
-            println!(
-                "    {:>4}  {kind:<9} {:>13} {level:>12.4e} {:>10.3} {:>10.3} {:>10.3} {:>8}",
+            let line = format!(
+                "    {:>4}  {kind:<9} {:>13} {level:>12.4e} {:>10.3} {:>10.3} {:>10.3} {:>8}  {}",
                 r.step,
                 f.map_or("-".to_string(), |f| format!("{f:.6}")),
                 r.sample_rate_hz,
                 r.start_time_s,
                 r.len() as f64 / r.sample_rate_hz,
-                r.len()
+                r.len(),
+                names.get(k).map_or("", String::as_str)
             );
+            println!("{}", line.trim_end());
         }
     }
     if args.json {
