@@ -53,11 +53,13 @@ fn records(selected: &str) -> Vec<Record> {
         .records
 }
 
-/// `forcemap identify` on the multisines with `model`, the force as the drive: theta (with
-/// the mass) and the RMS error of the arrow's displacement simulated under its force [V].
-fn forcemap_on_arrow(model: &str) -> (Vec<f64>, f64) {
+/// `forcemap identify` on the multisines with `model`, the force as the drive (plots in `plot`):
+/// theta (with the mass) and the RMS error of the arrow's displacement simulated under its
+/// force [V].
+fn forcemap_on_arrow(model: &str, plot: &Path) -> (Vec<f64>, f64) {
     let map = dir().join("map.yaml").display().to_string();
     let (fit, held) = (multisines(), selection("arrow"));
+    let plot = plot.display().to_string();
     let o = common::forcemap(&[
         "identify",
         &fit,
@@ -69,6 +71,8 @@ fn forcemap_on_arrow(model: &str) -> (Vec<f64>, f64) {
         "force",
         "--validate",
         &held,
+        "--plot",
+        &plot,
         "--json",
     ]);
     assert!(o.status.success(), "{model}: {}", common::stderr(&o));
@@ -107,9 +111,10 @@ fn the_silverbox_duffing_oscillator_predicts_its_test_record() {
     println!("| model | forcemap (default) RMS [mV] | least squares RMS [mV] | ratio |");
     println!("|---|---|---|---|");
     let mut rms = Vec::new();
+    let plots = tempfile::tempdir().unwrap();
     for name in ["cubic+offset", "linear+offset"] {
         let model = Model::by_name(name, &ModelOptions::default()).unwrap();
-        let (theta, ours) = forcemap_on_arrow(name);
+        let (theta, ours) = forcemap_on_arrow(name, plots.path());
         let ls = reference::least_squares_theta(&model, true, &fit);
         let reference = validate_forced_element(&model, None, &ls, &held[0])
             .unwrap()
@@ -129,6 +134,12 @@ fn the_silverbox_duffing_oscillator_predicts_its_test_record() {
         rms.push(ours);
     }
     assert!(rms[0] < 0.6e-3, "cubic: {} V", rms[0]);
+    // The arrow's time trace, measured and simulated (written by each run, the last kept).
+    let trace = std::fs::read_to_string(plots.path().join("held_out_0.svg")).unwrap();
+    assert!(
+        trace.contains("simulated under the measured force"),
+        "the held-out plot's title"
+    );
     assert!(
         rms[1] > 10.0 * rms[0],
         "linear {} against cubic {}",

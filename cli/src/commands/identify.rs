@@ -420,6 +420,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         if !element_steps.is_empty() {
             element_outputs::write_plots(dir, &element_steps, &model.name)?;
         }
+        write_held_out_plots(dir, &held_out)?;
     }
     if args.json {
         let mut json = identification_json(&recipe, &id, &validations, &import.ignored_columns);
@@ -511,6 +512,34 @@ fn write_plots(
             &v.measured_mass_acceleration_mps2,
             &v.predicted_mass_acceleration_mps2,
             "mass acceleration [m/s^2]",
+        )?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// Each force-driven held-out record's displacement, measured and simulated under its measured
+/// force: `held_out_N.svg` in the order of the held-out lines.
+fn write_held_out_plots(dir: &std::path::Path, held_out: &[HeldOut]) -> anyhow::Result<()> {
+    for (i, h) in held_out.iter().enumerate() {
+        let Some(s) = &h.simulated else {
+            continue;
+        };
+        let t: Vec<f64> = (0..s.measured_m.len())
+            .map(|k| k as f64 / s.sample_rate_hz)
+            .collect();
+        let path = dir.join(format!("held_out_{i}.svg"));
+        let title = format!(
+            "{} record {}: displacement, measured and simulated under the measured force (RMS error {:.3e} m, NMSE {:.2} %)",
+            h.file, h.step, s.rms_error_m, s.nmse_percent
+        );
+        plot::time_trace(
+            &path,
+            &title,
+            &t,
+            &s.measured_m,
+            &s.simulated_m,
+            "displacement [m]",
         )?;
         eprintln!("wrote {}", path.display());
     }

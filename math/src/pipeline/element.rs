@@ -74,6 +74,14 @@ pub struct ForcedValidation {
     pub nmse_percent: f64,
     /// RMS of x - x^ [m].
     pub rms_error_m: f64,
+    /// The record's sample rate [Hz] and its displacement, measured and simulated [m] (for
+    /// the time-trace plot).
+    #[serde(skip)]
+    pub sample_rate_hz: f64,
+    #[serde(skip)]
+    pub measured_m: Vec<f64>,
+    #[serde(skip)]
+    pub simulated_m: Vec<f64>,
 }
 
 /// Simulates the mass of a force-driven element test (`moving_mass_kg`, or the identified
@@ -103,6 +111,9 @@ pub fn validate_forced_element(
         step: record.step,
         nmse_percent: nmse_percent(measured, &predicted),
         rms_error_m: (sse / measured.len() as f64).sqrt(),
+        sample_rate_hz: record.sample_rate_hz,
+        measured_m: measured.to_vec(),
+        simulated_m: predicted,
     })
 }
 
