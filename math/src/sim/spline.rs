@@ -76,6 +76,7 @@ impl CubicSpline {
     }
 
     /// Index of the interval that contains `t_ref` (clamped to the data).
+    #[inline]
     pub(crate) fn interval(&self, t_ref: f64) -> usize {
         let n = self.y.len();
         if n < 2 {
@@ -88,6 +89,8 @@ impl CubicSpline {
     }
 
     /// Value and derivatives at `t`, using the cubic of the interval that contains `t_ref`.
+    /// Inlined: a force input uses the value alone, and the derivatives are then not computed.
+    #[inline]
     pub fn eval(&self, t: f64, t_ref: f64) -> Derivs {
         let n = self.y.len();
         if n == 0 {
