@@ -137,6 +137,23 @@ pub fn white_noise_std_above(y: &[f64], sample_rate_hz: f64, cutoff_hz: f64) -> 
     Some((power / count / n as f64).sqrt())
 }
 
+/// The channels among `compared` whose noise [`white_noise_std_above`] cannot measure on any
+/// of the records that hold them (`(channel, samples, sample rate [Hz], cut-off [Hz])` per
+/// channel and record): no bin lies between the cut-off and the Nyquist frequency.
+pub fn unmeasured_noise(compared: &[(Channel, &[f64], f64, f64)]) -> Vec<Channel> {
+    let mut out: Vec<Channel> = Vec::new();
+    for (c, _, _, _) in compared {
+        let measured = compared
+            .iter()
+            .filter(|(d, ..)| d == c)
+            .any(|(_, y, fs, cutoff)| white_noise_std_above(y, *fs, *cutoff).is_some());
+        if !measured && !out.contains(c) {
+            out.push(*c);
+        }
+    }
+    out
+}
+
 /// The noise std of `y` above `cutoff_hz` ([`white_noise_std_above`]), floored at 1e-6 of
 /// its RMS about its mean (noise-free data would otherwise be weighted by round-off): the
 /// weight of a channel's samples in a fit.

@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Context, anyhow};
-use forcemap_math::identify::{Identification, Method, TrackPoint, rebuilt_cycle, records_drive};
+use forcemap_math::identify::{Identification, Method, TrackPoint, records_drive};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::{HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
@@ -13,9 +13,8 @@ use forcemap_math::record::Excitation;
 use forcemap_math::sim::ElementDrive;
 use serde_json::json;
 
-use super::element_outputs;
+use super::{element_outputs, identify_plots};
 use crate::cli::IdentifyArgs;
-use crate::plot::{self, ForceStateStep};
 use forcemap_io::params::{Params, read_params};
 use forcemap_io::steps::unlabelled::{frequencies_from_data, frequency_from_data};
 
@@ -189,9 +188,9 @@ pub fn held_out_records(
 
 /// One held-out record's prediction (`--validate`).
 #[derive(Debug, Clone, serde::Serialize)]
-struct HeldOut {
-    file: String,
-    step: usize,
+pub(super) struct HeldOut {
+    pub file: String,
+    pub step: usize,
     /// NMSE of the element force (element test) or of the mass acceleration (rig) [%].
     nmse_percent: f64,
     /// RMS error of the element force [N] (element tests).
@@ -201,7 +200,7 @@ struct HeldOut {
     rms_error_mps2: Option<f64>,
     /// A force-driven element test's displacement simulated under the record's measured force.
     #[serde(skip_serializing_if = "Option::is_none")]
-    simulated: Option<pipeline::ForcedValidation>,
+    pub simulated: Option<pipeline::ForcedValidation>,
 }
 
 /// The identified model on every record of the `--validate` files: an element test's force
@@ -408,7 +407,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         Vec::new()
     };
     if let Some(dir) = &args.plot {
-        write_plots(
+        identify_plots::write_plots(
             dir,
             &element_setup,
             &model,
@@ -420,7 +419,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         if !element_steps.is_empty() {
             element_outputs::write_plots(dir, &element_steps, &model.name)?;
         }
-        write_held_out_plots(dir, &held_out)?;
+        identify_plots::write_held_out_plots(dir, &held_out)?;
     }
     if args.json {
         let mut json = identification_json(&recipe, &id, &validations, &import.ignored_columns);
@@ -451,97 +450,6 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         if !element_steps.is_empty() {
             element_outputs::print_table(&element_steps);
         }
-    }
-    Ok(())
-}
-
-/// Force-state map of the fit (the element force of `setup`, whose identified extra
-/// parameters are set) and, for the rig, the validation time traces.
-fn write_plots(
-    dir: &std::path::Path,
-    setup: &Setup,
-    model: &Model,
-    id: &Identification,
-    analyses: &[forcemap_math::phasor::HarmonicAnalysis],
-    records: &[forcemap_math::record::Record],
-    validations: &[Validation],
-) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("creating the plot directory {}", dir.display()))?;
-    let theta = id.theta();
-    let mut steps = Vec::new();
-    for an in analyses {
-        let cyc = rebuilt_cycle(setup, an, 256)?;
-        let model_force_n = cyc
-            .displacement_m
-            .iter()
-            .zip(&cyc.velocity_mps)
-            .map(|(x, v)| model.force(&theta, *x, *v))
-            .collect();
-        steps.push(ForceStateStep {
-            label: format!("step {} ({:.2} Hz)", an.step, an.frequency_hz),
-            displacement_m: cyc.displacement_m,
-            velocity_mps: cyc.velocity_mps,
-            measured_force_n: cyc.force_n,
-            model_force_n,
-        });
-    }
-    let path = dir.join("force_state.svg");
-    let title = format!(
-        "force-state map: measured element force (points) and model {} by {} (lines)",
-        id.model, id.method
-    );
-    plot::force_state_map(&path, &title, &steps)?;
-    eprintln!("wrote {}", path.display());
-    for v in validations {
-        let Some(rec) = records.iter().find(|r| r.step == v.step) else {
-            continue;
-        };
-        let t: Vec<f64> = (0..v.measured_mass_acceleration_mps2.len())
-            .map(|i| rec.time_s(i))
-            .collect();
-        let path = dir.join(format!("validation_step{}.svg", v.step));
-        let title = format!(
-            "record {}: mass acceleration, measured and predicted by the identified model (NMSE {:.2} %)",
-            v.step, v.nmse_percent
-        );
-        plot::time_trace(
-            &path,
-            &title,
-            &t,
-            &v.measured_mass_acceleration_mps2,
-            &v.predicted_mass_acceleration_mps2,
-            "mass acceleration [m/s^2]",
-        )?;
-        eprintln!("wrote {}", path.display());
-    }
-    Ok(())
-}
-
-/// Each force-driven held-out record's displacement, measured and simulated under its measured
-/// force: `held_out_N.svg` in the order of the held-out lines.
-fn write_held_out_plots(dir: &std::path::Path, held_out: &[HeldOut]) -> anyhow::Result<()> {
-    for (i, h) in held_out.iter().enumerate() {
-        let Some(s) = &h.simulated else {
-            continue;
-        };
-        let t: Vec<f64> = (0..s.measured_m.len())
-            .map(|k| k as f64 / s.sample_rate_hz)
-            .collect();
-        let path = dir.join(format!("held_out_{i}.svg"));
-        let title = format!(
-            "{} record {}: displacement, measured and simulated under the measured force (RMS error {:.3e} m, NMSE {:.2} %)",
-            h.file, h.step, s.rms_error_m, s.nmse_percent
-        );
-        plot::time_trace(
-            &path,
-            &title,
-            &t,
-            &s.measured_m,
-            &s.simulated_m,
-            "displacement [m]",
-        )?;
-        eprintln!("wrote {}", path.display());
     }
     Ok(())
 }

@@ -8,6 +8,7 @@ pub mod diagnose;
 pub mod diagnose_eval;
 pub mod element_outputs;
 pub mod identify;
+mod identify_plots;
 pub mod import;
 pub mod info;
 pub mod manual;

@@ -34,7 +34,7 @@ use super::sandwich::sandwich_covariance;
 use crate::identify::{Identification, IdentifyError, Method, Parameter};
 use crate::measured_state::{
     CUTOFF_MULTIPLE, MeasuredState, noise_std, rms_about_mean as rms, top_frequency_hz,
-    white_noise_std_above,
+    unmeasured_noise,
 };
 use crate::model::Model;
 use crate::record::{Channel, Excitation, Record};
@@ -175,22 +175,6 @@ pub struct RecordsOutputError<'a> {
     solver: SolverOptions,
 }
 
-/// The channels among `compared` whose noise [`white_noise_std_above`] cannot measure on any
-/// of the records (`(samples, sample rate, cut-off)` per channel and record).
-fn unmeasured(compared: &[(Channel, &[f64], f64, f64)]) -> Vec<Channel> {
-    let mut out: Vec<Channel> = Vec::new();
-    for (c, _, _, _) in compared {
-        let measured = compared
-            .iter()
-            .filter(|(d, ..)| d == c)
-            .any(|(_, y, fs, cutoff)| white_noise_std_above(y, *fs, *cutoff).is_some());
-        if !measured && !out.contains(c) {
-            out.push(*c);
-        }
-    }
-    out
-}
-
 impl<'a> RecordsOutputError<'a> {
     /// The problem of a force-driven element test's `records` (each with displacement and
     /// force), the moving mass known or (None) fitted.
@@ -228,7 +212,7 @@ impl<'a> RecordsOutputError<'a> {
             records,
             parts,
         )?;
-        problem.noise_unmeasured = unmeasured(&noise_bands);
+        problem.noise_unmeasured = unmeasured_noise(&noise_bands);
         Ok(problem)
     }
 
@@ -272,7 +256,7 @@ impl<'a> RecordsOutputError<'a> {
             noise_bands.push((Channel::RelativeDisplacementM, rel, fs, cutoff));
         }
         let mut problem = Self::new(model, SampledDrive::Base { mass_kg }, records, parts)?;
-        problem.noise_unmeasured = unmeasured(&noise_bands);
+        problem.noise_unmeasured = unmeasured_noise(&noise_bands);
         Ok(problem)
     }
 
