@@ -122,31 +122,37 @@ pub fn power_band_top_hz(y: &[f64], sample_rate_hz: f64, share: f64) -> Option<f
 /// the end points taken out first). None when no bin lies above the cut-off.
 pub fn white_noise_std_above(y: &[f64], sample_rate_hz: f64, cutoff_hz: f64) -> Option<f64> {
     let n = y.len();
-    if n < 8 {
-        return None;
-    }
-    let buf = detrended_spectrum(y);
-    let first = (cutoff_hz * n as f64 / sample_rate_hz).floor() as usize + 1;
-    // Bins strictly between the cut-off and the Nyquist bin (a real bin of its own).
-    let bins = first..n.div_ceil(2);
+    let bins = noise_bins(n, sample_rate_hz, cutoff_hz);
     if bins.is_empty() {
         return None;
     }
+    let buf = detrended_spectrum(y);
     let count = bins.len() as f64;
     let power: f64 = buf[bins].iter().map(num_complex::Complex64::norm_sqr).sum();
     Some((power / count / n as f64).sqrt())
 }
 
+/// The spectral bins of `n` samples that [`white_noise_std_above`] measures the noise in: those
+/// strictly between the cut-off and the Nyquist bin (a real bin of its own); none for fewer
+/// than 8 samples.
+fn noise_bins(n: usize, sample_rate_hz: f64, cutoff_hz: f64) -> std::ops::Range<usize> {
+    if n < 8 {
+        return 0..0;
+    }
+    let first = (cutoff_hz * n as f64 / sample_rate_hz).floor() as usize + 1;
+    first..n.div_ceil(2)
+}
+
 /// The channels among `compared` whose noise [`white_noise_std_above`] cannot measure on any
 /// of the records that hold them (`(channel, samples, sample rate [Hz], cut-off [Hz])` per
 /// channel and record): no bin lies between the cut-off and the Nyquist frequency.
-pub fn unmeasured_noise(compared: &[(Channel, &[f64], f64, f64)]) -> Vec<Channel> {
+pub fn unmeasured_noise(compared: &[(Channel, usize, f64, f64)]) -> Vec<Channel> {
     let mut out: Vec<Channel> = Vec::new();
-    for (c, _, _, _) in compared {
+    for (c, ..) in compared {
         let measured = compared
             .iter()
             .filter(|(d, ..)| d == c)
-            .any(|(_, y, fs, cutoff)| white_noise_std_above(y, *fs, *cutoff).is_some());
+            .any(|(_, n, fs, cutoff)| !noise_bins(*n, *fs, *cutoff).is_empty());
         if !measured && !out.contains(c) {
             out.push(*c);
         }

@@ -199,12 +199,7 @@ impl<'a> RecordsOutputError<'a> {
                 ],
                 starting_state(x, fs, state.top_frequency_hz),
             ));
-            noise_bands.push((
-                Channel::RelativeDisplacementM,
-                r.channel(Channel::RelativeDisplacementM).unwrap_or(&[]),
-                fs,
-                cutoff,
-            ));
+            noise_bands.push((Channel::RelativeDisplacementM, x.len(), fs, cutoff));
         }
         let mut problem = Self::new(
             model,
@@ -252,8 +247,8 @@ impl<'a> RecordsOutputError<'a> {
                 ],
                 [rel0, mass_v0],
             ));
-            noise_bands.push((Channel::MassAccelerationMps2, acc, fs, cutoff));
-            noise_bands.push((Channel::RelativeDisplacementM, rel, fs, cutoff));
+            noise_bands.push((Channel::MassAccelerationMps2, acc.len(), fs, cutoff));
+            noise_bands.push((Channel::RelativeDisplacementM, rel.len(), fs, cutoff));
         }
         let mut problem = Self::new(model, SampledDrive::Base { mass_kg }, records, parts)?;
         problem.noise_unmeasured = unmeasured_noise(&noise_bands);
