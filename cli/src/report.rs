@@ -23,6 +23,21 @@ pub fn parameters_text(list: &[ParameterValue]) -> String {
         .join(", ")
 }
 
+/// The whole model with an effect, as refitted: the baseline's coefficients refitted beside the
+/// effect, then what the effect added (`k = ..., c = ...; alpha = ..., yield_m = ...`).
+pub fn model_with_effect_text(
+    baseline: &str,
+    effect: &str,
+    refitted: &[ParameterValue],
+    added: &[ParameterValue],
+) -> String {
+    format!(
+        "model {baseline} + {effect}, refitted: {}; {}",
+        parameters_text(refitted),
+        parameters_text(added)
+    )
+}
+
 const STYLE: &str = "body{font-family:sans-serif;max-width:1250px;margin:auto}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}td:first-child{text-align:left}td.text{text-align:left}";
 
 /// A report page, built section by section; every text argument is escaped here.

@@ -310,6 +310,18 @@ impl Fitted {
             .map(|i| self.theta[i])
     }
 
+    /// (name, value, std) of the baseline's coefficients refitted beside the structure: with the
+    /// added parameters, the whole model with the effect.
+    pub fn refitted_baseline(&self) -> Vec<(String, f64, f64)> {
+        self.names
+            .iter()
+            .zip(&self.theta)
+            .zip(&self.std)
+            .take(self.baseline_parameters)
+            .map(|((n, v), s)| (n.clone(), *v, *s))
+            .collect()
+    }
+
     /// (name, value, std) of the parameters the structure added.
     pub fn added_parameters(&self) -> Vec<(String, f64, f64)> {
         let mut out: Vec<(String, f64, f64)> = self

@@ -304,6 +304,7 @@ pub fn diagnose(
             output_error_misfit: None,
             extra_parameters: extra,
             added_parameters: parameter_values(c.fitted.added_parameters()),
+            refitted_baseline: parameter_values(c.fitted.refitted_baseline()),
             significant: significant(gap_before, floor, after, score, baseline_score),
             added: c.effect.added().into(),
             signature: c.effect.signature().into(),

@@ -54,6 +54,9 @@ pub struct BlockCandidate {
     pub cv_percent: f64,
     /// (name, value, std) of what the structure added, fitted on every step.
     pub added_parameters: Vec<(String, f64, f64)>,
+    /// (name, value, std) of the baseline's coefficients (and the moving mass where the setup
+    /// leaves it unknown) refitted beside the structure.
+    pub refitted_baseline: Vec<(String, f64, f64)>,
     /// Baseline + structure fitted on every step, where it only adds element terms (a
     /// held-out record is predicted from the terms alone, without a filter or a lag).
     pub fit: Option<TermFit>,
@@ -449,6 +452,17 @@ pub(super) fn evaluate(
         effect,
         cv_percent: cv,
         added_parameters: added,
+        // The baseline's coefficients, and the moving mass (`m`) where the setup leaves it
+        // unknown.
+        refitted_baseline: id.parameters[..baseline.terms.len()]
+            .iter()
+            .chain(
+                id.parameters[model.terms.len()..]
+                    .iter()
+                    .filter(|p| p.name == "m"),
+            )
+            .map(|p| (p.name.clone(), p.value, p.std))
+            .collect(),
         fit: (is_extra_terms(&structure) || steps.hysteresis.is_some())
             .then(|| term_fit(&steps, &model, &theta)),
         structure,

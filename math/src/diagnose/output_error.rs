@@ -421,6 +421,7 @@ pub(super) fn rescore(
                 r.score_percent = score;
                 r.significant = significant(c.gap_before, c.floor, after, score, c.baseline_score);
                 r.added_parameters = parameter_values(f.added_parameters());
+                r.refitted_baseline = parameter_values(f.refitted_baseline());
                 // The member as refitted (a refitted family is never drift, whose description
                 // alone needs the run's dissipation).
                 let alike = exponents_alike(&exponent_scores, c.gap_before, c.floor);

@@ -68,6 +68,7 @@ pub fn joint_only_entry(pair: &PairResult, top: &RankedEffect, gap_before: f64) 
         output_error_misfit: None,
         extra_parameters: added_parameters.len(),
         added_parameters,
+        refitted_baseline: pair.refitted_baseline.clone(),
         significant: false,
         added: effect.added().into(),
         signature: effect.signature().into(),

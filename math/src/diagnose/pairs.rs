@@ -159,6 +159,7 @@ fn scored(
         score_percent: penalised(after, s.extra_parameters, ctx.n_eff),
         phasor_cv_percent,
         added_parameters: parameter_values(f.added_parameters()),
+        refitted_baseline: parameter_values(f.refitted_baseline()),
         form_neighbour: None,
     }))
 }

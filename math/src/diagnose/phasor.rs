@@ -31,6 +31,9 @@ pub struct PhasorEffect {
     /// Penalised score (lower is better) [%].
     pub score_percent: f64,
     pub added_parameters: Vec<ParameterValue>,
+    /// The baseline's coefficients refitted beside the effect (with `added_parameters`, the
+    /// whole model with the effect).
+    pub refitted_baseline: Vec<ParameterValue>,
     pub significant: bool,
     /// Baseline + effect fitted on every step, where it is extra element terms and the
     /// moving mass is known or fitted (for held-out element records, [`super::element_heldout`]).
@@ -193,6 +196,7 @@ impl PhasorDiagnosis {
                 cv_percent: c.step_error_percent(),
                 extra_parameters: c.structure.extra_parameters,
                 added_parameters: c.fitted.added_parameters(),
+                refitted_baseline: c.fitted.refitted_baseline(),
                 fit: self.term_fit(&c.fitted),
             })
             .collect();
@@ -236,6 +240,7 @@ impl PhasorDiagnosis {
                 cv_percent: c.cv_percent,
                 extra_parameters: c.structure.extra_parameters,
                 added_parameters: c.added_parameters.clone(),
+                refitted_baseline: c.refitted_baseline.clone(),
                 fit: c.fit.clone(),
             })
             .collect();
@@ -284,6 +289,7 @@ struct Scored {
     cv_percent: f64,
     extra_parameters: usize,
     added_parameters: Vec<(String, f64, f64)>,
+    refitted_baseline: Vec<(String, f64, f64)>,
     fit: Option<TermFit>,
 }
 
@@ -307,6 +313,7 @@ fn conclude(
                 cv_percent: c.cv_percent,
                 score_percent: score,
                 added_parameters: parameter_values(c.added_parameters),
+                refitted_baseline: parameter_values(c.refitted_baseline),
                 significant: super::significant(before, floor, c.cv_percent, score, base_score),
                 fit: c.fit,
             }

@@ -54,6 +54,9 @@ pub struct RankedEffect {
     pub output_error_misfit: Option<f64>,
     pub extra_parameters: usize,
     pub added_parameters: Vec<ParameterValue>,
+    /// The baseline's coefficients refitted beside the effect (with `added_parameters`, the
+    /// whole model with the effect); empty where the figures are a pair's.
+    pub refitted_baseline: Vec<ParameterValue>,
     pub significant: bool,
     pub added: String,
     pub signature: String,
@@ -68,6 +71,8 @@ pub struct PairResult {
     /// steps [%].
     pub phasor_cv_percent: Option<f64>,
     pub added_parameters: Vec<ParameterValue>,
+    /// The baseline's coefficients refitted beside the pair.
+    pub refitted_baseline: Vec<ParameterValue>,
     /// A neighbour of the first effect fitted with the pair as part of the first effect's form
     /// (two restoring-force forms together fit one wider form, e.g. a hardening spring with an
     /// x^5 share), when the second effect was searched beside it ([`super::pairs`]); the

@@ -17,7 +17,7 @@ mod plots;
 mod time_domain;
 
 use crate::cli::DiagnoseArgs;
-use crate::report::{HtmlReport, parameters_text};
+use crate::report::{HtmlReport, model_with_effect_text, parameters_text};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
 use forcemap_io::input::{Loaded, Measured};
 use forcemap_io::params::{Params, read_params};
@@ -370,6 +370,27 @@ fn print_summary(source: &str, detail: &DiagnosisDetail, demo: bool) {
     {
         println!("  signature: {}", r.signature);
         println!("  found: {}", candidate_text(r));
+        match (&d.best_pair, d.findings.second_effect) {
+            (Some(p), Some(_)) => println!(
+                "  {}",
+                model_with_effect_text(
+                    &d.baseline_model,
+                    &format!("{} + {}", p.effects[0].name(), p.effects[1].name()),
+                    &p.refitted_baseline,
+                    &p.added_parameters
+                )
+            ),
+            _ if r.fitted_with.is_none() => println!(
+                "  {}",
+                model_with_effect_text(
+                    &d.baseline_model,
+                    r.effect.name(),
+                    &r.refitted_baseline,
+                    &r.added_parameters
+                )
+            ),
+            _ => {}
+        }
     }
     if d.findings.verdict == Verdict::ExplainedInPart
         && let Some(left) = &detail.after_located

@@ -7,7 +7,7 @@
 
 use anyhow::Context as _;
 use forcemap_math::diagnose::sampled_records::SampledRecord;
-use forcemap_math::diagnose::{PhasorDiagnosis, PhasorFindings};
+use forcemap_math::diagnose::{PhasorDiagnosis, PhasorFindings, Verdict};
 use forcemap_math::identify::{FdMultiOptions, Method, Weighting};
 use forcemap_math::measured_state::{MeasuredState, excitation_kind};
 use forcemap_math::model::Model;
@@ -21,7 +21,7 @@ use forcemap_math::record::{Excitation, Record};
 
 use super::Data;
 use crate::cli::DiagnoseArgs;
-use crate::report::{HtmlReport, parameters_text};
+use crate::report::{HtmlReport, model_with_effect_text, parameters_text};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
 
 /// The setup with what it adds (an element test's moving mass) identified with the baseline
@@ -287,6 +287,21 @@ fn print_summary(
         println!("where: {s}");
     }
     println!("verdict: {}", f.findings.headline());
+    if matches!(
+        f.findings.verdict,
+        Verdict::Explained | Verdict::ExplainedInPart
+    ) && let Some(r) = f.ranked_effects.first()
+    {
+        println!(
+            "{}",
+            model_with_effect_text(
+                &baseline.name,
+                r.effect.name(),
+                &r.refitted_baseline,
+                &r.added_parameters
+            )
+        );
+    }
     println!("rule: {}", f.findings.rule);
 }
 
