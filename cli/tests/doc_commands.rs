@@ -3,9 +3,11 @@
 //! fails here. The commands are those of code blocks (indented or fenced, a trailing `\`
 //! continuing the line) and of inline code spans that start with `forcemap `, in the README,
 //! `docs/`, `examples/` and the READMEs of the crates and the committed data. A span that
-//! elides arguments (`...`) is counted, not parsed. What the commands print is checked
-//! elsewhere: the README's by `readme_tour`, the examples' by `examples_run`, the figures'
-//! quoted in the docs by the tests named beside them.
+//! elides arguments (`...`) is counted, not parsed. Every command of a code block is also run
+//! as written and must exit 0 ([`every_documented_command_runs`]), but the few measurements of
+//! minutes [`NOT_RUN`] names. What the commands print is checked elsewhere: the README's by
+//! `readme_tour`, the examples' by `examples_run`, the figures quoted in the docs by the tests
+//! named beside them.
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
@@ -365,5 +367,160 @@ fn the_extraction_finds_what_a_reader_would_type() {
     assert_eq!(
         missing_paths(&["data/real/nowhere.csv".into(), "data/real/{a,b}.txt".into()]),
         ["data/real/nowhere.csv"]
+    );
+}
+
+/// Documented commands not run here, each a measurement that takes minutes (or a file of
+/// hundreds of megabytes) and is timed by itself on its page: the words as documented, and why.
+const NOT_RUN: [(&str, &str); 3] = [
+    (
+        "forcemap diagnose-eval --cases 200 --seed 1",
+        "the evaluation's 200 cases: about 2 minutes on 2 cores (docs/benchmarks.md, diagnose-eval runtime); its cases are run by `--only` and by the 10- and 60-case commands of benchmarks.md",
+    ),
+    (
+        "forcemap diagnose-eval --forms wide --cases 300 --seed 1,2,3 --json-file eval.json",
+        "900 cases of the wide forms: about 10 minutes on 2 cores; the 60-case command of benchmarks.md runs the same forms",
+    ),
+    (
+        "forcemap bench identify rig200.csv --model coulomb --mass-kg 36 --repeats 5 --python python3",
+        "a 246 MB export that a Python script (benches/repeat_export.py) makes; the same bench runs on the 1.8 MB export of benchmarks.md",
+    ),
+];
+
+/// How long a documented node runs before it is stopped: a node serves until it is stopped, so it
+/// passes when it is still up then and has printed no error.
+const NODE_RUN_S: &str = "3";
+
+/// A scratch directory for one page's commands, holding what they name where they name it: the
+/// repository's committed directories linked under `repo/`, `../shared` beside it, a
+/// `forcemap` on the PATH that is the test build's. Returns (the directory to run in, PATH).
+fn scratch_for(tmp: &Path, page: &str) -> (PathBuf, String) {
+    let root = repo().canonicalize().unwrap();
+    let bin = tmp.join("bin");
+    if !bin.exists() {
+        std::fs::create_dir(&bin).unwrap();
+        std::os::unix::fs::symlink(env!("CARGO_BIN_EXE_forcemap"), bin.join("forcemap")).unwrap();
+    }
+    let dir = tmp.join(page.replace('/', "_")).join("repo");
+    std::fs::create_dir_all(&dir).unwrap();
+    for d in [
+        "data",
+        "bags",
+        "launch_configs",
+        "examples",
+        "benches",
+        "docs",
+    ] {
+        std::os::unix::fs::symlink(root.join(d), dir.join(d)).unwrap();
+    }
+    std::os::unix::fs::symlink(root.join("../shared"), dir.join("../shared")).unwrap();
+    // `--python python3` in a command is the Python with numpy the tests are given.
+    let python_bin = std::env::var("FORCEMAP_PYTHON")
+        .ok()
+        .and_then(|p| Path::new(&p).parent().map(|d| format!("{}:", d.display())))
+        .unwrap_or_default();
+    let path = format!(
+        "{}:{python_bin}{}",
+        bin.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    (dir, path)
+}
+
+/// Every command of a code block in the README, `docs/`, `examples/` and the data READMEs runs
+/// as written and exits 0, page by page in the order the page gives them (a command that reads
+/// what an earlier one wrote finds it), in a scratch directory where the repository's paths
+/// resolve; a node is run for [`NODE_RUN_S`] seconds. [`NOT_RUN`] names the few that are not,
+/// and why.
+#[test]
+fn every_documented_command_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let python = std::env::var_os("FORCEMAP_PYTHON").is_some();
+    assert!(
+        python || std::env::var_os("CI").is_none(),
+        "CI is set but FORCEMAP_PYTHON is not: the documented benches with --python cannot run"
+    );
+    let (mut ran, mut not_run, mut skipped) = (0, 0, 0);
+    let mut failures = Vec::new();
+    for doc in documents() {
+        let page = doc
+            .strip_prefix(repo())
+            .unwrap_or(&doc)
+            .display()
+            .to_string();
+        let text = std::fs::read_to_string(&doc).unwrap();
+        let mut scratch = None;
+        for found in commands(&page, &text) {
+            let Some(words) = words(&found.text) else {
+                continue;
+            };
+            if !found.code || found.text.contains("...") || output_line(&words) || synopsis(&words)
+            {
+                continue;
+            }
+            let as_written = words.join(" ");
+            if NOT_RUN.iter().any(|(c, _)| *c == as_written) {
+                not_run += 1;
+                continue;
+            }
+            if words.iter().any(|w| w == "--python") && !python {
+                println!(
+                    "skipped (set FORCEMAP_PYTHON to a Python with numpy): {}",
+                    found.place
+                );
+                skipped += 1;
+                continue;
+            }
+            let (dir, path) = scratch.get_or_insert_with(|| scratch_for(tmp.path(), &page));
+            let node = words.get(1).is_some_and(|w| w == "node");
+            let limit = if node { NODE_RUN_S } else { "600" };
+            let started = std::time::Instant::now();
+            let out = std::process::Command::new("timeout")
+                .args([limit, "bash", "-c", &found.text])
+                .current_dir(&*dir)
+                .env("PATH", &*path)
+                .env("ROS_DOMAIN_ID", "93")
+                .output()
+                .unwrap();
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            let code = out.status.code();
+            let passed = if node {
+                code == Some(124) && !stderr.contains("error")
+            } else {
+                code == Some(0)
+            };
+            println!(
+                "{:>6.1} s {:?} {}: {}",
+                started.elapsed().as_secs_f64(),
+                code,
+                found.place,
+                found.text
+            );
+            ran += 1;
+            if !passed {
+                let tail: Vec<&str> = stderr.lines().rev().take(3).collect();
+                failures.push(format!(
+                    "{}: `{}` exited {code:?}: {}",
+                    found.place,
+                    found.text,
+                    tail.into_iter().rev().collect::<Vec<_>>().join(" / ")
+                ));
+            }
+        }
+    }
+    println!(
+        "documented commands: {ran} run, {not_run} not run (NOT_RUN: {}), {skipped} skipped",
+        NOT_RUN
+            .iter()
+            .map(|(c, why)| format!("`{c}`: {why}"))
+            .collect::<Vec<_>>()
+            .join("; ")
+    );
+    assert!(ran > 35, "only {ran} commands run: the extraction broke");
+    assert!(
+        failures.is_empty(),
+        "{} documented commands fail:\n{}",
+        failures.len(),
+        failures.join("\n")
     );
 }
