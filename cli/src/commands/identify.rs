@@ -3,6 +3,7 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Context, anyhow};
+use forcemap_math::diagnose::findings::NO_PREDICTION_PERCENT;
 use forcemap_math::identify::{Identification, Method, TrackPoint, records_drive};
 use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::{HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
@@ -269,24 +270,42 @@ fn held_out_validations(
 }
 
 fn print_held_out(held: &[HeldOut]) {
+    // A held-out record predicted no better than by zero: the fit's own misfit may look
+    // modest while the model's form fails on a record unlike the fitted ones.
+    let no_better_than_zero = |nmse_percent: f64| {
+        if nmse_percent >= NO_PREDICTION_PERCENT {
+            " (no better than predicting zero: the model's form fails on this record; `forcemap diagnose` names what it misses)"
+        } else {
+            ""
+        }
+    };
     for h in held {
         if let Some(s) = &h.simulated {
             println!(
-                "held out: {} record {}: displacement simulated under the measured force: NMSE {:.2} %, RMS error {:.3e} m",
-                h.file, h.step, s.nmse_percent, s.rms_error_m
+                "held out: {} record {}: displacement simulated under the measured force: NMSE {:.2} %, RMS error {:.3e} m{}",
+                h.file,
+                h.step,
+                s.nmse_percent,
+                s.rms_error_m,
+                no_better_than_zero(s.nmse_percent)
             );
         }
         match h.rms_error_n {
             Some(rms) => println!(
-                "held out: {} record {}: force NMSE {:.2} %, RMS error {:.3e} N",
-                h.file, h.step, h.nmse_percent, rms
-            ),
-            None => println!(
-                "held out: {} record {}: NMSE of mass acceleration {:.2} % (eq. 27), RMS error {:.3e} m/s^2",
+                "held out: {} record {}: force NMSE {:.2} %, RMS error {:.3e} N{}",
                 h.file,
                 h.step,
                 h.nmse_percent,
-                h.rms_error_mps2.unwrap_or(f64::NAN)
+                rms,
+                no_better_than_zero(h.nmse_percent)
+            ),
+            None => println!(
+                "held out: {} record {}: NMSE of mass acceleration {:.2} % (eq. 27), RMS error {:.3e} m/s^2{}",
+                h.file,
+                h.step,
+                h.nmse_percent,
+                h.rms_error_mps2.unwrap_or(f64::NAN),
+                no_better_than_zero(h.nmse_percent)
             ),
         }
     }

@@ -5,16 +5,19 @@
 //! from.
 
 use super::PipelineError;
+use crate::diagnose::element_heldout::TermFit;
 use crate::identify::{
-    self, IdentifyError, Method, RecordsOutputError, StepEquations, records_drive,
-    td_range_equations,
+    self, FORM_MISFIT_VARIANCE, IdentifyError, Method, RecordsOutputError, StepEquations,
+    records_drive, td_range_equations,
 };
+use crate::measured_state::{CUTOFF_MULTIPLE, MeasuredState, white_noise_std_above};
 use crate::model::Model;
 use crate::phasor::{
     HarmonicAnalysis, MIN_MULTISINE_PERIODS, MultisineOptions, SweepOptions, analyse_sweep,
 };
 use crate::recipe::Setup;
 use crate::record::{Excitation, Record};
+use crate::signal::differentiate::derivative_noise_gain;
 use crate::sim::ElementDrive;
 
 /// What `identify` says when it runs output error without being told.
@@ -170,10 +173,19 @@ pub fn identify_element_sample_records(
         ElementDrive::Displacement => {
             let mut id = start;
             id.method = Method::OutputError.name();
+            let misfit = force_misfit(model, &setup, &id.theta(), records);
             id.warnings.push(format!(
-                "output error: the displacement is the drive, so the model's output is the force along the measured motion, linear in theta: its least squares over every sample of {} record(s)",
-                records.len()
+                "output error: the displacement is the drive, so the model's output is the force along the measured motion, linear in theta: its least squares over every sample of {} record(s), {}",
+                records.len(),
+                misfit.text()
             ));
+            if let Some(rms) = misfit.in_noise_std
+                && rms * rms > FORM_MISFIT_VARIANCE
+            {
+                id.warnings.push(format!(
+                    "output error: the model misses the measured force by {rms:.1} noise std (RMS); the model's form may not describe these data (try diagnose)"
+                ));
+            }
             id
         }
         ElementDrive::Force => {
@@ -184,4 +196,111 @@ pub fn identify_element_sample_records(
         id.warnings.push(OUTPUT_ERROR_CHOSEN.into());
     }
     Ok(id)
+}
+
+/// How far an element force fitted along the measured motion misses the measured force.
+struct ForceMisfit {
+    rms_n: f64,
+    /// The RMS of the misfit in each record's force noise std; None where some record's noise
+    /// cannot be measured (no band above [`CUTOFF_MULTIPLE`] times its excitation's top
+    /// frequency below the Nyquist frequency).
+    in_noise_std: Option<f64>,
+}
+
+impl ForceMisfit {
+    fn text(&self) -> String {
+        match self.in_noise_std {
+            Some(r) => format!("RMS misfit {:.4e} N, {r:.3} noise std", self.rms_n),
+            None => format!(
+                "RMS misfit {:.4e} N: the force noise cannot be measured (no band above {CUTOFF_MULTIPLE} times the excitation's top frequency), so the misfit is not compared with noise",
+                self.rms_n
+            ),
+        }
+    }
+}
+
+/// The misfit of `model` at `theta` on `records`' forces, each predicted along its measured
+/// motion over its scored samples (the prediction of `identify --validate`), and the same in
+/// noise std: each sample's residual over what the noise alone would leave there, the force's
+/// noise and the measured motion's carried through the model (its terms moved by the noise
+/// std of the displacement and of the velocity differentiated from it, the mass by the
+/// acceleration's), so that a model of the element's form misses by about 1.
+fn force_misfit(model: &Model, setup: &Setup, theta: &[f64], records: &[&Record]) -> ForceMisfit {
+    let fit = TermFit::of_model(model, setup, theta);
+    let (mut squares_n, mut squares_noise, mut samples) = (0.0, Some(0.0), 0usize);
+    for r in records {
+        let Ok(state) = MeasuredState::of(r) else {
+            squares_noise = None;
+            continue;
+        };
+        let measured = &state.force_n[state.scored.clone()];
+        let residual: Vec<f64> = measured
+            .iter()
+            .zip(state.predicted_force(&fit))
+            .map(|(m, p)| m - p)
+            .collect();
+        squares_n += residual.iter().map(|e| e * e).sum::<f64>();
+        samples += measured.len();
+        squares_noise = squares_noise
+            .zip(noise_variances(&state, &fit))
+            .map(|(sum, variances)| {
+                sum + residual
+                    .iter()
+                    .zip(variances)
+                    .map(|(e, v)| e * e / v)
+                    .sum::<f64>()
+            });
+    }
+    let n = samples.max(1) as f64;
+    ForceMisfit {
+        rms_n: (squares_n / n).sqrt(),
+        in_noise_std: squares_noise.map(|s| (s / n).sqrt()),
+    }
+}
+
+/// The variance the noise alone leaves in each scored sample's force residual: the measured
+/// force's noise plus the prediction's, from the noise of the displacement (white above the
+/// band, [`white_noise_std_above`]), of the velocity and acceleration differentiated from it
+/// ([`derivative_noise_gain`]; the acceleration's own where it is measured) and their
+/// correlation (a displacement's noise and its second derivative's: minus the velocity
+/// noise's variance). None where a noise cannot be measured.
+fn noise_variances(state: &MeasuredState, fit: &TermFit) -> Option<Vec<f64>> {
+    let (fs, n) = (state.sample_rate_hz, state.displacement_m.len());
+    let cutoff = CUTOFF_MULTIPLE * state.top_frequency_hz;
+    let noise = |y: &[f64]| white_noise_std_above(y, fs, cutoff);
+    let force = noise(&state.force_n).filter(|s| *s > 0.0)?;
+    let sx = noise(&state.displacement_m)?;
+    let sv = sx * derivative_noise_gain(n, fs, cutoff, 1);
+    let (sa, cross) = if state.acceleration_measured {
+        (noise(&state.acceleration_mps2)?, 0.0)
+    } else {
+        (sx * derivative_noise_gain(n, fs, cutoff, 2), -sv * sv)
+    };
+    let moved = |x: f64, v: f64, dx: f64, dv: f64| -> f64 {
+        fit.terms
+            .iter()
+            .zip(&fit.theta)
+            .map(|(t, th)| th * (t.eval(x + dx, v + dv) - t.eval(x - dx, v - dv)) / 2.0)
+            .sum()
+    };
+    Some(
+        state
+            .scored
+            .clone()
+            .map(|i| {
+                let (x, v) = (state.displacement_m[i], state.velocity_mps[i]);
+                let by_x = moved(x, v, sx, 0.0);
+                let by_v = moved(x, v, 0.0, sv);
+                let by_a = fit.mass_kg * sa;
+                // d(force)/dx times m times the covariance of the two noises.
+                let covariance = if sx > 0.0 {
+                    2.0 * (by_x / sx) * fit.mass_kg * cross
+                } else {
+                    0.0
+                };
+                (force * force + by_x * by_x + by_v * by_v + by_a * by_a + covariance)
+                    .max(force * force)
+            })
+            .collect(),
+    )
 }

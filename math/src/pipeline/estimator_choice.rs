@@ -63,21 +63,7 @@ fn predicted_nmse(
     id: &Identification,
     left_out: &MeasuredState,
 ) -> f64 {
-    let theta = id.theta();
-    let p = model.terms.len();
-    let mass_kg = match setup {
-        Setup::Element {
-            moving_mass_kg: Some(m),
-            ..
-        } => *m,
-        _ => theta.get(p).copied().unwrap_or(0.0),
-    };
-    left_out.force_nmse_percent(&TermFit {
-        terms: model.terms.clone(),
-        theta: theta[..p].to_vec(),
-        mass_kg,
-        hysteresis: None,
-    })
+    left_out.force_nmse_percent(&TermFit::of_model(model, setup, &id.theta()))
 }
 
 /// The leave-one-step-out score of `method` on `analyses`: the mean NMSE [%] of each step's

@@ -128,9 +128,52 @@ pub fn band_limited_derivative(y: &[f64], fs: f64, cutoff_hz: f64, order: u32) -
         .collect()
 }
 
+/// The std of [`band_limited_derivative`] of white noise of unit std over `n` samples: the
+/// root of the mean over the bins it keeps of `(2 pi f)^(2 order)`. The same bins as the
+/// derivative keeps, so a record's derivative noise is its own noise std times this.
+pub fn derivative_noise_gain(n: usize, fs: f64, cutoff_hz: f64, order: u32) -> f64 {
+    let kept: f64 = (0..n)
+        .filter(|&k| !(n.is_multiple_of(2) && k == n / 2))
+        .map(|k| {
+            let kk = if k <= n / 2 {
+                k as f64
+            } else {
+                k as f64 - n as f64
+            };
+            kk * fs / n as f64
+        })
+        .filter(|f| f.abs() <= cutoff_hz)
+        .map(|f| (std::f64::consts::TAU * f).powi(2 * order as i32))
+        .sum();
+    (kept / n as f64).sqrt()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// White noise of std 0.01 at 1 kHz differentiated in a 40 Hz band: the velocity's and
+    /// the acceleration's std within 5 % of the gain's (the estimate's own scatter over 20 000
+    /// samples is about 1 %; the line taken out through the two noisy end points leaves a
+    /// sawtooth whose spectrum, weighted by f^4, adds to the acceleration's: 3.1 % here).
+    #[test]
+    fn the_noise_gain_is_the_std_of_differentiated_white_noise() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let normal = Normal::new(0.0, 0.01).unwrap();
+        let (n, fs, cutoff) = (20_000, 1000.0, 40.0);
+        let y: Vec<f64> = (0..n).map(|_| normal.sample(&mut rng)).collect();
+        for order in [1, 2] {
+            let d = band_limited_derivative(&y, fs, cutoff, order);
+            let std = (d.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+            let gain = derivative_noise_gain(n, fs, cutoff, order);
+            assert!(
+                (std / (0.01 * gain) - 1.0).abs() < 0.05,
+                "{order}: {std} {gain}"
+            );
+        }
+    }
 
     #[test]
     fn both_roundings_differentiate_a_parabola_exactly_inside_and_one_sided_at_the_ends() {

@@ -37,6 +37,10 @@ pub use element_test::{ElementOutputError, element_drive_of};
 pub use rig::{RigDrive, RigMisfit, RigOutputError};
 pub use sampled_drive::{RecordsOutputError, records_drive};
 
+/// A misfit whose mean square exceeds this many noise variances is more than the noise: the
+/// model's form may not describe the data.
+pub const FORM_MISFIT_VARIANCE: f64 = 2.0;
+
 /// Floor of each channel's noise std, relative to its fundamental.
 const NOISE_FLOOR: f64 = 1e-6;
 

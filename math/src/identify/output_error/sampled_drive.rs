@@ -455,7 +455,7 @@ impl<'a> RecordsOutputError<'a> {
         } else {
             warnings.push(format!("{simulated}, RMS misfit {rms:.3} noise std"));
         }
-        if self.noise_unmeasured.is_empty() && rms * rms > 2.0 {
+        if self.noise_unmeasured.is_empty() && rms * rms > super::FORM_MISFIT_VARIANCE {
             warnings.push(format!(
                 "output error: the simulated model misses the measured {outputs} by {rms:.1} noise std (RMS); the model's form may not describe these data (try diagnose)"
             ));
