@@ -5,7 +5,7 @@
 
 use serde::Serialize;
 
-use super::effects::Effect;
+use super::effects::{Effect, Structure};
 use super::element_heldout::TermFit;
 use super::findings::{Evidence, Findings, TopCandidate, Verdict};
 use super::fit::Fitted;
@@ -35,8 +35,9 @@ pub struct PhasorEffect {
     /// whole model with the effect).
     pub refitted_baseline: Vec<ParameterValue>,
     pub significant: bool,
-    /// Baseline + effect fitted on every step, where it is extra element terms and the
-    /// moving mass is known or fitted (for held-out element records, [`super::element_heldout`]).
+    /// Baseline + effect fitted on every step, where it is extra element terms or a hysteresis
+    /// state and the moving mass is known or fitted (for held-out element records,
+    /// [`super::element_heldout`]).
     #[serde(skip)]
     pub fit: Option<TermFit>,
 }
@@ -264,8 +265,9 @@ impl PhasorDiagnosis {
         })
     }
 
-    /// A fit on the rebuilt sine periods as a [`TermFit`]: where it only adds element terms
-    /// and the element setup's moving mass is known.
+    /// A fit on the rebuilt sine periods as a [`TermFit`]: where it only adds element terms or
+    /// a hysteresis state (its coefficient alpha after the terms'; the state integrated along a
+    /// record's measured velocity) and the element setup's moving mass is known.
     fn term_fit(&self, f: &Fitted) -> Option<TermFit> {
         let Setup::Element {
             moving_mass_kg: Some(m),
@@ -274,11 +276,23 @@ impl PhasorDiagnosis {
         else {
             return None;
         };
-        is_extra_terms(&f.structure).then(|| TermFit {
-            terms: f.terms.clone(),
-            theta: f.theta[..f.terms.len()].to_vec(),
-            mass_kg: m,
+        let n = f.terms.len();
+        let without_hysteresis = Structure {
             hysteresis: None,
+            ..f.structure.clone()
+        };
+        if !is_extra_terms(&without_hysteresis) {
+            return None;
+        }
+        let hysteresis = match f.structure.hysteresis {
+            Some(law) => Some((law, *f.theta.get(n)?)),
+            None => None,
+        };
+        Some(TermFit {
+            terms: f.terms.clone(),
+            theta: f.theta[..n].to_vec(),
+            mass_kg: m,
+            hysteresis,
         })
     }
 }

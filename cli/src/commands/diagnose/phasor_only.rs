@@ -80,8 +80,8 @@ struct HeldOut {
     excitation: &'static str,
     baseline_nmse_percent: f64,
     effect: Option<&'static str>,
-    /// None when the candidate is not extra element terms (an internal state or a channel
-    /// transformation), which this path does not predict.
+    /// None when the candidate transforms a channel, lags a term or drifts, which this path
+    /// does not predict (extra terms and a hysteresis state it does).
     effect_nmse_percent: Option<f64>,
     acceleration_measured: bool,
 }
