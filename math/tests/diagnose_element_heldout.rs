@@ -69,6 +69,34 @@ fn held_out(f: &PhasorFindings, record: &Record, truth: &TermFit) -> [f64; 3] {
     nmse
 }
 
+/// A displacement-driven dyno with `element` behind a 0.8 kg fixture at 40 dB: its sine steps
+/// (1-8 Hz, 5-20 mm) and a 1-8 Hz sweep of 10 mm.
+fn dyno_steps_and_sweep(element: TruthElement) -> (Vec<Record>, Record) {
+    let mut steps = sine_grid(&[1.0, 2.0, 4.0, 8.0], &[0.005, 0.01, 0.02]);
+    steps.push(StepSpec::Sweep {
+        sweep: SweepKind::Linear,
+        start_frequency_hz: 1.0,
+        end_frequency_hz: 8.0,
+        amplitude: 0.01,
+    });
+    let mut records = RunSpec {
+        snr_db: Some(40.0),
+        seed: 1,
+        ..RunSpec::element_test(
+            ElementDrive::Displacement,
+            0.8,
+            element,
+            steps,
+            1000.0,
+            4000,
+        )
+    }
+    .simulate()
+    .unwrap();
+    let sweep = records.pop().unwrap();
+    (records, sweep)
+}
+
 fn terms(t: &[Arc<dyn Term>]) -> Vec<Arc<dyn Term>> {
     t.to_vec()
 }
@@ -110,33 +138,13 @@ fn coulomb_friction_fitted_on_dyno_steps_predicts_a_sweep() {
         friction: Some(Friction::coulomb(40.0)),
         ..TruthElement::linear(2000.0, 1750.0)
     };
-    let mut steps = sine_grid(&[1.0, 2.0, 4.0, 8.0], &[0.005, 0.01, 0.02]);
-    steps.push(StepSpec::Sweep {
-        sweep: SweepKind::Linear,
-        start_frequency_hz: 1.0,
-        end_frequency_hz: 8.0,
-        amplitude: 0.01,
-    });
-    let spec = RunSpec {
-        snr_db: Some(40.0),
-        seed: 1,
-        ..RunSpec::element_test(
-            ElementDrive::Displacement,
-            0.8,
-            element,
-            steps,
-            1000.0,
-            4000,
-        )
-    };
-    let records = spec.simulate().unwrap();
-    let (fitted, sweep) = records.split_at(records.len() - 1);
+    let (fitted, sweep) = dyno_steps_and_sweep(element);
     let f = diagnose(
         Setup::Element {
             moving_mass_kg: Some(0.8),
             drive: None,
         },
-        fitted,
+        &fitted,
     );
     assert_eq!(f.findings.top_effect, Some(Effect::CoulombFriction));
     let truth = TermFit {
@@ -149,7 +157,7 @@ fn coulomb_friction_fitted_on_dyno_steps_predicts_a_sweep() {
         mass_kg: 0.8,
         hysteresis: None,
     };
-    let [before, after, floor] = held_out(&f, &sweep[0], &truth);
+    let [before, after, floor] = held_out(&f, &sweep, &truth);
     assert!(
         after < 1.5 * floor,
         "{after} % against the truth's {floor} %"
@@ -172,33 +180,13 @@ fn a_hysteresis_fitted_on_dyno_steps_predicts_a_sweep() {
         bouc_wen: Some(law.bouc_wen(alpha)),
         ..TruthElement::linear(2000.0, 1750.0)
     };
-    let mut steps = sine_grid(&[1.0, 2.0, 4.0, 8.0], &[0.005, 0.01, 0.02]);
-    steps.push(StepSpec::Sweep {
-        sweep: SweepKind::Linear,
-        start_frequency_hz: 1.0,
-        end_frequency_hz: 8.0,
-        amplitude: 0.01,
-    });
-    let spec = RunSpec {
-        snr_db: Some(40.0),
-        seed: 1,
-        ..RunSpec::element_test(
-            ElementDrive::Displacement,
-            0.8,
-            element,
-            steps,
-            1000.0,
-            4000,
-        )
-    };
-    let records = spec.simulate().unwrap();
-    let (fitted, sweep) = records.split_at(records.len() - 1);
+    let (fitted, sweep) = dyno_steps_and_sweep(element);
     let f = diagnose(
         Setup::Element {
             moving_mass_kg: Some(0.8),
             drive: None,
         },
-        fitted,
+        &fitted,
     );
     assert_eq!(f.findings.top_effect, Some(Effect::Hysteresis));
     let truth = TermFit {
@@ -207,7 +195,7 @@ fn a_hysteresis_fitted_on_dyno_steps_predicts_a_sweep() {
         mass_kg: 0.8,
         hysteresis: Some((law, alpha)),
     };
-    let [before, after, floor] = held_out(&f, &sweep[0], &truth);
+    let [before, after, floor] = held_out(&f, &sweep, &truth);
     assert!(
         after < 2.0 * floor,
         "{after} % against the truth's {floor} %"
