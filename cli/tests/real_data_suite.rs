@@ -418,3 +418,75 @@ fn identify_says_where_the_damper_model_fails_on_the_friction_damper() {
         "{held:?}"
     );
 }
+
+/// Models with a hysteresis state (`NAME+hysteresis`: the terms and a Bouc-Wen state, fitted as
+/// `diagnose` refits NAME with its hysteresis), on the sets whose dampers have a loop, beside the
+/// plain reference with the same state: the least squares of the terms, the moving mass and
+/// the state of the Bouc-Wen law forcemap chose (integrated here by RK4 along each record's
+/// measured velocity), on every scored sample of the same fitted tests. Held-out force NMSE
+/// [%] per record and the ratio of the means (the bound per row is the measured ratio, held so
+/// that it can only close).
+#[test]
+fn hysteresis_models_against_the_least_squares_with_the_same_state() {
+    // Measured: 0.929, 1.298 (the Labcontrol damper's rebuilt periods, weighted by their noise,
+    // predict worse than its samples' least squares, as for `damper` alone, where `identify`
+    // then chooses the least squares; no such choice is made with a hysteresis yet), 1.010 (the
+    // same estimate; the state integrated by forward Euler there, by RK4 here), 0.994.
+    let cases: [(usize, &str, f64); 4] = [
+        (0, "damper", 0.94),
+        (2, "damper", 1.30),
+        (3, "damper", 1.02),
+        (3, "linear", 1.0),
+    ];
+    for (split, base, bound) in cases {
+        let split = &SPLITS[split];
+        let dir = data_dir(split.dir);
+        let name = format!("{base}+hysteresis");
+        let v = run_on_split("identify", &dir, split, &name);
+        let value = |n: &str| -> f64 {
+            v["parameters"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|p| p["name"] == n)
+                .unwrap_or_else(|| panic!("no {n}: {v}"))["value"]
+                .as_f64()
+                .unwrap()
+        };
+        let (zy, n, r) = (value("yield_m"), value("bouc_wen_n"), value("bouc_wen_r"));
+        let ours: Vec<f64> = v["held_out"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|h| h["nmse_percent"].as_f64().unwrap())
+            .collect();
+        let model = Model::by_name(base, &ModelOptions::default()).unwrap();
+        let state = |s: &forcemap_math::measured_state::MeasuredState| {
+            bouc_wen_state(&s.velocity_mps, 1.0 / s.sample_rate_hz, zy, n, r)
+        };
+        let column: reference::StateColumn = &state;
+        let theta = reference::least_squares_theta_with(
+            &model,
+            true,
+            Some(column),
+            &records(&dir, split.fit),
+        );
+        let reference =
+            reference::nmse_on_with(&model, &theta, Some(column), &records(&dir, split.held));
+        let ratio = mean(&ours) / mean(&reference);
+        println!(
+            "| {} | `{name}` | {} | {} | **{ratio:.2}** |",
+            split.name,
+            ours.iter()
+                .map(|e| format!("{e:.2}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            reference
+                .iter()
+                .map(|e| format!("{e:.2}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        assert!(ratio <= bound, "{name} on {}: {ratio}", split.name);
+    }
+}

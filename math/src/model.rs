@@ -38,6 +38,12 @@ pub const MODEL_NAMES: &[(&str, &str)] = &[
 /// terms: a load cell's zero error, a drive signal's DC, a preload the model does not hold.
 pub const OFFSET_SUFFIX: &str = "+offset";
 
+/// Appended to a model's name (`linear+hysteresis`), a Bouc-Wen hysteresis state beside its
+/// terms: the force `alpha z`, z integrated along the measured velocity, its yield and loop
+/// shape searched. Fitted on element tests by `forcemap identify` as `forcemap diagnose` refits
+/// a baseline with its hysteresis candidate; not a [`Model`] of terms.
+pub const HYSTERESIS_SUFFIX: &str = "+hysteresis";
+
 /// Whether `name` names a model: one of [`MODEL_NAMES`], with or without [`OFFSET_SUFFIX`] (a
 /// model that holds a constant already takes none).
 pub fn is_model_name(name: &str) -> bool {

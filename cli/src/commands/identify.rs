@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use anyhow::{Context, anyhow};
 use forcemap_math::diagnose::findings::NO_PREDICTION_PERCENT;
 use forcemap_math::identify::{Identification, Method, TrackPoint, records_drive};
-use forcemap_math::model::{IdentifiedModel, Model, ModelOptions};
+use forcemap_math::model::{HYSTERESIS_SUFFIX, IdentifiedModel, Model, ModelOptions};
 use forcemap_math::phasor::{HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
 use forcemap_math::recipe::Setup;
@@ -269,16 +269,17 @@ fn held_out_validations(
     Ok(out)
 }
 
+/// What a held-out line adds when its record is predicted no better than by zero: the fit's own
+/// misfit may look modest while the model's form fails on a record unlike the fitted ones.
+pub(super) fn no_better_than_zero(nmse_percent: f64) -> &'static str {
+    if nmse_percent >= NO_PREDICTION_PERCENT {
+        " (no better than predicting zero: the model's form fails on this record; `forcemap diagnose` names what it misses)"
+    } else {
+        ""
+    }
+}
+
 fn print_held_out(held: &[HeldOut]) {
-    // A held-out record predicted no better than by zero: the fit's own misfit may look
-    // modest while the model's form fails on a record unlike the fitted ones.
-    let no_better_than_zero = |nmse_percent: f64| {
-        if nmse_percent >= NO_PREDICTION_PERCENT {
-            " (no better than predicting zero: the model's form fails on this record; `forcemap diagnose` names what it misses)"
-        } else {
-            ""
-        }
-    };
     for h in held {
         if let Some(s) = &h.simulated {
             println!(
@@ -332,6 +333,9 @@ pub fn data_name(files: &[std::path::PathBuf]) -> String {
 }
 
 pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
+    if let Some(base) = args.model.strip_suffix(HYSTERESIS_SUFFIX) {
+        return super::identify_hysteresis::run(args, base);
+    }
     let files = forcemap_io::input::expand_paths(&args.files)?;
     let file = data_name(&files);
     let Read {

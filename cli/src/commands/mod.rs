@@ -8,6 +8,7 @@ pub mod diagnose;
 pub mod diagnose_eval;
 pub mod element_outputs;
 pub mod identify;
+pub mod identify_hysteresis;
 mod identify_plots;
 pub mod import;
 pub mod info;
@@ -54,6 +55,10 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
                 "{:<20} the model NAME with a constant force term offset (a load cell's zero \
                  error, a drive's DC, a preload): cubic+offset",
                 format!("NAME{}", forcemap_math::model::OFFSET_SUFFIX)
+            );
+            println!(
+                "{:<20} the model NAME with a Bouc-Wen hysteresis state alpha z beside its terms                  (yield and loop shape searched; element tests, fitted as `diagnose` refits                  NAME with its hysteresis): damper+hysteresis",
+                format!("NAME{}", forcemap_math::model::HYSTERESIS_SUFFIX)
             );
             Ok(())
         }

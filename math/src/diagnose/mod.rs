@@ -75,7 +75,7 @@ pub use findings::{
     Evidence, Findings, PairEvidence, TopCandidate, Verdict, explains, significant, verdict,
 };
 pub use locate::Located;
-pub use phasor::{PhasorDiagnosis, PhasorFindings};
+pub use phasor::{PhasorDiagnosis, PhasorEffect, PhasorFindings};
 pub use ranking::{DECISIVE_STEP_CV_RATIO, STEP_TIE_CV_RATIO, held_out_tie};
 use ranking::{keep_best_member, pair_shown_by_steps, step_tie_break};
 use results::parameter_values;

@@ -121,6 +121,13 @@ impl PhasorDiagnosis {
         }
     }
 
+    /// The diagnosis with only those of its candidates that are among `effects` (the model with
+    /// one named effect fitted, as `identify` of `NAME+hysteresis` does).
+    pub fn with_effects(mut self, effects: &[Effect]) -> PhasorDiagnosis {
+        self.effects.retain(|e| effects.contains(e));
+        self
+    }
+
     /// Adds (or replaces, by step number) one step's analysis.
     pub fn push(&mut self, analysis: HarmonicAnalysis) {
         match self.analyses.iter_mut().find(|a| a.step == analysis.step) {

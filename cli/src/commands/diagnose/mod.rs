@@ -16,6 +16,8 @@ mod phasor_only;
 mod plots;
 mod time_domain;
 
+pub(crate) use phasor_only::{Fitted, fit_element_steps};
+
 use crate::cli::DiagnoseArgs;
 use crate::report::{HtmlReport, model_with_effect_text, parameters_text};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
@@ -32,11 +34,11 @@ pub const DEMO_SNR_DB: f64 = 40.0;
 const PAPER_LINEAR_NMSE: [f64; 2] = [11.0, 17.2];
 const PAPER_COULOMB_NMSE: [f64; 2] = [4.0, 6.5];
 
-struct Data {
-    records: Vec<Record>,
-    validation: Vec<Record>,
-    setup: Setup,
-    source: String,
+pub(crate) struct Data {
+    pub records: Vec<Record>,
+    pub validation: Vec<Record>,
+    pub setup: Setup,
+    pub source: String,
 }
 
 fn load(args: &DiagnoseArgs, files: &[PathBuf], mut import: Loaded) -> anyhow::Result<Data> {

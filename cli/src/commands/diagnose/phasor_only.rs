@@ -109,15 +109,24 @@ fn held_out(f: &PhasorFindings, records: &[&Record]) -> anyhow::Result<Vec<HeldO
         .collect()
 }
 
-/// `simulated`: records whose motion the model can simulate (a base-excited rig's own records
-/// when `data` are their element view, a force-driven element test's); the baseline and the
-/// named effect are then refitted by output error on them ([`super::output_error_refits`]).
-pub(super) fn run(
-    args: &DiagnoseArgs,
-    data: &Data,
+/// What the element diagnosis fitted: its findings, the setup they were fitted with (the moving
+/// mass held where the baseline identified it first), the note saying so, and the records of
+/// the data it holds out (sweeps and band-random records among steps, and `--validate`'s).
+pub(crate) struct Fitted<'a> {
+    pub findings: PhasorFindings,
+    pub setup: Setup,
+    pub note: Option<String>,
+    pub held_out: Vec<&'a Record>,
+}
+
+/// The element diagnosis of `data` against `baseline`, with every candidate or only `effects`:
+/// sine steps and multisine records fitted (sweeps and band-random records held out), or, with
+/// neither, the records fitted on their samples.
+pub(crate) fn fit_element_steps<'a>(
+    data: &'a Data,
     baseline: &Model,
-    simulated: Option<&super::output_error_refits::SimulatedRecords>,
-) -> anyhow::Result<()> {
+    effects: Option<&[forcemap_math::diagnose::Effect]>,
+) -> anyhow::Result<Fitted<'a>> {
     let source = data.source.as_str();
     // Sine steps and multisine records are fitted; sweep and band-random records, in the data
     // or in --validate, are held out. Data with neither are fitted on their records' samples.
@@ -151,6 +160,9 @@ pub(super) fn run(
         (data.setup.clone(), None)
     };
     let mut live = PhasorDiagnosis::new(setup.clone(), baseline.clone());
+    if let Some(effects) = effects {
+        live = live.with_effects(effects);
+    }
     for r in fitted
         .iter()
         .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
@@ -173,6 +185,30 @@ pub(super) fn run(
     let f = live
         .findings()
         .with_context(|| format!("{source}: diagnosing a {} setup", setup.kind()))?;
+    Ok(Fitted {
+        findings: f,
+        setup,
+        note,
+        held_out: heldout_records,
+    })
+}
+
+/// `simulated`: records whose motion the model can simulate (a base-excited rig's own records
+/// when `data` are their element view, a force-driven element test's); the baseline and the
+/// named effect are then refitted by output error on them ([`super::output_error_refits`]).
+pub(super) fn run(
+    args: &DiagnoseArgs,
+    data: &Data,
+    baseline: &Model,
+    simulated: Option<&super::output_error_refits::SimulatedRecords>,
+) -> anyhow::Result<()> {
+    let source = data.source.as_str();
+    let Fitted {
+        findings: f,
+        setup,
+        note,
+        held_out: heldout_records,
+    } = fit_element_steps(data, baseline, None)?;
     let held =
         held_out(&f, &heldout_records).with_context(|| format!("{source}: held-out records"))?;
     let refits = match simulated {
