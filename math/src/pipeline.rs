@@ -22,7 +22,10 @@ pub use broadband::{
     SWEEP_TRANSIENT_WINDOWS, analyse_sweep_records, identify_element_sample_records,
     identify_random_records, multisine_too_short, sample_records,
 };
-pub use element::{ElementValidation, ForcedValidation, validate_element, validate_forced_element};
+pub use element::{
+    ElementValidation, ForcedValidation, validate_element, validate_element_fit,
+    validate_forced_element,
+};
 pub use estimator_choice::{MIN_CROSS_VALIDATION_STEPS, choose_estimator};
 
 #[derive(Debug, Error)]

@@ -27,6 +27,40 @@ fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
 }
 
+/// The dyno's linear element of the random-stroke tests: 20 kN/m and 1500 N s/m.
+fn linear_dyno_element() -> TruthElement {
+    TruthElement {
+        stiffness_n_per_m: 2.0e4,
+        damping_n_s_per_m: 1500.0,
+        ..TruthElement::default()
+    }
+}
+
+/// `element` behind a 0.8 kg fixture driven by three band-random strokes (0.5-8 Hz, 10 mm RMS,
+/// 5000 samples at 500 Hz each), seed 4, at `snr_db`.
+fn dyno_random_strokes(element: TruthElement, snr_db: Option<f64>) -> Vec<Record> {
+    let step = StepSpec::Random {
+        low_hz: 0.5,
+        high_hz: 8.0,
+        rms: 0.01,
+        components: 40,
+    };
+    RunSpec {
+        seed: 4,
+        snr_db,
+        ..RunSpec::element_test(
+            ElementDrive::Displacement,
+            0.8,
+            element,
+            vec![step; 3],
+            500.0,
+            5000,
+        )
+    }
+    .simulate()
+    .unwrap()
+}
+
 /// RMS error [m] of a simulated displacement against the record's measured one.
 fn prediction_rms_m(model: &Model, theta: &[f64], record: &Record) -> f64 {
     let x = record.channel(Channel::RelativeDisplacementM).unwrap();
@@ -137,30 +171,7 @@ fn a_force_driven_duffing_oscillator_is_identified_from_one_period_multisines() 
 /// it finds k and c within 0.1 % (the derivatives are band-limited to 4 times the band).
 #[test]
 fn a_displacement_driven_element_on_random_strokes_is_the_force_least_squares() {
-    let element = TruthElement {
-        stiffness_n_per_m: 2.0e4,
-        damping_n_s_per_m: 1500.0,
-        ..TruthElement::default()
-    };
-    let step = StepSpec::Random {
-        low_hz: 0.5,
-        high_hz: 8.0,
-        rms: 0.01,
-        components: 40,
-    };
-    let records = RunSpec {
-        seed: 4,
-        ..RunSpec::element_test(
-            ElementDrive::Displacement,
-            0.8,
-            element,
-            vec![step; 3],
-            500.0,
-            5000,
-        )
-    }
-    .simulate()
-    .unwrap();
+    let records = dyno_random_strokes(linear_dyno_element(), None);
     let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
     let setup = Setup::Element {
         moving_mass_kg: Some(0.8),
@@ -203,17 +214,7 @@ fn a_displacement_driven_element_on_random_strokes_is_the_force_least_squares() 
 /// `identify` says the form may not describe the data.
 #[test]
 fn a_force_fitted_along_the_motion_is_compared_with_its_noise() {
-    let step = StepSpec::Random {
-        low_hz: 0.5,
-        high_hz: 8.0,
-        rms: 0.01,
-        components: 40,
-    };
-    let linear = TruthElement {
-        stiffness_n_per_m: 2.0e4,
-        damping_n_s_per_m: 1500.0,
-        ..TruthElement::default()
-    };
+    let linear = linear_dyno_element();
     let hysteretic = TruthElement {
         bouc_wen: Some(forcemap_math::signal::bouc_wen::BoucWen {
             alpha_n_per_m: 5.0e4,
@@ -226,20 +227,7 @@ fn a_force_fitted_along_the_motion_is_compared_with_its_noise() {
     };
     let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
     let misfit = |element: TruthElement| {
-        let records = RunSpec {
-            seed: 4,
-            snr_db: Some(40.0),
-            ..RunSpec::element_test(
-                ElementDrive::Displacement,
-                0.8,
-                element,
-                vec![step.clone(); 3],
-                500.0,
-                5000,
-            )
-        }
-        .simulate()
-        .unwrap();
+        let records = dyno_random_strokes(element, Some(40.0));
         let id = identify_records(
             &model,
             &Setup::Element {

@@ -14,9 +14,8 @@
 use anyhow::{Context, bail};
 use forcemap_math::diagnose::PhasorEffect;
 use forcemap_math::diagnose::{Effect, ParameterValue};
-use forcemap_math::measured_state::MeasuredState;
 use forcemap_math::model::{HYSTERESIS_SUFFIX, Model, ModelOptions};
-use forcemap_math::pipeline::nmse_percent;
+use forcemap_math::pipeline::validate_element_fit;
 use forcemap_math::recipe::SetupKind;
 use forcemap_math::sim::ElementDrive;
 use serde_json::json;
@@ -26,7 +25,6 @@ use super::identify::{
     check_frequency_tolerance, data_name, held_out_records, no_better_than_zero,
 };
 use crate::cli::IdentifyArgs;
-use forcemap_io::params::{Params, read_params};
 use forcemap_io::steps::unlabelled::frequencies_from_data;
 
 /// One held-out record's force predicted by the model with its hysteresis.
@@ -87,19 +85,13 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
     ) {
         eprintln!("warning: {file}: {w}");
     }
-    let params = match &args.params {
-        Some(p) => read_params(p, None)?,
-        None => Params::new(),
-    };
-    let setup = super::resolve_setup(
+    let setup = super::setup_of(
         import.kind,
         args.mass_kg,
-        &params,
         args.params.as_deref(),
         &import.parameters,
         &file,
-    )?
-    .setup()?;
+    )?;
     let data = Data {
         records: import.records,
         validation: Vec::new(),
@@ -127,20 +119,13 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
             SetupKind::Element,
             args.frequency_tolerance,
         )? {
-            let state = MeasuredState::of(&r)
-                .with_context(|| format!("{shown}: record {}: its measured state", r.step))?;
-            let measured = &state.force_n[state.scored.clone()];
-            let predicted = state.predicted_force(&fit);
-            let squares: f64 = measured
-                .iter()
-                .zip(&predicted)
-                .map(|(m, p)| (m - p) * (m - p))
-                .sum();
+            let v = validate_element_fit(&fit, &r)
+                .with_context(|| format!("{shown}: record {}", r.step))?;
             held_out.push(HeldOut {
                 file: shown.clone(),
                 step: r.step,
-                nmse_percent: nmse_percent(measured, &predicted),
-                rms_error_n: (squares / measured.len().max(1) as f64).sqrt(),
+                nmse_percent: v.nmse_percent,
+                rms_error_n: v.rms_error_n,
             });
         }
     }

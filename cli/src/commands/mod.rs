@@ -19,7 +19,7 @@ pub mod simulate;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use forcemap_io::params::Params;
+use forcemap_io::params::{Params, read_params};
 use forcemap_io::rig_constants;
 use forcemap_math::recipe::{RecipeError, SetupConstants, SetupKind, SetupSpec};
 
@@ -57,7 +57,9 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
                 format!("NAME{}", forcemap_math::model::OFFSET_SUFFIX)
             );
             println!(
-                "{:<20} the model NAME with a Bouc-Wen hysteresis state alpha z beside its terms                  (yield and loop shape searched; element tests, fitted as `diagnose` refits                  NAME with its hysteresis): damper+hysteresis",
+                "{:<20} the model NAME with a Bouc-Wen hysteresis state alpha z beside its terms \
+                 (yield and loop shape searched; element tests, fitted as `diagnose` refits \
+                 NAME with its hysteresis): damper+hysteresis",
                 format!("NAME{}", forcemap_math::model::HYSTERESIS_SUFFIX)
             );
             Ok(())
@@ -91,6 +93,21 @@ pub fn resolve_setup(
         RecipeError::BadMass(_) => anyhow::anyhow!(e),
         e => anyhow::anyhow!("{file}: {e} ({params_source})"),
     })
+}
+
+/// [`resolve_setup`] with the `--params` file read: the setup of data of `kind` in `file`.
+pub fn setup_of(
+    kind: SetupKind,
+    mass_kg_flag: Option<f64>,
+    params_file: Option<&Path>,
+    carried: &BTreeMap<String, f64>,
+    file: &str,
+) -> anyhow::Result<forcemap_math::recipe::Setup> {
+    let params = match params_file {
+        Some(p) => read_params(p, None)?,
+        None => Params::new(),
+    };
+    Ok(resolve_setup(kind, mass_kg_flag, &params, params_file, carried, file)?.setup()?)
 }
 
 /// A spinner on stderr for long work (hidden when stderr is not a terminal).

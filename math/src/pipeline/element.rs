@@ -34,25 +34,24 @@ pub fn validate_element(
     moving_mass_kg: f64,
     record: &Record,
 ) -> Result<ElementValidation, PipelineError> {
-    let state = MeasuredState::of(record)?;
     let fit = TermFit {
         terms: model.model.terms.clone(),
         theta: model.theta.clone(),
         mass_kg: moving_mass_kg,
         hysteresis: None,
     };
-    let s = state.scored.clone();
-    let predicted: Vec<f64> = s
-        .clone()
-        .map(|i| {
-            fit.force(
-                state.displacement_m[i],
-                state.velocity_mps[i],
-                state.acceleration_mps2[i],
-            )
-        })
-        .collect();
-    let measured = &state.force_n[s];
+    validate_element_fit(&fit, record)
+}
+
+/// [`validate_element`] of an element force as fitted ([`TermFit`]: terms, moving mass and a
+/// hysteresis state where it has one).
+pub fn validate_element_fit(
+    fit: &TermFit,
+    record: &Record,
+) -> Result<ElementValidation, PipelineError> {
+    let state = MeasuredState::of(record)?;
+    let predicted = state.predicted_force(fit);
+    let measured = &state.force_n[state.scored.clone()];
     let sse: f64 = measured
         .iter()
         .zip(&predicted)

@@ -22,7 +22,6 @@ use crate::cli::DiagnoseArgs;
 use crate::report::{HtmlReport, model_with_effect_text, parameters_text};
 use forcemap_io::atomic::{write_atomically, write_dir_atomically};
 use forcemap_io::input::{Loaded, Measured};
-use forcemap_io::params::{Params, read_params};
 use forcemap_io::steps::unlabelled::frequencies_from_data;
 use forcemap_math::recipe::SetupKind;
 use plots::{svg_harmonics, svg_heldout, svg_state_plane};
@@ -57,19 +56,13 @@ fn load(args: &DiagnoseArgs, files: &[PathBuf], mut import: Loaded) -> anyhow::R
             import.kind
         );
     }
-    let params = match &args.params {
-        Some(p) => read_params(p, None)?,
-        None => Params::new(),
-    };
-    let setup = super::resolve_setup(
+    let setup = super::setup_of(
         import.kind,
         args.mass_kg,
-        &params,
         args.params.as_deref(),
         &import.parameters,
         &file,
-    )?
-    .setup()?;
+    )?;
     let validation = if args.validate.is_empty() {
         Vec::new()
     } else {
