@@ -26,7 +26,7 @@ pub use element::{
     ElementValidation, ForcedValidation, validate_element, validate_element_fit,
     validate_forced_element,
 };
-pub use estimator_choice::{MIN_CROSS_VALIDATION_STEPS, choose_estimator};
+pub use estimator_choice::{CHOICE_MARGIN, MIN_CROSS_VALIDATION_STEPS, choose_estimator};
 
 #[derive(Debug, Error)]
 pub enum PipelineError {

@@ -166,9 +166,9 @@ fn coulomb_friction_fitted_on_dyno_steps_predicts_a_sweep() {
 }
 
 /// The hysteresis is a state, not a term: the held-out record's is integrated along its own
-/// measured velocity from rest. Measured 5.013 % -> 0.046 % against the truth's 0.031 % (the
+/// measured velocity from rest. Measured 5.013 % -> 0.024 % against the truth's 0.020 % (the
 /// yield and the loop's shape are searched; the bound is twice the truth's). The model with the
-/// hysteresis (what `identify --model linear+hysteresis` reports): c 1749.7 N s/m (truth 1750),
+/// hysteresis fitted on the rebuilt periods: c 1749.7 N s/m (truth 1750),
 /// alpha 1.242e5 N/m (1.2e5), yield 2.379 mm (2.5), k 2483 N/m (2000: the spring is 2 % of the
 /// force and trades with the loop's pre-yield slope, which the rebuilt periods see least, their
 /// samples near a reversal being left out).

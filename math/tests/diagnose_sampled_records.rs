@@ -15,7 +15,6 @@ use forcemap_math::measured_state::MeasuredState;
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::recipe::Setup;
 use forcemap_math::record::{Channel, Excitation, Record};
-use forcemap_math::signal::bouc_wen::HysteresisLaw;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
@@ -55,9 +54,7 @@ fn record(truth: Truth, step: usize) -> Record {
         })
     };
     let states: Vec<[f64; 3]> = (0..SAMPLES).map(|i| motion(i as f64 / FS_HZ)).collect();
-    let velocity: Vec<f64> = states.iter().map(|s| s[1]).collect();
-    let law = HysteresisLaw::yield_law(0.0025);
-    let z = law.integrate_record(&velocity, 1.0 / FS_HZ);
+    let z = truth_hysteresis_state(|t| motion(t)[1], 0.0025);
     let clean: Vec<f64> = states
         .iter()
         .zip(&z)
@@ -87,6 +84,32 @@ fn record(truth: Truth, step: usize) -> Record {
             ),
         ],
     }
+}
+
+/// The one-parameter Bouc-Wen state (yield `yield_m`) along the exact velocity `v(t)` at each
+/// sample, from z = 0: RK4 in time, 32 sub-steps per sample (independent of the
+/// diagnosis' own integration along the sampled velocity).
+fn truth_hysteresis_state(v: impl Fn(f64) -> f64, yield_m: f64) -> Vec<f64> {
+    let rate = |z: f64, t: f64| {
+        let v = v(t);
+        v - (v.abs() * z + v * z.abs()) / (2.0 * yield_m)
+    };
+    let h = 1.0 / (32.0 * FS_HZ);
+    let mut z = 0.0;
+    (0..SAMPLES)
+        .map(|i| {
+            let at_sample = z;
+            for k in 0..32 {
+                let t = i as f64 / FS_HZ + k as f64 * h;
+                let k1 = rate(z, t);
+                let k2 = rate(z + 0.5 * h * k1, t + 0.5 * h);
+                let k3 = rate(z + 0.5 * h * k2, t + 0.5 * h);
+                let k4 = rate(z + h * k3, t + h);
+                z += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+            }
+            at_sample
+        })
+        .collect()
 }
 
 /// Diagnoses `linear` on three records of `truth`; returns the findings and the held-out

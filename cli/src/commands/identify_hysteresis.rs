@@ -5,11 +5,15 @@
 //! by least squares on every step. Held-out records (`--validate`) are predicted along their
 //! measured motion with the state integrated from rest.
 //!
-//! Sine steps are fitted on one rebuilt period each (the diagnosis' fit). Their samples could
-//! be fitted too (the least squares along the measured motion); that waits for the state's
-//! integration: one forward-Euler step per sample, accurate at 1 kHz, is not at the 200 Hz of
-//! some damper tests (the UTFSM damper fitted so predicts its held-out tests at 6.81 / 2.83 %,
-//! against 3.45 / 2.22 % with the same law integrated by RK4 and 2.94 / 1.92 % by periods).
+//! Sine steps are fitted either on one rebuilt period each (the diagnosis' fit, each test
+//! counted once) or on their samples (the least squares of the force along the measured
+//! motion, each test counted by its length), chosen as `identify` chooses between fd-multi and
+//! the time-domain least squares for a model of terms
+//! ([`forcemap_math::pipeline::choose_estimator`]): each step left out in turn, both fitted
+//! to the others and the left-out step's force predicted along its measured motion; the
+//! samples where their mean NMSE is lower by more than the same margin, the periods otherwise;
+//! with fewer steps than that choice needs, the samples (their criterion is the force error a
+//! held-out test is scored by).
 
 use anyhow::{Context, bail};
 use forcemap_math::diagnose::PhasorEffect;
@@ -20,12 +24,15 @@ use forcemap_math::recipe::SetupKind;
 use forcemap_math::sim::ElementDrive;
 use serde_json::json;
 
-use super::diagnose::{Data, Fitted, fit_element_steps};
+use super::diagnose::{Data, ElementFit, Fitted, PeriodicFit, fit_element_steps};
 use super::identify::{
     check_frequency_tolerance, data_name, held_out_records, no_better_than_zero,
 };
 use crate::cli::IdentifyArgs;
 use forcemap_io::steps::unlabelled::frequencies_from_data;
+use forcemap_math::measured_state::MeasuredState;
+use forcemap_math::pipeline::{CHOICE_MARGIN, MIN_CROSS_VALIDATION_STEPS};
+use forcemap_math::record::{Excitation, Record};
 
 /// One held-out record's force predicted by the model with its hysteresis.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -98,8 +105,10 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
         setup,
         source: file.clone(),
     };
-    let (h, findings, note) =
-        fit(&data, &baseline).with_context(|| format!("{file}: fitting model {name}"))?;
+    let (fitted_on, choice) =
+        choose_fit(&data, &baseline).with_context(|| format!("{file}: fitting model {name}"))?;
+    let (h, findings, note) = fit(&data, &baseline, fitted_on)
+        .with_context(|| format!("{file}: fitting model {name}"))?;
     let fit = h
         .fit
         .clone()
@@ -141,6 +150,8 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
                 "cv_percent": h.cv_percent,
                 "baseline_cv_percent": f.gap_before_percent,
                 "floor_percent": f.floor_percent,
+                "fitted_on": fitted_on.name(),
+                "fit_choice": choice,
                 "notes": note.iter().collect::<Vec<_>>(),
                 "held_out": held_out,
             })
@@ -164,6 +175,9 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
         "cross-validated force error {:.2} % ({base} alone: {:.2} %; the force noise alone: {:.2} %)",
         h.cv_percent, f.gap_before_percent, f.floor_percent
     );
+    if let Some(c) = &choice {
+        println!("fitted on: {c}");
+    }
     if let Some(n) = &note {
         println!("note: {n}");
     }
@@ -180,18 +194,107 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The hysteresis candidate of `baseline` on `data`, with the findings it ranks in and the
-/// note of a moving mass held.
+/// What the sine steps of `data` are fitted on, and the line saying why (None when the data
+/// hold no sine step: records with no steps are fitted on their samples).
+fn choose_fit(data: &Data, baseline: &Model) -> anyhow::Result<(PeriodicFit, Option<String>)> {
+    let sine_steps: Vec<&Record> = data
+        .records
+        .iter()
+        .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
+        .collect();
+    if sine_steps.is_empty() {
+        return Ok((PeriodicFit::Periods, None));
+    }
+    if sine_steps.len() < MIN_CROSS_VALIDATION_STEPS {
+        return Ok((
+            PeriodicFit::Samples,
+            Some(format!(
+                "the samples of every sine step ({} steps are too few to choose by leaving one out, at least {MIN_CROSS_VALIDATION_STEPS}: the least squares of the force along the measured motion, whose criterion is the force error itself)",
+                sine_steps.len()
+            )),
+        ));
+    }
+    let pb = super::progress_spinner();
+    let score = |on: PeriodicFit| -> anyhow::Result<f64> {
+        let mut sum = 0.0;
+        for (i, left_out) in sine_steps.iter().enumerate() {
+            pb.set_message(format!(
+                "choosing the fit: {} without step {} ({} of {})",
+                on.name(),
+                left_out.step,
+                i + 1,
+                sine_steps.len()
+            ));
+            let rest = Data {
+                records: data
+                    .records
+                    .iter()
+                    .filter(|r| r.step != left_out.step)
+                    .cloned()
+                    .collect(),
+                validation: Vec::new(),
+                setup: data.setup.clone(),
+                source: data.source.clone(),
+            };
+            let (h, _, _) = fit(&rest, baseline, on)
+                .with_context(|| format!("leaving step {} out", left_out.step))?;
+            let f = h.fit.with_context(|| {
+                format!(
+                    "leaving step {} out: the fit holds no element force",
+                    left_out.step
+                )
+            })?;
+            let state = MeasuredState::of(left_out)
+                .with_context(|| format!("step {}'s measured state", left_out.step))?;
+            sum += state.force_nmse_percent(&f);
+        }
+        Ok(sum / sine_steps.len() as f64)
+    };
+    let periods = score(PeriodicFit::Periods)?;
+    let samples = score(PeriodicFit::Samples)?;
+    pb.finish_and_clear();
+    let scores = format!(
+        "mean NMSE of each of {} steps' force predicted by the fit to the others: periods {periods:.2} %, samples {samples:.2} %",
+        sine_steps.len()
+    );
+    Ok(if samples < (1.0 - CHOICE_MARGIN) * periods {
+        (
+            PeriodicFit::Samples,
+            Some(format!(
+                "the samples of every sine step, which predict left-out steps best ({scores})"
+            )),
+        )
+    } else {
+        (
+            PeriodicFit::Periods,
+            Some(format!(
+                "one rebuilt period of each sine step, which predicts left-out steps within {:.0} % of the samples or better ({scores})",
+                100.0 * CHOICE_MARGIN
+            )),
+        )
+    })
+}
+
+/// The hysteresis candidate of `baseline` on `data`, its sine steps fitted on `periodic_fit`,
+/// with the findings it ranks in and the note of a moving mass held.
 fn fit(
     data: &Data,
     baseline: &Model,
+    periodic_fit: PeriodicFit,
 ) -> anyhow::Result<(
     PhasorEffect,
     forcemap_math::diagnose::PhasorFindings,
     Option<String>,
 )> {
-    let Fitted { findings, note, .. } =
-        fit_element_steps(data, baseline, Some(&[Effect::Hysteresis]))?;
+    let Fitted { findings, note, .. } = fit_element_steps(
+        data,
+        baseline,
+        Some(&[Effect::Hysteresis]),
+        ElementFit {
+            periodic: periodic_fit,
+            pooled_record_noise: true,
+        },
+    )?;
     let Some(h) = findings
         .ranked_effects
         .iter()

@@ -156,6 +156,13 @@ impl PhasorDiagnosis {
         }
     }
 
+    /// Scales every record's rows by the noise pooled over the records
+    /// ([`super::sampled_records::pool_row_noise`]), in place of each record's own: call it
+    /// once every record is in.
+    pub fn pool_record_noise(&mut self) {
+        super::sampled_records::pool_row_noise(&mut self.records);
+    }
+
     /// Steps so far: sine steps, multisine records and records with no steps.
     pub fn steps(&self) -> usize {
         self.analyses.len() + self.multisines.len() + self.records.len()

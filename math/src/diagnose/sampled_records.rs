@@ -68,6 +68,9 @@ pub struct SampledRecord {
     pub state: MeasuredState,
     /// The measured force's noise std [N].
     pub force_noise_n: f64,
+    /// The noise std the rows are scaled by [N]: the record's own ([`Self::new`]), or one
+    /// shared by every record ([`pool_row_noise`]).
+    pub row_noise_n: f64,
     /// The largest displacement from its mean [m] and velocity [m/s] over the scored samples.
     pub max_displacement_m: f64,
     pub max_velocity_mps: f64,
@@ -83,12 +86,14 @@ impl SampledRecord {
         let peak = |y: &mut dyn Iterator<Item = f64>| y.fold(0.0f64, |m, v| m.max(v.abs()));
         let max_displacement_m = peak(&mut x.iter().map(|v| v - mean));
         let max_velocity_mps = peak(&mut state.velocity_mps[scored].iter().copied());
+        let force_noise_n = noise_std(
+            &state.force_n,
+            state.sample_rate_hz,
+            CUTOFF_MULTIPLE * state.top_frequency_hz,
+        );
         Ok(SampledRecord {
-            force_noise_n: noise_std(
-                &state.force_n,
-                state.sample_rate_hz,
-                CUTOFF_MULTIPLE * state.top_frequency_hz,
-            ),
+            force_noise_n,
+            row_noise_n: force_noise_n,
             max_displacement_m,
             max_velocity_mps,
             state,
@@ -142,10 +147,33 @@ impl SampledRecord {
             b.term_rms
                 .push((z.iter().map(|v| v * v).sum::<f64>() / z.len() as f64).sqrt());
         }
-        let w = 1.0 / (std::f64::consts::SQRT_2 * self.force_noise_n);
+        let w = 1.0 / (std::f64::consts::SQRT_2 * self.row_noise_n);
         b.a *= w;
         b.b *= w;
         Ok(b)
+    }
+}
+
+/// Every record's rows scaled by one noise std, the pooled one (the root of the noise
+/// variances averaged over the scored samples): each sample then weighs alike, as in the plain
+/// least squares of the force, and the noise the rows hold summed over every record is still
+/// that of a variance of 1/2 per row, so the cross-validated noise floor stays the force
+/// noise's. An identification of a model whose form is not the element's fits so: weighted by
+/// their own noise, the records whose force is quietest decide the fit whatever their form
+/// error.
+pub fn pool_row_noise(records: &mut [SampledRecord]) {
+    let (mut variance_sum, mut rows) = (0.0, 0usize);
+    for r in records.iter() {
+        let n = r.state.scored.len();
+        variance_sum += n as f64 * r.force_noise_n * r.force_noise_n;
+        rows += n;
+    }
+    if rows == 0 {
+        return;
+    }
+    let pooled = (variance_sum / rows as f64).sqrt();
+    for r in records {
+        r.row_noise_n = pooled;
     }
 }
 

@@ -16,7 +16,7 @@ mod phasor_only;
 mod plots;
 mod time_domain;
 
-pub(crate) use phasor_only::{Fitted, fit_element_steps};
+pub(crate) use phasor_only::{ElementFit, Fitted, PeriodicFit, fit_element_steps};
 
 use crate::cli::DiagnoseArgs;
 use crate::report::{HtmlReport, model_with_effect_text, parameters_text};

@@ -119,13 +119,51 @@ pub(crate) struct Fitted<'a> {
     pub held_out: Vec<&'a Record>,
 }
 
+/// What the element diagnosis fits its periodic records (sine steps, multisine records) on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum PeriodicFit {
+    /// One rebuilt period of each sine step and a multisine's lines (the diagnosis' own).
+    Periods,
+    /// Every record's samples, as records with no steps are fitted.
+    Samples,
+}
+
+impl PeriodicFit {
+    pub fn name(self) -> &'static str {
+        match self {
+            PeriodicFit::Periods => "periods",
+            PeriodicFit::Samples => "samples",
+        }
+    }
+}
+
+/// How the element diagnosis fits: its periodic records on periods or samples, and the rows of
+/// records fitted on their samples scaled by each record's noise (the diagnosis, which reads
+/// residuals in units of the noise) or by the noise pooled over the records (an
+/// identification, [`forcemap_math::diagnose::sampled_records::pool_row_noise`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct ElementFit {
+    pub periodic: PeriodicFit,
+    pub pooled_record_noise: bool,
+}
+
+impl ElementFit {
+    /// The diagnosis' own.
+    pub const DIAGNOSIS: ElementFit = ElementFit {
+        periodic: PeriodicFit::Periods,
+        pooled_record_noise: false,
+    };
+}
+
 /// The element diagnosis of `data` against `baseline`, with every candidate or only `effects`:
-/// sine steps and multisine records fitted (sweeps and band-random records held out), or, with
-/// neither, the records fitted on their samples.
+/// sine steps and multisine records fitted (sweeps and band-random records held out), on their
+/// periods or their samples as `how` says, or, with neither, the records fitted on their
+/// samples.
 pub(crate) fn fit_element_steps<'a>(
     data: &'a Data,
     baseline: &Model,
     effects: Option<&[forcemap_math::diagnose::Effect]>,
+    how: ElementFit,
 ) -> anyhow::Result<Fitted<'a>> {
     let source = data.source.as_str();
     // Sine steps and multisine records are fitted; sweep and band-random records, in the data
@@ -136,12 +174,17 @@ pub(crate) fn fit_element_steps<'a>(
         Excitation::Multisine { .. } => !multisine_too_short(r, &multisine_options),
         _ => false,
     };
-    let by_samples = !data.records.iter().any(periodic)
-        && !sample_records(&data.records, &multisine_options).is_empty();
+    let has_periodic = data.records.iter().any(periodic);
+    let by_samples = if has_periodic {
+        how.periodic == PeriodicFit::Samples
+    } else {
+        !sample_records(&data.records, &multisine_options).is_empty()
+    };
     let (fitted, in_data): (Vec<&Record>, Vec<&Record>) =
         data.records.iter().partition(|r| match r.excitation {
             Excitation::Sine { .. } | Excitation::Multisine { .. } => true,
-            Excitation::Random { .. } => by_samples,
+            // Held out among periodic records however these are fitted.
+            Excitation::Random { .. } => by_samples && !has_periodic,
             Excitation::Sweep { .. } => false,
         });
     let fitted: Vec<Record> = fitted.into_iter().cloned().collect();
@@ -165,7 +208,7 @@ pub(crate) fn fit_element_steps<'a>(
     }
     for r in fitted
         .iter()
-        .filter(|r| matches!(r.excitation, Excitation::Sine { .. }))
+        .filter(|r| !by_samples && matches!(r.excitation, Excitation::Sine { .. }))
     {
         live.push(
             analyse_record(r, &PhasorOptions::for_identification())
@@ -180,6 +223,9 @@ pub(crate) fn fit_element_steps<'a>(
             live.push_record(
                 SampledRecord::new(r).with_context(|| format!("{source}: record {}", r.step))?,
             );
+        }
+        if how.pooled_record_noise {
+            live.pool_record_noise();
         }
     }
     let f = live
@@ -208,7 +254,7 @@ pub(super) fn run(
         setup,
         note,
         held_out: heldout_records,
-    } = fit_element_steps(data, baseline, None)?;
+    } = fit_element_steps(data, baseline, None, ElementFit::DIAGNOSIS)?;
     let held =
         held_out(&f, &heldout_records).with_context(|| format!("{source}: held-out records"))?;
     let refits = match simulated {
