@@ -62,7 +62,7 @@ fn a_hysteresis_model_is_listed_and_refused_where_it_is_not_fitted() {
         e.contains("is fitted on element tests") && e.contains("a rig setup"),
         "{e}"
     );
-    // An option it does not take is named.
+    // An option it does not take is named, and nothing is written.
     let map = arts("map.yaml");
     let plots = dir.path().join("plots");
     let o = common::forcemap(&[
@@ -73,13 +73,15 @@ fn a_hysteresis_model_is_listed_and_refused_where_it_is_not_fitted() {
         &map,
         "--model",
         "linear+hysteresis",
+        "--forgetting-per-step",
+        "0.9",
         "--plot",
         plots.to_str().unwrap(),
     ]);
     assert!(!o.status.success());
     let e = common::stderr(&o);
     assert!(
-        e.contains("--plot is not available with a hysteresis state"),
+        e.contains("--forgetting-per-step is not available with a hysteresis state"),
         "{e}"
     );
     assert!(!plots.exists());
@@ -132,6 +134,7 @@ fn the_damper_dyno_with_a_loop_is_identified_to_its_truth() {
         let o = common::forcemap(&args);
         assert!(o.status.success(), "{}", common::stderr(&o));
     }
+    let plots = dir.path().join("plots");
     let o = common::forcemap(&[
         "identify",
         &path("steps.csv"),
@@ -140,6 +143,8 @@ fn the_damper_dyno_with_a_loop_is_identified_to_its_truth() {
         "--validate",
         &path("sweep.csv"),
         "--json",
+        "--plot",
+        plots.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", common::stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -200,4 +205,14 @@ fn the_damper_dyno_with_a_loop_is_identified_to_its_truth() {
     let held = v["held_out"][0]["nmse_percent"].as_f64().unwrap();
     println!("held-out sweep: {held:.4} % (the truth: {floor:.4} %)");
     assert!(held < 1.1 * floor, "{held} against the truth's {floor}");
+    // The loops: one per fitted step and per held-out record, the held-out one titled with the
+    // NMSE reported.
+    for step in 0..12 {
+        assert!(
+            plots.join(format!("loop_step_{step}.svg")).exists(),
+            "{step}"
+        );
+    }
+    let svg = std::fs::read_to_string(plots.join("held_out_0.svg")).unwrap();
+    assert!(svg.contains(&format!("(NMSE {held:.2} %)")), "{held}");
 }

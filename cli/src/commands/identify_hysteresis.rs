@@ -28,6 +28,7 @@ use super::diagnose::{Data, ElementFit, Fitted, PeriodicFit, fit_element_steps};
 use super::identify::{
     check_frequency_tolerance, data_name, held_out_records, no_better_than_zero,
 };
+use super::identify_plots::{LoopRecord, write_loop_plots};
 use crate::cli::IdentifyArgs;
 use forcemap_io::steps::unlabelled::frequencies_from_data;
 use forcemap_math::measured_state::MeasuredState;
@@ -46,7 +47,6 @@ struct HeldOut {
 /// Refuses what this fit does not do, naming the option.
 fn check_options(args: &IdentifyArgs, name: &str) -> anyhow::Result<()> {
     let refused = [
-        (args.plot.is_some(), "--plot"),
         (args.forgetting_per_step != 1.0, "--forgetting-per-step"),
         (args.update_period_s.is_some(), "--update-period-s"),
         (args.td_points.is_some(), "--td-points"),
@@ -120,6 +120,7 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
         .cloned()
         .collect();
     let mut held_out = Vec::new();
+    let mut held_out_records_read = Vec::new();
     for path in &args.validate {
         let shown = path.display().to_string();
         for r in held_out_records(
@@ -136,7 +137,26 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
                 nmse_percent: v.nmse_percent,
                 rms_error_n: v.rms_error_n,
             });
+            held_out_records_read.push(r);
         }
+    }
+    if let Some(dir) = &args.plot {
+        let fitted = data.records.iter().map(|r| LoopRecord {
+            file_name: format!("loop_step_{}.svg", r.step),
+            caption: format!("{file} step {}", r.step),
+            record: r,
+        });
+        let held = held_out
+            .iter()
+            .zip(&held_out_records_read)
+            .enumerate()
+            .map(|(i, (h, r))| LoopRecord {
+                file_name: format!("held_out_{i}.svg"),
+                caption: format!("held out: {} record {}", h.file, h.step),
+                record: r,
+            });
+        write_loop_plots(dir, &name, &fit, &fitted.chain(held).collect::<Vec<_>>())
+            .with_context(|| format!("{file}: plotting the loops"))?;
     }
     let f = &findings.findings;
     if args.json {

@@ -1,5 +1,6 @@
 //! The plots of `forcemap identify --plot DIR`: the force-state map of the fit, the rig's
-//! validation time traces and each force-driven held-out record's simulated displacement.
+//! validation time traces, each force-driven held-out record's simulated displacement, and for
+//! a model with a hysteresis state each record's loop, measured and predicted.
 
 use anyhow::Context as _;
 use forcemap_math::identify::{Identification, rebuilt_cycle};
@@ -99,6 +100,60 @@ pub(super) fn write_held_out_plots(
             &s.simulated_m,
             "displacement [m]",
         )?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// One record's force-displacement loop for [`write_loop_plots`]: its file name in the plot
+/// directory, what the title says of it, and the record.
+pub(super) struct LoopRecord<'a> {
+    pub file_name: String,
+    pub caption: String,
+    pub record: &'a forcemap_math::record::Record,
+}
+
+/// Each record's element force against its displacement over its scored samples, measured and
+/// predicted by `fit` along the measured motion (a hysteresis state integrated from rest), with
+/// the NMSE in the title: the loop a damper engineer compares.
+pub(super) fn write_loop_plots(
+    dir: &std::path::Path,
+    model_name: &str,
+    fit: &forcemap_math::diagnose::element_heldout::TermFit,
+    records: &[LoopRecord],
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("creating the plot directory {}", dir.display()))?;
+    for r in records {
+        let state = forcemap_math::measured_state::MeasuredState::of(r.record)
+            .with_context(|| format!("{}: the measured state", r.caption))?;
+        let scored = state.scored.clone();
+        let measured = &state.force_n[scored.clone()];
+        let predicted = state.predicted_force(fit);
+        let nmse = forcemap_math::pipeline::nmse_percent(measured, &predicted);
+        let svg = plot::lines_svg(
+            &format!(
+                "{}: force against displacement, measured and predicted by {model_name} (NMSE {nmse:.2} %)",
+                r.caption
+            ),
+            &state.displacement_m[scored],
+            "displacement [m]",
+            "force [N]",
+            &[
+                plot::Line {
+                    label: "measured",
+                    values: measured,
+                    color: plotters::style::BLACK,
+                },
+                plot::Line {
+                    label: "predicted",
+                    values: &predicted,
+                    color: plot::AFTER_COLOR,
+                },
+            ],
+        )?;
+        let path = dir.join(&r.file_name);
+        forcemap_io::atomic::write_atomically(&path, &svg)?;
         eprintln!("wrote {}", path.display());
     }
     Ok(())
