@@ -31,6 +31,7 @@ use forcemap_io::input::load_files;
 use forcemap_io::steps::unlabelled::{DEFAULT_FREQUENCY_TOLERANCE, frequencies_from_data};
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::record::{Channel, Record};
+use forcemap_math::signal::bouc_wen::HysteresisLaw;
 
 /// One real set and its split into fitted and held-out files.
 struct Split {
@@ -445,13 +446,16 @@ fn hysteresis_models_against_the_least_squares_with_the_same_state() {
     // dampers' steps; the ARTS records have none), forcemap's coefficients are this least
     // squares' (every sample alike), and the two integrations of the state differ by less
     // than the bound's slack.
-    let cases: [(usize, &str, f64); 4] = [
-        (0, "damper", SAME_ESTIMATE),
-        (2, "damper", SAME_ESTIMATE),
-        (3, "damper", SAME_ESTIMATE),
-        (3, "linear", SAME_ESTIMATE),
+    // Beside the reference with its own law (`reference_with_its_own_law`), measured 1.004,
+    // 1.009, 1.458 (the earthquake history, which forcemap's fit predicts worse than zero:
+    // 112.04 against 73.47 %) and 0.970: held as the rows' bounds, so that they can only close.
+    let cases: [(usize, &str, f64, f64); 4] = [
+        (0, "damper", SAME_ESTIMATE, 1.004),
+        (2, "damper", SAME_ESTIMATE, 1.009),
+        (3, "damper", SAME_ESTIMATE, 1.459),
+        (3, "linear", SAME_ESTIMATE, 0.971),
     ];
-    for (split, base, bound) in cases {
+    for (split, base, bound, own_bound) in cases {
         let split = &SPLITS[split];
         let dir = data_dir(split.dir);
         let name = format!("{base}+hysteresis");
@@ -501,19 +505,78 @@ fn hysteresis_models_against_the_least_squares_with_the_same_state() {
         let reference =
             reference::nmse_on_with(&model, &theta, Some(column), &records(&dir, split.held));
         let ratio = mean(&ours) / mean(&reference);
-        println!(
-            "| {} | `{name}` | {} | {} | **{ratio:.2}** |",
-            split.name,
-            ours.iter()
-                .map(|e| format!("{e:.2}"))
-                .collect::<Vec<_>>()
-                .join(", "),
-            reference
-                .iter()
+        let (own_law, own) = reference_with_its_own_law(&model, &dir, split);
+        let own_ratio = mean(&ours) / mean(&own);
+        let list = |v: &[f64]| {
+            v.iter()
                 .map(|e| format!("{e:.2}"))
                 .collect::<Vec<_>>()
                 .join(", ")
+        };
+        println!(
+            "| {} | `{name}` | {} | {} | **{ratio:.2}** | {} ({own_law}) | **{own_ratio:.2}** |",
+            split.name,
+            list(&ours),
+            list(&reference),
+            list(&own),
         );
         assert!(ratio <= bound, "{name} on {}: {ratio}", split.name);
+        assert!(
+            own_ratio <= own_bound,
+            "{name} on {} against the reference's own law: {own_ratio}",
+            split.name
+        );
     }
+}
+
+/// The plain reference's own Bouc-Wen law: yields on a grid (eight, from 0.5 % to 80 % of the
+/// largest displacement from the mean among the fitted tests, geometric) and the shapes n in
+/// {1, 2}, r in {0.5, 0.85}, each fitted by the least squares of the terms, the moving mass and
+/// the state, the law whose fit leaves the lowest mean NMSE on the fitted tests kept (no
+/// held-out data, no cross-validation: what a few lines of least squares would do). The state
+/// is forcemap's integration of the law (checked against its closed forms in
+/// `signal::bouc_wen`). Returns the law, described, and its held-out NMSE per record [%].
+fn reference_with_its_own_law(model: &Model, dir: &Path, split: &Split) -> (String, Vec<f64>) {
+    let fit = records(dir, split.fit);
+    let held = records(dir, split.held);
+    let largest = fit
+        .iter()
+        .map(|r| {
+            let s = forcemap_math::measured_state::MeasuredState::of(r).unwrap();
+            let x = &s.displacement_m[s.scored.clone()];
+            let mean = x.iter().sum::<f64>() / x.len() as f64;
+            x.iter().fold(0.0f64, |m, v| m.max((v - mean).abs()))
+        })
+        .fold(0.0f64, f64::max);
+    let mut best: Option<(f64, HysteresisLaw)> = None;
+    for k in 0..8 {
+        let yield_m = largest * 0.005 * (0.8f64 / 0.005).powf(k as f64 / 7.0);
+        for (n, r) in [(1.0, 0.5), (2.0, 0.5), (1.0, 0.85), (2.0, 0.85)] {
+            let law = HysteresisLaw { yield_m, n, r };
+            let state = |s: &forcemap_math::measured_state::MeasuredState| {
+                law.integrate_record(&s.velocity_mps, 1.0 / s.sample_rate_hz)
+            };
+            let column: reference::StateColumn = &state;
+            let theta = reference::least_squares_theta_with(model, true, Some(column), &fit);
+            let in_sample = mean(&reference::nmse_on_with(model, &theta, Some(column), &fit));
+            if best.is_none_or(|(e, _)| in_sample < e) {
+                best = Some((in_sample, law));
+            }
+        }
+    }
+    let (_, law) = best.unwrap();
+    let state = |s: &forcemap_math::measured_state::MeasuredState| {
+        law.integrate_record(&s.velocity_mps, 1.0 / s.sample_rate_hz)
+    };
+    let column: reference::StateColumn = &state;
+    let theta = reference::least_squares_theta_with(model, true, Some(column), &fit);
+    (
+        format!(
+            "yield {:.3} mm, n {}, r {}",
+            1e3 * law.yield_m,
+            law.n,
+            law.r
+        ),
+        reference::nmse_on_with(model, &theta, Some(column), &held),
+    )
 }
