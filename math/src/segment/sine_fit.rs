@@ -249,16 +249,29 @@ pub(crate) fn fit_from(
     })
 }
 
-/// `(sin, cos)` of `omega (j - centre)` for the samples `j` of a stretch of `n`. The times are
-/// symmetric about the centre (`j - centre` is exactly `-(n - 1 - j - centre)`), so the first
-/// half is the second's with the sine negated: sine is odd and cosine even, and the C
-/// library's `sin_cos` is too (the test against per-sample `sin_cos` checks it bit for bit).
+/// Samples between exact `sin_cos` evaluations of a stretch's phases. In between, each phase is
+/// the one before turned by `omega` (a complex product, a few multiplications instead of a
+/// `sin_cos`): the phases differ from `sin_cos` of `omega (j - centre)` by less than 1e-14 plus
+/// the rounding of that argument itself (a few of its ulps; the test checks it), far below the
+/// noise of any drive.
+const RESYNC_SAMPLES: usize = 32;
+
+/// `(sin, cos)` of `omega (j - centre)` for the samples `j` of a stretch of `n`: exact every
+/// [`RESYNC_SAMPLES`] samples, turned by `omega` between. The times are symmetric about the
+/// centre (`j - centre` is exactly `-(n - 1 - j - centre)`), so the first half is the second's
+/// with the sine negated (sine is odd and cosine even).
 fn fill_phases(n: usize, centre: f64, omega: f64, out: &mut Vec<(f64, f64)>) {
     out.clear();
     out.resize(n, (0.0, 0.0));
     let half = n / 2;
-    for (j, p) in out.iter_mut().enumerate().skip(half) {
-        *p = (omega * (j as f64 - centre)).sin_cos();
+    let (turn_sin, turn_cos) = omega.sin_cos();
+    for (k, part) in out[half..].chunks_mut(RESYNC_SAMPLES).enumerate() {
+        let j = half + k * RESYNC_SAMPLES;
+        let (mut s, mut c) = (omega * (j as f64 - centre)).sin_cos();
+        for p in part {
+            *p = (s, c);
+            (s, c) = (s * turn_cos + c * turn_sin, c * turn_cos - s * turn_sin);
+        }
     }
     for j in 0..half {
         let (s, c) = out[n - 1 - j];
@@ -291,14 +304,14 @@ mod tests {
     use super::*;
 
     /// The fit without shared phases, the reference the shared ones are checked against: every
-    /// linear fit, cost and normal matrix computes its own `sin_cos` of every sample.
+    /// linear fit, cost and normal matrix computes its own phases of every sample.
     fn reference_fit(x: &[f64], omega0: f64, max_iterations: usize) -> Option<[f64; 6]> {
         let n = x.len();
         let centre = (n as f64 - 1.0) / 2.0;
         let phases = |omega: f64| -> Vec<(f64, f64)> {
-            (0..n)
-                .map(|j| (omega * (j as f64 - centre)).sin_cos())
-                .collect()
+            let mut p = Vec::new();
+            fill_phases(n, centre, omega, &mut p);
+            p
         };
         let mut omega = omega0;
         let (mut dc, mut a, mut b) = linear_fit(x, &phases(omega))?;
@@ -306,9 +319,8 @@ mod tests {
         for _ in 0..max_iterations {
             let mut rhs = Vector4::zeros();
             let mut normal = Matrix4::zeros();
-            for (j, &v) in x.iter().enumerate() {
+            for (j, (&v, &(s, c))) in x.iter().zip(&phases(omega)).enumerate() {
                 let t = j as f64 - centre;
-                let (s, c) = (omega * t).sin_cos();
                 let r = v - (dc + a * c + b * s);
                 let g = Vector4::new(1.0, c, s, t * (b * c - a * s));
                 normal += g * g.transpose();
@@ -372,6 +384,31 @@ mod tests {
                 fit.residual_rms.to_bits(),
                 (cost / n as f64).sqrt().to_bits()
             );
+        }
+    }
+
+    /// Largest difference between a phase of [`fill_phases`] and `sin_cos` of its argument,
+    /// less the argument's own rounding (`ARGUMENT_ULPS` of its ulps).
+    const PHASE_ERROR_BOUND: f64 = 1e-14;
+    const ARGUMENT_ULPS: f64 = 4.0;
+
+    #[test]
+    fn phases_are_sin_cos_within_the_bound() {
+        let mut phases = Vec::new();
+        for n in [8, 9, 33, 97, 200, 651, 1300, 4001, 20_000] {
+            let centre = (n as f64 - 1.0) / 2.0;
+            for omega in [1e-4, 0.0503, 0.31, 1.0, 1.7, 2.9, 3.1, -0.7] {
+                fill_phases(n, centre, omega, &mut phases);
+                for (j, &(s, c)) in phases.iter().enumerate() {
+                    let arg = omega * (j as f64 - centre);
+                    let (es, ec) = arg.sin_cos();
+                    let err = (s - es).abs().max((c - ec).abs());
+                    assert!(
+                        err <= PHASE_ERROR_BOUND + ARGUMENT_ULPS * f64::EPSILON * arg.abs(),
+                        "n {n}, omega {omega}, sample {j}: {err:e}"
+                    );
+                }
+            }
         }
     }
 }
