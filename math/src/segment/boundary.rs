@@ -6,6 +6,7 @@ use std::f64::consts::PI;
 use super::sine_fit::{SineFit, fit_from};
 use super::windows::{Analysis, Class, ROUNDING_REL, Run, middle, run_omega, windows_agree};
 use super::{DetectedKind, DetectedStep, SegmentOptions, decimals, roundest_in};
+use crate::parallel;
 
 /// Gauss-Newton iterations of the model fits and the final frequency fits.
 const FIT_ITERATIONS: usize = 50;
@@ -402,11 +403,15 @@ pub(super) fn steps(
     }
     let runs = ctx.drop_straddles(runs.to_vec());
     let last = runs.len() - 1;
-    let mut bounds: Vec<Boundary> = runs
-        .windows(2)
-        .enumerate()
-        .map(|(i, p)| ctx.boundary(&p[0], &p[1], i == 0, i + 1 == last))
-        .collect();
+    // Each boundary and each step is fitted on its own: a long series' are split over the
+    // cores (the fits of one loop, in order).
+    let indices: Vec<usize> = (0..runs.len()).collect();
+    let min_part = parallel::min_part_of(x.len(), runs.len());
+    let mut bounds: Vec<Boundary> = parallel::in_parts(&indices[..last], min_part, |part| {
+        part.iter()
+            .map(|&i| ctx.boundary(&runs[i], &runs[i + 1], i == 0, i + 1 == last))
+            .collect()
+    });
     // Steps do not overlap: a boundary is never before the previous one.
     for i in 1..bounds.len() {
         let prev = bounds[i - 1].at;
@@ -415,23 +420,24 @@ pub(super) fn steps(
         b.lo = b.lo.max(prev);
         b.hi = b.hi.max(b.at);
     }
-    runs.iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let start = if i == 0 { 0 } else { bounds[i - 1].at };
-            let end = if i == last { x.len() } else { bounds[i].at };
-            let guard_start = if i == 0 {
-                0
-            } else {
-                bounds[i - 1].hi - start + 1
-            };
-            let guard_end = if i == last { 0 } else { end - bounds[i].lo + 1 };
-            let interval = if i == 0 {
-                (0, 0)
-            } else {
-                (bounds[i - 1].lo, bounds[i - 1].hi)
-            };
-            ctx.step(r, start, end.max(start), (guard_start, guard_end), interval)
-        })
-        .collect()
+    let step = |i: usize| {
+        let r = &runs[i];
+        let start = if i == 0 { 0 } else { bounds[i - 1].at };
+        let end = if i == last { x.len() } else { bounds[i].at };
+        let guard_start = if i == 0 {
+            0
+        } else {
+            bounds[i - 1].hi - start + 1
+        };
+        let guard_end = if i == last { 0 } else { end - bounds[i].lo + 1 };
+        let interval = if i == 0 {
+            (0, 0)
+        } else {
+            (bounds[i - 1].lo, bounds[i - 1].hi)
+        };
+        ctx.step(r, start, end.max(start), (guard_start, guard_end), interval)
+    };
+    parallel::in_parts(&indices, min_part, |part| {
+        part.iter().map(|&i| step(i)).collect()
+    })
 }
