@@ -155,7 +155,7 @@ impl SineFitter {
 ///
 /// The sines and cosines of a frequency are computed once and shared by the linear fit, the
 /// cost and the normal equations at that frequency (the accepted trial's are the next
-/// iteration's): the same operations as evaluating them in each, half the `sin_cos`.
+/// iteration's): the same operations as evaluating them in each, half the phases.
 pub(crate) fn fit_from(
     x: &[f64],
     first_index: usize,
