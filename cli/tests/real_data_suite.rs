@@ -460,16 +460,7 @@ fn hysteresis_models_against_the_least_squares_with_the_same_state() {
         let dir = data_dir(split.dir);
         let name = format!("{base}+hysteresis");
         let v = run_on_split("identify", &dir, split, &name);
-        let value = |n: &str| -> f64 {
-            v["parameters"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .find(|p| p["name"] == n)
-                .unwrap_or_else(|| panic!("no {n}: {v}"))["value"]
-                .as_f64()
-                .unwrap()
-        };
+        let value = |n: &str| common::parameter_value(&v, n);
         let (zy, n, r) = (value("yield_m"), value("bouc_wen_n"), value("bouc_wen_r"));
         // Both MR dampers' sine steps: their samples predict left-out steps best (1.84 %
         // against the periods' 6.51 % on the Labcontrol damper, 10.38 % against 272.90 % on

@@ -37,6 +37,18 @@ pub fn identified_values(data: &Path, args: &[&str]) -> Vec<f64> {
         .collect()
 }
 
+/// The value of parameter `name` in an `identify --json` object's `parameters`.
+pub fn parameter_value(identified: &serde_json::Value, name: &str) -> f64 {
+    identified["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == name)
+        .unwrap_or_else(|| panic!("no {name}: {identified}"))["value"]
+        .as_f64()
+        .unwrap()
+}
+
 /// The check of a bag by the independent Python readers, shared with forcemap_io's tests.
 #[path = "../../../io/tests/common/python.rs"]
 mod python;
