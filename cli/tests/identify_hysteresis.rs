@@ -149,7 +149,7 @@ fn the_damper_dyno_with_a_loop_is_identified_to_its_truth() {
     assert!(o.status.success(), "{}", common::stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["fitted_on"], "samples", "{v}");
-    let value = |n: &str| common::parameter_value(&v, n);
+    let value = |n: &str| common::parameter_value(&v["parameters"], n);
     let (yield_m, alpha) = (0.0025, 120_000.0);
     let truth: Vec<(&str, f64)> = RunSpec::DAMPER_DYNO_THETA
         .iter()

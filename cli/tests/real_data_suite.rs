@@ -345,16 +345,7 @@ fn the_model_printed_with_the_named_effect_predicts_the_held_out_records() {
     let d = diagnose_linear(&dir, arts);
     assert_eq!(d["top_effect"], "hysteresis", "{d}");
     let top = &d["ranked_effects"][0];
-    let value = |list: &str, name: &str| -> f64 {
-        top[list]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["name"] == name)
-            .unwrap_or_else(|| panic!("no {name} in {list}: {top}"))["value"]
-            .as_f64()
-            .unwrap()
-    };
+    let value = |list: &str, name: &str| common::parameter_value(&top[list], name);
     let (k, c, m) = (
         value("refitted_baseline", "k"),
         value("refitted_baseline", "c"),
@@ -460,7 +451,7 @@ fn hysteresis_models_against_the_least_squares_with_the_same_state() {
         let dir = data_dir(split.dir);
         let name = format!("{base}+hysteresis");
         let v = run_on_split("identify", &dir, split, &name);
-        let value = |n: &str| common::parameter_value(&v, n);
+        let value = |n: &str| common::parameter_value(&v["parameters"], n);
         let (zy, n, r) = (value("yield_m"), value("bouc_wen_n"), value("bouc_wen_r"));
         // Both MR dampers' sine steps: their samples predict left-out steps best (1.84 %
         // against the periods' 6.51 % on the Labcontrol damper, 10.38 % against 272.90 % on

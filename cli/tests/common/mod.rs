@@ -37,14 +37,14 @@ pub fn identified_values(data: &Path, args: &[&str]) -> Vec<f64> {
         .collect()
 }
 
-/// The value of parameter `name` in an `identify --json` object's `parameters`.
-pub fn parameter_value(identified: &serde_json::Value, name: &str) -> f64 {
-    identified["parameters"]
-        .as_array()
-        .unwrap()
+/// The value of parameter `name` in a `--json` list of named parameters (`identify`'s
+/// `parameters`, a diagnosis candidate's `refitted_baseline` or `added_parameters`).
+pub fn parameter_value(list: &serde_json::Value, name: &str) -> f64 {
+    list.as_array()
+        .unwrap_or_else(|| panic!("not a list of parameters: {list}"))
         .iter()
         .find(|p| p["name"] == name)
-        .unwrap_or_else(|| panic!("no {name}: {identified}"))["value"]
+        .unwrap_or_else(|| panic!("no {name}: {list}"))["value"]
         .as_f64()
         .unwrap()
 }

@@ -141,8 +141,7 @@ impl HysteresisLaw {
         let h = distance_m / sub_steps;
         let saturated = direction * self.yield_m;
         let f = |z: f64| self.rate(z, direction);
-        let mut left = sub_steps;
-        while left > 0.0 {
+        for _ in 0..sub_steps as usize {
             if (z - saturated).abs() <= SATURATED_WITHIN * self.yield_m {
                 break;
             }
@@ -151,7 +150,6 @@ impl HysteresisLaw {
             let k3 = f(z + 0.5 * h * k2);
             let k4 = f(z + h * k3);
             z += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
-            left -= 1.0;
         }
         z
     }
