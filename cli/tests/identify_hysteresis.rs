@@ -1,7 +1,7 @@
 //! `forcemap identify --model NAME+hysteresis`: against the truth of the simulated damper dyno
 //! with a Bouc-Wen loop, and at its edges: listed by `forcemap models`, refused with a reason on
 //! a rig's data and with options it does not take; its figures on real dampers are in
-//! `real_data_suite` (`hysteresis_models_against_the_least_squares_with_the_same_state`).
+//! `real_data_hysteresis` (`hysteresis_models_against_the_least_squares_with_the_same_state`).
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
