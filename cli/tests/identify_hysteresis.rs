@@ -1,6 +1,7 @@
 //! `forcemap identify --model NAME+hysteresis`: against the truth of the simulated damper dyno
-//! with a Bouc-Wen loop, and at its edges: listed by `forcemap models`, refused with a reason on
-//! a rig's data and with options it does not take; its figures on real dampers are in
+//! and suspension rig with a Bouc-Wen loop, and at its edges: listed by `forcemap models`,
+//! refused with a reason on a drive-point setup's data and with options it does not take; its
+//! figures on real dampers are in
 //! `real_data_hysteresis` (`hysteresis_models_against_the_least_squares_with_the_same_state`).
 #![allow(
     clippy::unwrap_used,
@@ -11,7 +12,10 @@ mod common;
 
 use std::path::Path;
 
+use forcemap_math::diagnose::effects::Transform;
 use forcemap_math::diagnose::element_heldout::TermFit;
+use forcemap_math::diagnose::fitted_element::FittedElement;
+use forcemap_math::diagnose::score::predict_record;
 use forcemap_math::measured_state::MeasuredState;
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::pipeline::nmse_percent;
@@ -43,23 +47,27 @@ fn a_hysteresis_model_is_listed_and_refused_where_it_is_not_fitted() {
             .contains("  "),
         "{line}"
     );
-    // A rig's export: the hysteresis is fitted on element tests only.
+    // The 3-DOF drive-point example: the hysteresis is fitted on element tests and rigs only.
     let dir = tempfile::tempdir().unwrap();
-    let csv = dir.path().join("rig.csv");
-    let sim = common::forcemap(&["simulate", "--csv", csv.to_str().unwrap()]);
+    let csv = dir.path().join("three_dof.csv");
+    let sim = common::forcemap(&[
+        "simulate",
+        "--system",
+        "three-dof",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
     assert!(sim.status.success(), "{}", common::stderr(&sim));
     let o = common::forcemap(&[
         "identify",
         csv.to_str().unwrap(),
         "--model",
         "linear+hysteresis",
-        "--mass-kg",
-        "36",
     ]);
     assert!(!o.status.success());
     let e = common::stderr(&o);
     assert!(
-        e.contains("is fitted on element tests") && e.contains("a rig setup"),
+        e.contains("is fitted on element tests") && e.contains("a drive-point setup"),
         "{e}"
     );
     // An option it does not take is named, and nothing is written.
@@ -206,4 +214,98 @@ fn the_damper_dyno_with_a_loop_is_identified_to_its_truth() {
     }
     let svg = std::fs::read_to_string(plots.join("held_out_0.svg")).unwrap();
     assert!(svg.contains(&format!("(NMSE {held:.2} %)")), "{held}");
+}
+
+/// The paper's suspension rig (36 kg, Coulomb truth k 6380 N/m, c 184 N s/m, F_d 12.3 N; ten
+/// sine steps and two band-random records at 40 dB) with a Bouc-Wen loop of the one-parameter
+/// law (yield 5 mm, saturated at 20 N): `identify --model coulomb+hysteresis` fits the steps as
+/// the element between base and mass on their rebuilt periods (scored as the held-out records
+/// are, by the mass acceleration simulated under the measured base, the periods predict
+/// left-out steps better: measured 0.20 % against the samples' 0.31 %; along the measured
+/// motion the velocity differentiated from the noisy displacement biased the samples' friction
+/// 14 % low), every parameter within 3 % of the truth (measured: k +1.2 %, c +0.3 %, F_d
+/// -0.3 %, alpha -1.0 %, the yield -2.8 %), and the random records, simulated on the rig,
+/// within 1.2 times what the truth itself leaves (measured 0.490 / 0.054 % against the truth's
+/// 0.453 / 0.055 % and the plain Coulomb model's 0.93 / 2.57 %).
+#[test]
+fn the_rig_with_a_loop_is_identified_and_simulated_on_its_random_records() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("rig.csv").display().to_string();
+    let o = common::forcemap(&[
+        "simulate",
+        "--snr-db",
+        "40",
+        "--bouc-wen-alpha-n-per-m",
+        "4000",
+        "--bouc-wen-beta-per-m-pow-n",
+        "100",
+        "--bouc-wen-gamma-per-m-pow-n",
+        "100",
+        "--csv",
+        &csv,
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let identify = |model: &str| -> serde_json::Value {
+        let o = common::forcemap(&[
+            "identify",
+            &csv,
+            "--model",
+            model,
+            "--mass-kg",
+            "36",
+            "--json",
+        ]);
+        assert!(o.status.success(), "{}", common::stderr(&o));
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let v = identify("coulomb+hysteresis");
+    assert_eq!(v["fitted_on"], "periods", "{v}");
+    let value = |n: &str| common::parameter_value(&v["parameters"], n);
+    let (yield_m, alpha) = (0.005, 4000.0);
+    let truth = [
+        ("k", 6380.0),
+        ("c", 184.0),
+        ("fd", 12.3),
+        ("alpha", alpha),
+        ("yield_m", yield_m),
+    ];
+    for (name, t) in truth {
+        let found = value(name);
+        println!(
+            "{name}: {found:.6e} (truth {t}, {:+.2} %)",
+            100.0 * (found / t - 1.0)
+        );
+        assert!(
+            (found / t - 1.0).abs() < 0.03,
+            "{name}: {found} against {t}"
+        );
+    }
+    // The truth simulated on the same records: the floor the noise leaves.
+    let records = forcemap_io::input::load_files(&[csv.clone().into()], None)
+        .unwrap()
+        .records;
+    let coulomb = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
+    let element = FittedElement::new(
+        coulomb.terms.clone(),
+        truth[..3].iter().map(|(_, t)| *t).collect(),
+        Some((alpha, HysteresisLaw::yield_law(yield_m))),
+        None,
+        None,
+    );
+    let plain = identify("coulomb");
+    for (i, h) in v["held_out"].as_array().unwrap().iter().enumerate() {
+        let step = h["step"].as_u64().unwrap() as usize;
+        let record = records.iter().find(|r| r.step == step).unwrap();
+        let floor = predict_record(&element, 36.0, record, &Transform::default())
+            .unwrap()
+            .nmse_percent;
+        let found = h["nmse_percent"].as_f64().unwrap();
+        let without = plain["validation"][i]["nmse_percent"].as_f64().unwrap();
+        println!(
+            "random record {step}: {found:.3} % (the truth {floor:.3} %, coulomb alone {without:.3} %)"
+        );
+        assert!(found < 1.2 * floor, "{found} against the truth's {floor}");
+        assert!(found < without, "{found} against coulomb's {without}");
+        assert!(h["rms_error_mps2"].as_f64().unwrap() > 0.0, "{h}");
+    }
 }

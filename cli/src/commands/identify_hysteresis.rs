@@ -1,9 +1,15 @@
-//! `forcemap identify --model NAME+hysteresis`: an element test's model with a Bouc-Wen
-//! hysteresis state beside its terms, fitted as `diagnose` refits a baseline with its
+//! `forcemap identify --model NAME+hysteresis`: an element test's (or a rig's) model with a
+//! Bouc-Wen hysteresis state beside its terms, fitted as `diagnose` refits a baseline with its
 //! hysteresis candidate (one way to fit it, not a second): the yield and the loop's shape
 //! searched and chosen by leave-one-step-out prediction of the element force, the coefficients
 //! by least squares on every step. Held-out records (`--validate`) are predicted along their
 //! measured motion with the state integrated from rest.
+//!
+//! A base-excited rig's sine steps are fitted as the element between base and mass (its force
+//! the one that holds the mass, -m a_o, along the relative motion), and its held-out records
+//! (the export's records with no steps, and `--validate`) are predicted as the rig's own are:
+//! the mass simulated under each record's measured base displacement, with the fitted element
+//! (its friction's stick-slip and its Bouc-Wen state), scored on the mass acceleration.
 //!
 //! Sine steps are fitted either on one rebuilt period each (the diagnosis' fit, each test
 //! counted once) or on their samples (the least squares of the force along the measured
@@ -31,17 +37,125 @@ use super::identify::{
 use super::identify_plots::{LoopRecord, write_loop_plots};
 use crate::cli::IdentifyArgs;
 use forcemap_io::steps::unlabelled::frequencies_from_data;
+use forcemap_math::diagnose::effects::Transform;
+use forcemap_math::diagnose::element_heldout::TermFit;
+use forcemap_math::diagnose::fitted_element::FittedElement;
+use forcemap_math::diagnose::sampled_records::element_view_of_rig;
+use forcemap_math::diagnose::score::predict_record;
 use forcemap_math::measured_state::MeasuredState;
 use forcemap_math::pipeline::{CHOICE_MARGIN, MIN_CROSS_VALIDATION_STEPS};
+use forcemap_math::recipe::Setup;
 use forcemap_math::record::{Excitation, Record};
 
-/// One held-out record's force predicted by the model with its hysteresis.
+/// One held-out record predicted by the model with its hysteresis: an element test's force
+/// along its measured motion, a rig's mass acceleration simulated under its measured base.
 #[derive(Debug, Clone, serde::Serialize)]
 struct HeldOut {
     file: String,
     step: usize,
+    /// NMSE of the element force (element test) or of the mass acceleration (rig) [%].
     nmse_percent: f64,
-    rms_error_n: f64,
+    /// RMS error of the element force [N] (element tests).
+    rms_error_n: Option<f64>,
+    /// RMS error of the mass acceleration [m/s^2] (rigs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rms_error_mps2: Option<f64>,
+}
+
+/// The rig a fitted element is put back into when the data are a base-excited rig's: its mass,
+/// its sine steps as measured, and the records with no steps of the fitted files (the export's
+/// validation records).
+struct Rig {
+    mass_kg: f64,
+    steps: Vec<Record>,
+    records: Vec<Record>,
+}
+
+/// `data`'s sine steps as the element between base and mass, fitted with no moving mass, and
+/// the rig they came from with its other records (see the module docs).
+fn rig_steps_as_element(
+    records: Vec<Record>,
+    mass_kg: f64,
+    file: &str,
+    name: &str,
+) -> anyhow::Result<(Data, Rig)> {
+    let (steps, others): (Vec<Record>, Vec<Record>) = records
+        .into_iter()
+        .partition(|r| matches!(r.excitation, Excitation::Sine { .. }));
+    if steps.is_empty() {
+        bail!(
+            "{file}: model {name} is fitted on a rig's sine steps; these records have none (fit their samples with `forcemap diagnose --model BASE`, which names a hysteresis where the data show one)"
+        );
+    }
+    let view = steps
+        .iter()
+        .map(|r| element_view_of_rig(r, mass_kg))
+        .collect::<Result<Vec<_>, _>>()
+        .with_context(|| format!("{file}: the rig's sine steps"))?;
+    eprintln!(
+        "note: {file}: the rig's sine steps fitted as the element between base and mass, its force the one that holds the {mass_kg} kg mass (-m a_o) along the relative motion; held-out records simulated on the rig"
+    );
+    let data = Data {
+        records: view,
+        validation: Vec::new(),
+        setup: Setup::Element {
+            moving_mass_kg: Some(0.0),
+            drive: None,
+        },
+        source: file.to_string(),
+    };
+    Ok((
+        data,
+        Rig {
+            mass_kg,
+            steps,
+            records: others,
+        },
+    ))
+}
+
+/// `record` predicted by `fit`: along its measured motion (element test), or on `rig` by
+/// simulation (see the module docs).
+fn predict_held_out(
+    fit: &TermFit,
+    rig: Option<&Rig>,
+    file: &str,
+    record: &Record,
+) -> anyhow::Result<HeldOut> {
+    let context = || format!("{file}: record {}", record.step);
+    let Some(rig) = rig else {
+        let v = validate_element_fit(fit, record).with_context(context)?;
+        return Ok(HeldOut {
+            file: file.to_string(),
+            step: record.step,
+            nmse_percent: v.nmse_percent,
+            rms_error_n: Some(v.rms_error_n),
+            rms_error_mps2: None,
+        });
+    };
+    let element = FittedElement::new(
+        fit.terms.clone(),
+        fit.theta.clone(),
+        fit.hysteresis.map(|(law, alpha)| (alpha, law)),
+        None,
+        None,
+    );
+    let h = predict_record(&element, rig.mass_kg, record, &Transform::default())
+        .with_context(context)?;
+    let n = h.measured_mps2.len().max(1) as f64;
+    let sse: f64 = h
+        .measured_mps2
+        .iter()
+        .zip(&h.predicted_mps2)
+        .map(|(m, p)| (m - p).powi(2))
+        .sum();
+    Ok(HeldOut {
+        file: file.to_string(),
+        step: record.step,
+        nmse_percent: h.nmse_percent,
+        rms_error_n: None,
+        rms_error_mps2: Some((sse / n).sqrt()),
+    })
 }
 
 /// Refuses what this fit does not do, naming the option.
@@ -58,7 +172,7 @@ fn check_options(args: &IdentifyArgs, name: &str) -> anyhow::Result<()> {
     if let Some((_, option)) = refused.iter().find(|(set, _)| *set) {
         bail!(
             "model {name}: {option} is not available with a hysteresis state (it is fitted along \
-             the measured motion of a displacement-driven element test, converged over every step)"
+             the measured motion of a displacement-driven element test or a rig's sine steps, converged over every step)"
         );
     }
     Ok(())
@@ -78,10 +192,10 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
     let files = forcemap_io::input::expand_paths(&args.files)?;
     let file = data_name(&files);
     let mut import = forcemap_io::input::load_files(&files, args.channels.as_deref())?;
-    if import.kind != SetupKind::Element {
+    if !matches!(import.kind, SetupKind::Element | SetupKind::BaseExcited) {
         bail!(
-            "{file}: model {name} is fitted on element tests (relative displacement and force); \
-             these are a {} setup's",
+            "{file}: model {name} is fitted on element tests (relative displacement and force) \
+             and base-excited rigs; these are a {} setup's",
             import.kind
         );
     }
@@ -99,14 +213,23 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
         &import.parameters,
         &file,
     )?;
-    let data = Data {
-        records: import.records,
-        validation: Vec::new(),
-        setup,
-        source: file.clone(),
+    let (data, rig) = match setup {
+        Setup::BaseExcited { mass_kg } => {
+            let (data, rig) = rig_steps_as_element(import.records, mass_kg, &file, &name)?;
+            (data, Some(rig))
+        }
+        setup => (
+            Data {
+                records: import.records,
+                validation: Vec::new(),
+                setup,
+                source: file.clone(),
+            },
+            None,
+        ),
     };
-    let (fitted_on, choice) =
-        choose_fit(&data, &baseline).with_context(|| format!("{file}: fitting model {name}"))?;
+    let (fitted_on, choice) = choose_fit(&data, &baseline, rig.as_ref())
+        .with_context(|| format!("{file}: fitting model {name}"))?;
     let (h, findings, note) = fit(&data, &baseline, fitted_on)
         .with_context(|| format!("{file}: fitting model {name}"))?;
     let fit = h
@@ -119,25 +242,31 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
         .chain(&h.added_parameters)
         .cloned()
         .collect();
+    // The held-out records as read (a rig's as the element between base and mass, for the
+    // loops) beside their predictions.
     let mut held_out = Vec::new();
     let mut held_out_records_read = Vec::new();
+    let mut predict = |shown: &str, r: Record| -> anyhow::Result<()> {
+        held_out.push(predict_held_out(&fit, rig.as_ref(), shown, &r)?);
+        held_out_records_read.push(match &rig {
+            Some(rig) => element_view_of_rig(&r, rig.mass_kg)
+                .with_context(|| format!("{shown}: record {}", r.step))?,
+            None => r,
+        });
+        Ok(())
+    };
+    for r in rig.iter().flat_map(|rig| rig.records.iter()) {
+        predict(&file, r.clone())?;
+    }
     for path in &args.validate {
         let shown = path.display().to_string();
         for r in held_out_records(
             path,
             args.channels.as_deref(),
-            SetupKind::Element,
+            import.kind,
             args.frequency_tolerance,
         )? {
-            let v = validate_element_fit(&fit, &r)
-                .with_context(|| format!("{shown}: record {}", r.step))?;
-            held_out.push(HeldOut {
-                file: shown.clone(),
-                step: r.step,
-                nmse_percent: v.nmse_percent,
-                rms_error_n: v.rms_error_n,
-            });
-            held_out_records_read.push(r);
+            predict(&shown, r)?;
         }
     }
     if let Some(dir) = &args.plot {
@@ -202,12 +331,18 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
         println!("note: {n}");
     }
     for h in &held_out {
+        let (what, rms) = match (h.rms_error_n, h.rms_error_mps2) {
+            (Some(n), _) => ("force", format!("{n:.3e} N")),
+            (None, a) => (
+                "mass-acceleration (the mass simulated under its measured base)",
+                format!("{:.3e} m/s^2", a.unwrap_or(f64::NAN)),
+            ),
+        };
         println!(
-            "held out: {} record {}: force NMSE {:.2} %, RMS error {:.3e} N{}",
+            "held out: {} record {}: {what} NMSE {:.2} %, RMS error {rms}{}",
             h.file,
             h.step,
             h.nmse_percent,
-            h.rms_error_n,
             no_better_than_zero(h.nmse_percent)
         );
     }
@@ -215,8 +350,15 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
 }
 
 /// What the sine steps of `data` are fitted on, and the line saying why (None when the data
-/// hold no sine step: records with no steps are fitted on their samples).
-fn choose_fit(data: &Data, baseline: &Model) -> anyhow::Result<(PeriodicFit, Option<String>)> {
+/// hold no sine step: records with no steps are fitted on their samples). A left-out step is
+/// scored as a held-out record is: on a rig by the mass acceleration simulated under its
+/// measured base, for along the measured motion the velocity differentiated from the noisy
+/// displacement favours the samples' fit, whose friction it biases low.
+fn choose_fit(
+    data: &Data,
+    baseline: &Model,
+    rig: Option<&Rig>,
+) -> anyhow::Result<(PeriodicFit, Option<String>)> {
     let sine_steps: Vec<&Record> = data
         .records
         .iter()
@@ -264,17 +406,31 @@ fn choose_fit(data: &Data, baseline: &Model) -> anyhow::Result<(PeriodicFit, Opt
                     left_out.step
                 )
             })?;
-            let state = MeasuredState::of(left_out)
-                .with_context(|| format!("step {}'s measured state", left_out.step))?;
-            sum += state.force_nmse_percent(&f);
+            sum += match rig {
+                None => MeasuredState::of(left_out)
+                    .with_context(|| format!("step {}'s measured state", left_out.step))?
+                    .force_nmse_percent(&f),
+                Some(rig) => {
+                    let step = rig
+                        .steps
+                        .iter()
+                        .find(|r| r.step == left_out.step)
+                        .with_context(|| format!("step {} of the rig", left_out.step))?;
+                    predict_held_out(&f, Some(rig), &data.source, step)?.nmse_percent
+                }
+            };
         }
         Ok(sum / sine_steps.len() as f64)
     };
     let periods = score(PeriodicFit::Periods)?;
     let samples = score(PeriodicFit::Samples)?;
     pb.finish_and_clear();
+    let predicted = match rig {
+        None => "force predicted",
+        Some(_) => "mass acceleration simulated",
+    };
     let scores = format!(
-        "mean NMSE of each of {} steps' force predicted by the fit to the others: periods {periods:.2} %, samples {samples:.2} %",
+        "mean NMSE of each of {} steps' {predicted} by the fit to the others: periods {periods:.2} %, samples {samples:.2} %",
         sine_steps.len()
     );
     Ok(if samples < (1.0 - CHOICE_MARGIN) * periods {

@@ -58,8 +58,8 @@ pub fn dispatch(command: Command) -> anyhow::Result<()> {
             );
             println!(
                 "{:<20} the model NAME with a Bouc-Wen hysteresis state alpha z beside its terms \
-                 (yield and loop shape searched; element tests, fitted as `diagnose` refits \
-                 NAME with its hysteresis): damper+hysteresis",
+                 (yield and loop shape searched; element tests and a rig's sine steps, fitted \
+                 as `diagnose` refits NAME with its hysteresis): damper+hysteresis",
                 format!("NAME{}", forcemap_math::model::HYSTERESIS_SUFFIX)
             );
             Ok(())

@@ -48,7 +48,7 @@ pub mod element_heldout;
 pub mod exciter;
 pub mod findings;
 pub mod fit;
-mod fitted_element;
+pub mod fitted_element;
 pub mod free_play;
 pub mod hysteresis;
 pub mod locate;
