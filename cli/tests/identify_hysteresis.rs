@@ -245,8 +245,9 @@ fn the_rig_with_a_loop_is_identified_and_simulated_on_its_random_records() {
         &csv,
     ]);
     assert!(o.status.success(), "{}", common::stderr(&o));
-    let identify = |model: &str| -> serde_json::Value {
-        let o = common::forcemap(&[
+    let plots = dir.path().join("plots");
+    let identify = |model: &str, extra: &[&str]| -> serde_json::Value {
+        let mut args = vec![
             "identify",
             &csv,
             "--model",
@@ -254,11 +255,13 @@ fn the_rig_with_a_loop_is_identified_and_simulated_on_its_random_records() {
             "--mass-kg",
             "36",
             "--json",
-        ]);
+        ];
+        args.extend_from_slice(extra);
+        let o = common::forcemap(&args);
         assert!(o.status.success(), "{}", common::stderr(&o));
         serde_json::from_slice(&o.stdout).unwrap()
     };
-    let v = identify("coulomb+hysteresis");
+    let v = identify("coulomb+hysteresis", &["--plot", plots.to_str().unwrap()]);
     assert_eq!(v["fitted_on"], "periods", "{v}");
     let value = |n: &str| common::parameter_value(&v["parameters"], n);
     let (yield_m, alpha) = (0.005, 4000.0);
@@ -292,7 +295,7 @@ fn the_rig_with_a_loop_is_identified_and_simulated_on_its_random_records() {
         None,
         None,
     );
-    let plain = identify("coulomb");
+    let plain = identify("coulomb", &[]);
     for (i, h) in v["held_out"].as_array().unwrap().iter().enumerate() {
         let step = h["step"].as_u64().unwrap() as usize;
         let record = records.iter().find(|r| r.step == step).unwrap();
@@ -307,5 +310,9 @@ fn the_rig_with_a_loop_is_identified_and_simulated_on_its_random_records() {
         assert!(found < 1.2 * floor, "{found} against the truth's {floor}");
         assert!(found < without, "{found} against coulomb's {without}");
         assert!(h["rms_error_mps2"].as_f64().unwrap() > 0.0, "{h}");
+        // The scored trace, titled with the NMSE reported.
+        let svg =
+            std::fs::read_to_string(plots.join(format!("held_out_{i}_simulated.svg"))).unwrap();
+        assert!(svg.contains(&format!("(NMSE {found:.2} %)")), "{svg:.300}");
     }
 }

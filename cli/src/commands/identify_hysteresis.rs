@@ -60,6 +60,10 @@ struct HeldOut {
     /// RMS error of the mass acceleration [m/s^2] (rigs).
     #[serde(skip_serializing_if = "Option::is_none")]
     rms_error_mps2: Option<f64>,
+    /// A rig's scored trace for `--plot`: the times [s], the measured and the simulated mass
+    /// acceleration [m/s^2].
+    #[serde(skip)]
+    simulated: Option<[Vec<f64>; 3]>,
 }
 
 /// The rig a fitted element is put back into when the data are a base-excited rig's: its mass,
@@ -131,6 +135,7 @@ fn predict_held_out(
             nmse_percent: v.nmse_percent,
             rms_error_n: Some(v.rms_error_n),
             rms_error_mps2: None,
+            simulated: None,
         });
     };
     let element = FittedElement::new(
@@ -155,6 +160,13 @@ fn predict_held_out(
         nmse_percent: h.nmse_percent,
         rms_error_n: None,
         rms_error_mps2: Some((sse / n).sqrt()),
+        simulated: Some([
+            (0..h.measured_mps2.len())
+                .map(|i| record.time_s(i))
+                .collect(),
+            h.measured_mps2,
+            h.predicted_mps2,
+        ]),
     })
 }
 
@@ -286,6 +298,26 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
             });
         write_loop_plots(dir, &name, &fit, &fitted.chain(held).collect::<Vec<_>>())
             .with_context(|| format!("{file}: plotting the loops"))?;
+        for (i, h) in held_out.iter().enumerate() {
+            let Some([t, measured, simulated]) = &h.simulated else {
+                continue;
+            };
+            let path = dir.join(format!("held_out_{i}_simulated.svg"));
+            let title = format!(
+                "held out: {} record {}: mass acceleration, measured and simulated by {name} under the measured base (NMSE {:.2} %)",
+                h.file, h.step, h.nmse_percent
+            );
+            crate::plot::time_trace(
+                &path,
+                &title,
+                t,
+                measured,
+                simulated,
+                "mass acceleration [m/s^2]",
+            )
+            .with_context(|| format!("{file}: plotting held-out record {}", h.step))?;
+            eprintln!("wrote {}", path.display());
+        }
     }
     let f = &findings.findings;
     if args.json {
