@@ -40,8 +40,9 @@ pub const OFFSET_SUFFIX: &str = "+offset";
 
 /// Appended to a model's name (`linear+hysteresis`), a Bouc-Wen hysteresis state beside its
 /// terms: the force `alpha z`, z integrated along the measured velocity, its yield and loop
-/// shape searched. Fitted on element tests by `forcemap identify` as `forcemap diagnose` refits
-/// a baseline with its hysteresis candidate; not a [`Model`] of terms.
+/// shape searched. Fitted offline on element tests and a rig's sine steps by `forcemap
+/// identify` as `forcemap diagnose` refits a baseline with its hysteresis candidate; not a
+/// [`Model`] of terms.
 pub const HYSTERESIS_SUFFIX: &str = "+hysteresis";
 
 /// Whether `name` names a model: one of [`MODEL_NAMES`], with or without [`OFFSET_SUFFIX`] (a
@@ -60,6 +61,10 @@ pub enum ModelError {
     Unknown { name: String, known: String },
     #[error("model '{name}' needs the atan slope M (e.g. --atan-m 1000), a positive number")]
     MissingAtanSlope { name: String },
+    #[error(
+        "model '{name}': a hysteresis state is fitted offline, along each record's samples (`forcemap identify --model {name}` on a bag or an export); the live identifier keeps the equations of a model's terms, never the samples"
+    )]
+    HysteresisOffline { name: String },
 }
 
 impl ModelError {

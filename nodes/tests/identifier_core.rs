@@ -104,6 +104,11 @@ fn what_the_identifier_cannot_run_is_refused_with_the_reason() {
         ("weighting", "equal", "expected robust, noise or uniform"),
         ("model", "quadratic", "unknown model 'quadratic'"),
         ("model", "coulomb-atan", "atan slope M"),
+        (
+            "model",
+            "damper+hysteresis",
+            "a hysteresis state is fitted offline",
+        ),
     ] {
         let p = params(&[(key, ParamValue::String(value.into()))]);
         let e = RecipeParameters::from_params(&p).unwrap_err();

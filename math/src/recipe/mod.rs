@@ -113,8 +113,15 @@ impl FromStr for ModelSpec {
     type Err = ModelError;
 
     /// A model name of [`MODEL_NAMES`] (or one with [`crate::model::OFFSET_SUFFIX`]), without
-    /// options.
+    /// options. A name with [`crate::model::HYSTERESIS_SUFFIX`] is refused with where it is
+    /// fitted: it is no model of terms.
     fn from_str(name: &str) -> Result<ModelSpec, ModelError> {
+        if name
+            .strip_suffix(crate::model::HYSTERESIS_SUFFIX)
+            .is_some_and(is_model_name)
+        {
+            return Err(ModelError::HysteresisOffline { name: name.into() });
+        }
         if is_model_name(name) {
             Ok(ModelSpec {
                 name: name.to_string(),
@@ -213,6 +220,27 @@ mod tests {
 
     fn present(list: &[Channel]) -> impl Fn(Channel) -> bool + '_ {
         move |c| list.contains(&c)
+    }
+
+    #[test]
+    fn a_hysteresis_model_is_refused_with_where_it_is_fitted() {
+        let e = "damper+hysteresis".parse::<ModelSpec>().unwrap_err();
+        assert_eq!(
+            e,
+            ModelError::HysteresisOffline {
+                name: "damper+hysteresis".into()
+            }
+        );
+        assert!(
+            e.to_string()
+                .contains("forcemap identify --model damper+hysteresis")
+        );
+        // An unknown base stays unknown.
+        assert!(matches!(
+            "bogus+hysteresis".parse::<ModelSpec>(),
+            Err(ModelError::Unknown { .. })
+        ));
+        assert!("damper".parse::<ModelSpec>().is_ok());
     }
 
     #[test]
