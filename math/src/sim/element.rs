@@ -16,7 +16,7 @@ use std::sync::Arc;
 
 use super::excitation::{CubicSpline, Derivs, Piece, PiecewiseSignal, Program, SplineEnds};
 use super::hybrid::{Hybrid, Integrator, Mode, RunStats, SolverOptions};
-use super::rig::split_records;
+use super::rig_records::split_records;
 use super::{SampleTrace, SimError, SimOutput, is_positive};
 use crate::element::{Element, Friction};
 use crate::record::Channel;

@@ -63,6 +63,10 @@ pub(crate) trait Hybrid {
     fn vel_index(&self) -> usize;
     /// State rates at `t`, inputs from the piece that holds at `t_ref`.
     fn rhs(&self, t: f64, t_ref: f64, y: &[f64], mode: Mode, dy: &mut [f64]);
+    /// The inputs at `t` (the middle and the end of an RK4 step, asked by [`Hybrid::rhs`] in
+    /// that order next) are about to be needed: a system may compute both in one pass, and
+    /// must give them to the bit as [`Hybrid::rhs`] alone would.
+    fn inputs_ahead(&self, _t: [f64; 2], _t_ref: f64) {}
     /// Friction force needed to keep the relative velocity zero (y has v = 0).
     fn needed_friction(&self, t: f64, t_ref: f64, y: &[f64]) -> f64;
     /// Jump conditions at an input breakpoint `t` (left limit to right limit).
@@ -259,20 +263,24 @@ impl<'a, H: Hybrid> Integrator<'a, H> {
     /// One classic RK4 step of length `dt` from `y` into `out`.
     fn rk4(&mut self, t: f64, t_ref: f64, y: &[f64], dt: f64, mode: Mode, out: &mut [f64]) {
         let n = y.len();
+        // Slices of the state's length: the loops without bounds checks.
         let [k1, k2, k3, k4] = &mut self.k;
+        let (k1, k2, k3, k4) = (&mut k1[..n], &mut k2[..n], &mut k3[..n], &mut k4[..n]);
+        let (tmp, out) = (&mut self.tmp[..n], &mut out[..n]);
         self.sys.rhs(t, t_ref, y, mode, k1);
+        self.sys.inputs_ahead([t + 0.5 * dt, t + dt], t_ref);
         for i in 0..n {
-            self.tmp[i] = y[i] + 0.5 * dt * k1[i];
+            tmp[i] = y[i] + 0.5 * dt * k1[i];
         }
-        self.sys.rhs(t + 0.5 * dt, t_ref, &self.tmp, mode, k2);
+        self.sys.rhs(t + 0.5 * dt, t_ref, tmp, mode, k2);
         for i in 0..n {
-            self.tmp[i] = y[i] + 0.5 * dt * k2[i];
+            tmp[i] = y[i] + 0.5 * dt * k2[i];
         }
-        self.sys.rhs(t + 0.5 * dt, t_ref, &self.tmp, mode, k3);
+        self.sys.rhs(t + 0.5 * dt, t_ref, tmp, mode, k3);
         for i in 0..n {
-            self.tmp[i] = y[i] + dt * k3[i];
+            tmp[i] = y[i] + dt * k3[i];
         }
-        self.sys.rhs(t + dt, t_ref, &self.tmp, mode, k4);
+        self.sys.rhs(t + dt, t_ref, tmp, mode, k4);
         for i in 0..n {
             out[i] = y[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
         }

@@ -143,12 +143,7 @@ impl InputWindow {
             Piece::Const(_) | Piece::Spline(_) | Piece::Sweep { .. } => return None,
         };
         let tau = [t[0] - t0, t[1] - t0];
-        let covers = |w: &InputWindow, order: u32, tau: [f64; 2]| {
-            w.piece == index
-                && w.order == order
-                && (tau[0] - w.centre_s).abs() <= w.half_width_s
-                && (tau[1] - w.centre_s).abs() <= w.half_width_s
-        };
+        let covers = |w: &InputWindow, order: u32, tau: [f64; 2]| w.covers(order, index, tau);
         let fresh = match window {
             Some(w) if covers(w, order, tau) => w,
             _ => {
@@ -191,6 +186,37 @@ impl InputWindow {
             even[2] + s[2] * odd[2],
         ];
         Some(([v[0], v[1]], Some(v[2])))
+    }
+
+    /// [`InputWindow::eval_pair`] when `window` already covers both times (it is not
+    /// rebuilt), else None: each value is then the one [`InputWindow::eval`] gives at its time,
+    /// to the bit, with one pass for both.
+    #[inline(always)]
+    pub fn eval_pair_covered(
+        window: &Option<InputWindow>,
+        order: u32,
+        index: usize,
+        piece: &Piece,
+        t: [f64; 2],
+    ) -> Option<[f64; 2]> {
+        let t0 = match piece {
+            Piece::Sine { t0, .. } | Piece::Multisine { t0, .. } => *t0,
+            Piece::Const(_) | Piece::Spline(_) | Piece::Sweep { .. } => return None,
+        };
+        let tau = [t[0] - t0, t[1] - t0];
+        window
+            .as_ref()
+            .filter(|w| w.covers(order, index, tau))
+            .map(|w| w.horner_pair(tau))
+    }
+
+    /// True when this is the window of `order` of piece `index` and holds at local times `tau`.
+    #[inline(always)]
+    fn covers(&self, order: u32, index: usize, tau: [f64; 2]) -> bool {
+        self.piece == index
+            && self.order == order
+            && (tau[0] - self.centre_s).abs() <= self.half_width_s
+            && (tau[1] - self.centre_s).abs() <= self.half_width_s
     }
 
     /// The window at two local times (each lane the operations of the three-lane pass).

@@ -20,7 +20,7 @@ use super::input_window::{InputWindow, SplineInterval};
 use super::linear_step::Linear2;
 use super::{SampleTrace, SimError, SimOutput, is_positive};
 use crate::element::{Element, Friction};
-use crate::record::{Channel, Record};
+use crate::record::Channel;
 pub use crate::signal::lowpass::ZeroPhaseLowpass;
 
 /// The rig's mass [kg] (known in the paper).
@@ -93,6 +93,9 @@ pub(crate) struct RigSystem<'a> {
     /// for the sample's channels in the pass of its acceleration pair, when its window covers
     /// that time already.
     last_value: Cell<Option<(usize, f64, f64)>>,
+    /// (piece, time, value) of the true base acceleration at the end of the RK4 step under
+    /// way, computed with its middle ([`Hybrid::inputs_ahead`]) and taken by its last stage.
+    ahead: Cell<Option<(usize, f64, f64)>>,
     /// (piece, time, reference time, value) of the last true base acceleration taken from a
     /// spline: an RK4 sub-step asks twice at its middle and its end is the next one's start,
     /// so half of a replay's evaluations are the one before.
@@ -187,8 +190,26 @@ impl RigSystem<'_> {
         interval.map_or(0.0, |iv| iv.d2(t))
     }
 
-    /// The true base acceleration at `t` (piece of `t_ref`).
+    /// The true base acceleration at `t` (piece of `t_ref`). The values remembered are
+    /// looked up here, inlined: three of an RK4 step's four stages find theirs there, and the
+    /// call of `base_true_window` cost more than the lookup.
+    #[inline(always)]
     fn base_true_d2(&self, t: f64, t_ref: f64) -> f64 {
+        let j = self.base_true_index(t_ref);
+        if let Some((lj, lt, v)) = self.last_d2.get()
+            && lj == j
+            && lt == t
+        {
+            return v;
+        }
+        if let Some((aj, at, v)) = self.ahead.get()
+            && aj == j
+            && at == t
+        {
+            self.ahead.set(None);
+            self.last_d2.set(Some((j, t, v)));
+            return v;
+        }
         self.base_true_window(2, t, t_ref)
     }
 
@@ -335,6 +356,24 @@ impl Hybrid for RigSystem<'_> {
         }
     }
 
+    fn inputs_ahead(&self, t: [f64; 2], t_ref: f64) {
+        // Both from the window that holds, when it covers both and neither value is the one
+        // remembered: `base_true_window` would take each from that window in turn.
+        let j = self.base_true_index(t_ref);
+        let remembered =
+            matches!(self.last_d2.get(), Some((lj, lt, _)) if lj == j && t.contains(&lt));
+        if remembered || t[0] == t[1] {
+            return;
+        }
+        let sig = &self.base_true;
+        let tl = [t[0] - sig.shift, t[1] - sig.shift];
+        let windows = self.windows.borrow();
+        if let Some(v) = InputWindow::eval_pair_covered(&windows[0], 2, j, &sig.pieces[j], tl) {
+            self.last_d2.set(Some((j, t[0], v[0])));
+            self.ahead.set(Some((j, t[1], v[1])));
+        }
+    }
+
     fn needed_friction(&self, t: f64, t_ref: f64, y: &[f64]) -> f64 {
         -self.mass_kg * self.base_true_d2(t, t_ref)
             - self.element.smooth_force(y[0], 0.0, &y[2..2 + self.nz])
@@ -474,6 +513,7 @@ pub(crate) fn run_rig_streamed(
         piece: Cell::new((0.0, 0.0, 0)),
         last_d2: Cell::new(None),
         last_value: Cell::new(None),
+        ahead: Cell::new(None),
         last_spline_d2: Cell::new(None),
         spline_interval: Cell::new(None),
         sample_rate_hz,
@@ -561,38 +601,4 @@ pub(crate) fn program_setup<'a>(
         sample_rate_hz: program.sample_rate_hz,
         init,
     }
-}
-
-/// Cuts run-long samples into the program's records.
-pub(crate) fn split_records<const N: usize>(
-    program: &Program,
-    channels: &[Channel; N],
-    out: &[[f64; N]],
-    trace: Vec<SampleTrace>,
-    stats: &RunStats,
-) -> SimOutput {
-    let mut records = Vec::with_capacity(program.records.len());
-    let mut traces = Vec::with_capacity(program.records.len());
-    let mut first = 0;
-    for (k, plan) in program.records.iter().enumerate() {
-        let range = first..first + plan.samples;
-        records.push(Record {
-            step: k,
-            excitation: plan.excitation.clone(),
-            sample_rate_hz: program.sample_rate_hz,
-            start_time_s: first as f64 / program.sample_rate_hz,
-            channels: channels
-                .iter()
-                .enumerate()
-                .map(|(j, &c)| (c, out[range.clone()].iter().map(|s| s[j]).collect()))
-                .collect(),
-        });
-        traces.push(super::RecordTrace {
-            samples: trace[range.clone()].to_vec(),
-            stick_time_s: stats.stick_time_s[range.clone()].to_vec(),
-            events: stats.events[range.clone()].iter().sum(),
-        });
-        first += plan.samples;
-    }
-    SimOutput { records, traces }
 }

@@ -5,10 +5,10 @@
 //! buffers).
 
 use super::excitation::Program;
-use super::hybrid::SolverOptions;
+use super::hybrid::{RunStats, SolverOptions};
 use super::rig::{RIG_CHANNELS, RigSetup, run_rig_streamed};
 use super::{RecordTrace, SampleTrace, SimError, SimOutput};
-use crate::record::Record;
+use crate::record::{Channel, Record};
 
 /// The rig under `setup` (built from `program`), cut into `program`'s records as
 /// `split_records` cuts them, with their traces.
@@ -85,4 +85,38 @@ pub(crate) fn simulate_rig_records(
         })
         .collect();
     Ok(SimOutput { records, traces })
+}
+
+/// Cuts run-long samples into the program's records.
+pub(crate) fn split_records<const N: usize>(
+    program: &Program,
+    channels: &[Channel; N],
+    out: &[[f64; N]],
+    trace: Vec<SampleTrace>,
+    stats: &RunStats,
+) -> SimOutput {
+    let mut records = Vec::with_capacity(program.records.len());
+    let mut traces = Vec::with_capacity(program.records.len());
+    let mut first = 0;
+    for (k, plan) in program.records.iter().enumerate() {
+        let range = first..first + plan.samples;
+        records.push(Record {
+            step: k,
+            excitation: plan.excitation.clone(),
+            sample_rate_hz: program.sample_rate_hz,
+            start_time_s: first as f64 / program.sample_rate_hz,
+            channels: channels
+                .iter()
+                .enumerate()
+                .map(|(j, &c)| (c, out[range.clone()].iter().map(|s| s[j]).collect()))
+                .collect(),
+        });
+        traces.push(RecordTrace {
+            samples: trace[range.clone()].to_vec(),
+            stick_time_s: stats.stick_time_s[range.clone()].to_vec(),
+            events: stats.events[range.clone()].iter().sum(),
+        });
+        first += plan.samples;
+    }
+    SimOutput { records, traces }
 }

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use super::excitation::Program;
 use super::hybrid::{Hybrid, Integrator, Mode, SolverOptions};
-use super::rig::split_records;
+use super::rig_records::split_records;
 use super::{SampleTrace, SimError, SimOutput, is_positive};
 use crate::element::{Element, Friction};
 use crate::record::Channel;
