@@ -93,9 +93,10 @@ pub(crate) struct RigSystem<'a> {
     /// for the sample's channels in the pass of its acceleration pair, when its window covers
     /// that time already.
     last_value: Cell<Option<(usize, f64, f64)>>,
-    /// (piece, time, value) of the true base acceleration at the end of the RK4 step under
-    /// way, computed with its middle ([`Hybrid::inputs_ahead`]) and taken by its last stage.
-    ahead: Cell<Option<(usize, f64, f64)>>,
+    /// (piece, time, reference time, value) of the true base acceleration at the end of the
+    /// RK4 step under way, computed with its middle ([`Hybrid::inputs_ahead`]) and taken by its
+    /// last stage.
+    ahead: Cell<Option<(usize, f64, f64, f64)>>,
     /// (piece, time, reference time, value) of the last true base acceleration taken from a
     /// spline: an RK4 sub-step asks twice at its middle and its end is the next one's start,
     /// so half of a replay's evaluations are the one before.
@@ -202,12 +203,20 @@ impl RigSystem<'_> {
         {
             return v;
         }
-        if let Some((aj, at, v)) = self.ahead.get()
-            && aj == j
-            && at == t
+        if let Some((aj, at, ar, v)) = self.ahead.get()
+            && (aj, at, ar) == (j, t, t_ref)
         {
+            // Remembered where `base_true_window` would have put it.
             self.ahead.set(None);
-            self.last_d2.set(Some((j, t, v)));
+            match self.base_true.pieces[j] {
+                Piece::Spline(_) => self.last_spline_d2.set(Some((j, t, t_ref, v))),
+                _ => self.last_d2.set(Some((j, t, v))),
+            }
+            return v;
+        }
+        if let Some((lj, lt, lr, v)) = self.last_spline_d2.get()
+            && (lj, lt, lr) == (j, t, t_ref)
+        {
             return v;
         }
         self.base_true_window(2, t, t_ref)
@@ -357,21 +366,42 @@ impl Hybrid for RigSystem<'_> {
     }
 
     fn inputs_ahead(&self, t: [f64; 2], t_ref: f64) {
-        // Both from the window that holds, when it covers both and neither value is the one
-        // remembered: `base_true_window` would take each from that window in turn.
-        let j = self.base_true_index(t_ref);
-        let remembered =
-            matches!(self.last_d2.get(), Some((lj, lt, _)) if lj == j && t.contains(&lt));
-        if remembered || t[0] == t[1] {
+        // Both as `base_true_window` would give each in turn, when neither is the one it
+        // remembers: from the spline's interval, or from the window when it covers both.
+        if t[0] == t[1] {
             return;
         }
+        let j = self.base_true_index(t_ref);
         let sig = &self.base_true;
         let tl = [t[0] - sig.shift, t[1] - sig.shift];
-        let windows = self.windows.borrow();
-        if let Some(v) = InputWindow::eval_pair_covered(&windows[0], 2, j, &sig.pieces[j], tl) {
-            self.last_d2.set(Some((j, t[0], v[0])));
-            self.ahead.set(Some((j, t[1], v[1])));
-        }
+        let v = match &sig.pieces[j] {
+            Piece::Spline(s) => {
+                if matches!(self.last_spline_d2.get(),
+                    Some((lj, lt, lr, _)) if (lj, lr) == (j, t_ref) && t.contains(&lt))
+                {
+                    return;
+                }
+                let tr = t_ref - sig.shift;
+                let v = [
+                    self.spline_d2(j, s, tl[0], tr),
+                    self.spline_d2(j, s, tl[1], tr),
+                ];
+                self.last_spline_d2.set(Some((j, t[0], t_ref, v[0])));
+                v
+            }
+            piece => {
+                if matches!(self.last_d2.get(), Some((lj, lt, _)) if lj == j && t.contains(&lt)) {
+                    return;
+                }
+                let windows = self.windows.borrow();
+                let Some(v) = InputWindow::eval_pair_covered(&windows[0], 2, j, piece, tl) else {
+                    return;
+                };
+                self.last_d2.set(Some((j, t[0], v[0])));
+                v
+            }
+        };
+        self.ahead.set(Some((j, t[1], t_ref, v[1])));
     }
 
     fn needed_friction(&self, t: f64, t_ref: f64, y: &[f64]) -> f64 {
