@@ -50,7 +50,8 @@
 //!
 //! Files: `contract` (column names, required columns, the header's layout), `dialect`,
 //! `multisine` (the multisine label columns), `sweep` (the sweep label columns), `read`, `rows`
-//! (the rows split in place), `row_steps` (rows into step records), `stream` (a file read chunk by chunk),
+//! (the rows split in place), `row_cells` (a row's cells parsed), `row_parts` (a chunk's rows
+//! parsed over the cores), `row_steps` (rows into step records), `stream` (a file read chunk by chunk),
 //! `label_runs` (the label check over records of several rates), `write`, `error`.
 //!
 //! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
@@ -63,6 +64,8 @@ mod error;
 mod label_runs;
 pub mod multisine;
 mod read;
+mod row_cells;
+mod row_parts;
 mod row_steps;
 mod rows;
 mod stream;

@@ -14,8 +14,8 @@ use super::dialect;
 use super::error::{CsvError, csv_error};
 use super::label_runs::label_warnings;
 use super::multisine::MultisineLabel;
+use super::row_parts::PartRule;
 use super::row_steps::{ReadStep, RowSteps};
-use super::rows::Rows;
 use super::stream::{CHUNK_BYTES, read_csv_in_chunks};
 use super::sweep::SweepLabel;
 use crate::steps::timing::JitterSummary;
@@ -33,17 +33,22 @@ pub fn read_csv(path: impl AsRef<Path>) -> Result<CsvImport, CsvError> {
 
 /// Reads the CSV contract from any reader; `path` is used in error messages only.
 pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImport, CsvError> {
-    let p = || path.to_path_buf();
-    // The dialect is detected from the first lines and undone here (see `dialect`).
     let mut bytes = Vec::new();
     reader
         .read_to_end(&mut bytes)
         .map_err(|source| CsvError::Io {
-            path: p(),
+            path: path.to_path_buf(),
             action: "cannot read",
             source,
         })?;
-    let prepared = dialect::prepare(&bytes, path)?;
+    read_bytes(&bytes, path, PartRule::of_machine())
+}
+
+/// [`read_csv_from`] of a file's `bytes`, its rows split over the cores by `rule`.
+pub(super) fn read_bytes(bytes: &[u8], path: &Path, rule: PartRule) -> Result<CsvImport, CsvError> {
+    let p = || path.to_path_buf();
+    // The dialect is detected from the first lines and undone here (see `dialect`).
+    let prepared = dialect::prepare(bytes, path)?;
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .trim(csv::Trim::Headers)
@@ -58,16 +63,15 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
     let layout = Layout::of_header(&header, path)?;
     // The rows after the header, split in place (`rows`): no allocation per row.
     let after_header = rdr.position();
-    let mut rows = Rows::new(
+    let mut read = RowSteps::new(path, &layout, skip_units_row, rule);
+    read.text_rows(
         &prepared.text,
         prepared.dialect.separator,
         header.len(),
         after_header.byte() as usize,
         after_header.line(),
-    );
-
-    let mut read = RowSteps::new(path, &layout, skip_units_row);
-    read.rows(&mut rows)?;
+        true,
+    )?;
     let (steps, unlabelled_times) = read.finish()?;
     import_of(path, layout, steps, &unlabelled_times, prepared.notices)
 }

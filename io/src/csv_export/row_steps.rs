@@ -1,12 +1,16 @@
 //! A CSV export's rows into step records: each row's cells parsed and checked (the contract's
-//! rules of cells, labels and time), then grouped into records by the step assembler of
-//! [`crate::steps`]. The rows come from [`Rows`], over the whole text or chunk by chunk.
+//! rules of cells, labels and time: `row_cells`), then grouped into records by the step
+//! assembler of [`crate::steps`]. The rows come from [`Rows`], over the whole text or chunk by
+//! chunk; a long text's rows are parsed in parts over the cores (`row_parts`) and assembled in
+//! order.
 
 use std::path::Path;
 
-use super::contract::{FREQUENCY_COLUMN, Layout, STEP_COLUMN, TIME_COLUMN};
+use super::contract::{Layout, TIME_COLUMN};
 use super::error::CsvError;
 use super::multisine::{self, MultisineLabel};
+use super::row_cells::{RowHead, parse_head, parse_values};
+use super::row_parts::{PartRows, PartRule, parse_parts};
 use super::rows::Rows;
 use super::sweep::{self, SweepLabel};
 use crate::steps::timing::TimingNote;
@@ -27,16 +31,35 @@ pub(super) struct RowSteps<'a> {
     steps: Vec<ReadStep>,
     current: Option<StepRows>,
     prev_time: Option<(f64, u64)>,
-    /// The values' buffer, reused from row to row.
+    /// The values' buffers, reused from row to row.
     values: Vec<(Channel, f64)>,
+    numbers: Vec<f64>,
     /// Without labels every row is of one step 0, cut into steps once read (the rows' times
     /// kept for the records' start times).
     labelled: bool,
     unlabelled_times: Vec<f64>,
+    /// How a long text's rows are split over the cores, and the parts' buffers.
+    rule: PartRule,
+    kept_parts: Vec<PartRows>,
+}
+
+/// Where the rows of a text ended.
+pub(super) struct RowsEnd {
+    /// The byte, and the `csv` crate's line count there.
+    pub pos: usize,
+    pub line: u64,
+    /// A row must be read by the `csv` crate with the rest of the file, from `pos`.
+    pub wants_rest: bool,
 }
 
 impl<'a> RowSteps<'a> {
-    pub fn new(path: &'a Path, layout: &'a Layout, skip_units_row: bool) -> RowSteps<'a> {
+    /// The rows of an export of `layout`, a long text's rows split over the cores by `rule`.
+    pub fn new(
+        path: &'a Path,
+        layout: &'a Layout,
+        skip_units_row: bool,
+        rule: PartRule,
+    ) -> RowSteps<'a> {
         RowSteps {
             path,
             layout,
@@ -46,17 +69,71 @@ impl<'a> RowSteps<'a> {
             current: None,
             prev_time: None,
             values: Vec::with_capacity(layout.channel_cols.len()),
+            numbers: Vec::with_capacity(layout.channel_cols.len()),
             labelled: layout.step_col.is_some(),
             unlabelled_times: Vec::new(),
+            rule,
+            kept_parts: Vec::new(),
         }
     }
 
-    /// Reads every row `rows` has left.
-    pub fn rows(&mut self, rows: &mut Rows) -> Result<(), CsvError> {
-        while rows.next(self.path)? {
-            self.row(rows)?;
+    /// Reads the rows of `text` from byte `pos`, where the `csv` crate's line count is `line`
+    /// (see [`Rows::of_chunk`]: `whole`, the text holds the rest of the file); returns where
+    /// they ended and whether a row wants the rest of the file ([`Rows::position`],
+    /// [`Rows::wants_rest`]).
+    pub fn text_rows(
+        &mut self,
+        text: &[u8],
+        separator: u8,
+        width: usize,
+        pos: usize,
+        line: u64,
+        whole: bool,
+    ) -> Result<RowsEnd, CsvError> {
+        let (mut pos, mut line) = (pos, line);
+        let parts = self.rule.parts(text, pos);
+        if parts.len() > 1 && !self.skip_units_row {
+            let (path, layout) = (self.path, self.layout);
+            let mut parsed = parse_parts(
+                text,
+                &parts,
+                &mut self.kept_parts,
+                self.rule.threads,
+                separator,
+                width,
+                path,
+                layout,
+            );
+            let columns = layout.channel_cols.len();
+            for part in &mut parsed {
+                // A part that the part before stopped short of is left to one reader.
+                if part.start != pos {
+                    break;
+                }
+                for (k, mut head) in part.heads.drain(..).enumerate() {
+                    head.line += line;
+                    let values = &part.values[k * columns..(k + 1) * columns];
+                    self.assemble(head, |v| {
+                        v.extend_from_slice(values);
+                        Ok(())
+                    })?;
+                }
+                (pos, line) = (part.end, line + part.line_feeds);
+            }
+            self.kept_parts.append(&mut parsed);
         }
-        Ok(())
+        // The rest (all the rows of a short text; else the row a part stopped at and what
+        // follows it, or the blank lines at the end) by one reader.
+        let mut rows = Rows::of_chunk(text, separator, width, pos, line, whole);
+        while rows.next(self.path)? {
+            self.row(&rows)?;
+        }
+        let (pos, line) = rows.position();
+        Ok(RowsEnd {
+            pos,
+            line,
+            wants_rest: rows.wants_rest(),
+        })
     }
 
     /// The records of the rows read (the last step completed), with the rows' times of an
@@ -85,75 +162,50 @@ impl<'a> RowSteps<'a> {
 
     /// The current row of `rows`.
     fn row(&mut self, rows: &Rows) -> Result<(), CsvError> {
+        if std::mem::take(&mut self.skip_units_row) {
+            return Ok(());
+        }
+        let head = parse_head(self.path, self.layout, rows)?;
+        let (path, layout, line) = (self.path, self.layout, head.line);
+        self.assemble(head, |values| {
+            parse_values(path, layout, rows, line, values)
+        })
+    }
+
+    /// A row whose time and labels are `head`, checked against the rows before and added to its
+    /// step; `values` appends its channel values (or refuses them), which is done after the
+    /// checks so that a row's errors come in the order of one reader's.
+    fn assemble(
+        &mut self,
+        head: RowHead,
+        values: impl FnOnce(&mut Vec<f64>) -> Result<(), CsvError>,
+    ) -> Result<(), CsvError> {
         let RowSteps {
             path,
             layout,
-            skip_units_row,
             assembler,
             steps,
             current,
             prev_time,
-            values,
+            values: sample_values,
+            numbers,
             labelled,
             unlabelled_times,
+            ..
         } = self;
         let path: &Path = path;
-        if std::mem::take(skip_units_row) {
-            return Ok(());
-        }
-        let line = rows.line();
-        rows.check_utf8(path)?;
-        let cell = |col: usize| rows.cell(col);
-
-        let time_text = cell(layout.time_col);
-        let time = parse_number(path, line, TIME_COLUMN, time_text)?;
-        let step = match layout.step_col {
-            Some(col) => parse_step(path, line, cell(col))?,
-            None => 0,
-        };
-        let freq_text = layout.freq_col.map_or(&b""[..], cell);
+        let RowHead {
+            line,
+            time_s: time,
+            time_resolution_s,
+            step,
+            frequency_hz: freq,
+            multisine,
+            sweep: swept,
+        } = head;
         if !*labelled {
             unlabelled_times.push(time);
         }
-        let freq = if freq_text.is_empty() {
-            None
-        } else {
-            let f = parse_number(path, line, FREQUENCY_COLUMN, freq_text)?;
-            if f < 0.0 {
-                return Err(CsvError::InvalidValue {
-                    path: path.to_path_buf(),
-                    line,
-                    column: FREQUENCY_COLUMN.to_string(),
-                    cell: String::from_utf8_lossy(freq_text).into_owned(),
-                    reason: "a frequency must not be negative",
-                });
-            }
-            (f != 0.0).then_some(f)
-        };
-        let multisine = match layout.multisine_cols {
-            Some((base_col, lines_col)) => multisine::parse_row(
-                path,
-                line,
-                text(cell(base_col)),
-                text(cell(lines_col)),
-                freq,
-            )?,
-            None => None,
-        };
-        let swept = match layout.sweep_cols {
-            Some(cols) => {
-                let other = if freq.is_some() {
-                    Some("a sine step")
-                } else if multisine.is_some() {
-                    Some("a multisine")
-                } else {
-                    None
-                };
-                sweep::parse_row(path, line, cols.map(|c| text(cell(c))), other)?
-            }
-            None => None,
-        };
-
         if let Some((t0, l0)) = *prev_time
             && time <= t0
         {
@@ -233,20 +285,26 @@ impl<'a> RowSteps<'a> {
                 change: label_change(cur.lines[0], text(&cur.sweep), text(&swept)),
             });
         }
-        values.clear();
-        for &(c, col) in &layout.channel_cols {
-            values.push((c, parse_number(path, line, c.name(), cell(col))?));
-        }
+        numbers.clear();
+        values(numbers)?;
+        sample_values.clear();
+        sample_values.extend(
+            layout
+                .channel_cols
+                .iter()
+                .zip(numbers.iter())
+                .map(|(&(c, _), &v)| (c, v)),
+        );
         cur.lines.push(line);
         let sample = StepSample {
             t_s: time,
-            t_resolution_s: decimal_resolution(time_text),
+            t_resolution_s: time_resolution_s,
             step,
-            values: std::mem::take(values),
+            values: std::mem::take(sample_values),
         };
         let done = assembler.push_sample(&sample, Some(&cur.plan));
         steps.extend(cur.completed(path, done, *labelled)?);
-        *values = sample.values;
+        *sample_values = sample.values;
         Ok(())
     }
 }
@@ -423,88 +481,4 @@ impl StepRows {
 /// How a step's label changed within the step: "line 12 has X, this line Y".
 fn label_change(first_line: u64, before: String, now: String) -> String {
     format!("line {first_line} has {before}, this line {now}")
-}
-
-/// A cell of a row `Rows::check_utf8` accepted, as text.
-fn text(cell: &[u8]) -> &str {
-    std::str::from_utf8(cell).unwrap_or_default()
-}
-
-fn parse_number(path: &Path, line: u64, column: &str, cell: &[u8]) -> Result<f64, CsvError> {
-    if cell.is_empty() {
-        return Err(CsvError::EmptyCell {
-            path: path.to_path_buf(),
-            line,
-            column: column.to_string(),
-        });
-    }
-    let lossy = || String::from_utf8_lossy(cell).into_owned();
-    // What the fast parser refuses goes through `str::parse` trimmed of any Unicode
-    // whitespace (as string records were; `cell` trims ASCII only), so that the same cells
-    // are numbers, empty or refused as before.
-    let v: f64 = match fast_float2::parse(cell) {
-        Ok(v) => v,
-        Err(_) => {
-            let trimmed = text(cell).trim();
-            if trimmed.is_empty() {
-                return Err(CsvError::EmptyCell {
-                    path: path.to_path_buf(),
-                    line,
-                    column: column.to_string(),
-                });
-            }
-            trimmed.parse().map_err(|_| CsvError::NonNumeric {
-                path: path.to_path_buf(),
-                line,
-                column: column.to_string(),
-                cell: lossy(),
-            })?
-        }
-    };
-    if !v.is_finite() {
-        return Err(CsvError::NonFinite {
-            path: path.to_path_buf(),
-            line,
-            column: column.to_string(),
-            cell: lossy(),
-        });
-    }
-    Ok(v)
-}
-
-/// A step index: a non-negative integer (an integral float such as `3.0` is accepted).
-fn parse_step(path: &Path, line: u64, cell: &[u8]) -> Result<usize, CsvError> {
-    if let Ok(s) = text(cell).parse::<usize>() {
-        return Ok(s);
-    }
-    let v = parse_number(path, line, STEP_COLUMN, cell)?;
-    if v >= 0.0 && v.fract() == 0.0 && v <= u32::MAX as f64 {
-        Ok(v as usize)
-    } else {
-        Err(CsvError::InvalidValue {
-            path: path.to_path_buf(),
-            line,
-            column: STEP_COLUMN.to_string(),
-            cell: String::from_utf8_lossy(cell).into_owned(),
-            reason: "a step index must be a non-negative integer",
-        })
-    }
-}
-
-/// The decimal resolution a number was written with: `0.000100` -> 1e-6, `1.5e-3` -> 1e-4.
-fn decimal_resolution(text: &[u8]) -> f64 {
-    let (mantissa, exponent) = match text.iter().position(|&b| b == b'e' || b == b'E') {
-        Some(i) => (
-            &text[..i],
-            self::text(&text[i + 1..]).parse::<i32>().unwrap_or(0),
-        ),
-        None => (text, 0),
-    };
-    let decimals = mantissa.iter().position(|&b| b == b'.').map_or(0, |i| {
-        mantissa[i + 1..]
-            .iter()
-            .filter(|b| b.is_ascii_digit())
-            .count()
-    });
-    10f64.powi(exponent - decimals as i32)
 }

@@ -45,15 +45,11 @@ struct General<'a> {
 }
 
 impl<'a> Rows<'a> {
-    /// The rows of `text` from byte `pos`, where the `csv` crate's line count is `line` (its
-    /// position after the header), each to have `width` fields split on `separator`.
-    pub fn new(text: &'a [u8], separator: u8, width: usize, pos: usize, line: u64) -> Rows<'a> {
-        Rows::of_chunk(text, separator, width, pos, line, true)
-    }
-
-    /// [`Rows::new`] of a chunk of whole lines of the file; `whole`: the chunk holds the rest
-    /// of the file. A row of a chunk that is not whole and that needs the `csv` crate (a quote,
-    /// a lone carriage return) ends the chunk's rows, with [`Rows::wants_rest`].
+    /// The rows of `text` (a chunk of whole lines of the file) from byte `pos`, where the `csv`
+    /// crate's line count is `line` (its position after the header), each to have `width`
+    /// fields split on `separator`; `whole`: the chunk holds the rest of the file. A row of a
+    /// chunk that is not whole and that needs the `csv` crate (a quote, a lone carriage
+    /// return) ends the chunk's rows, with [`Rows::wants_rest`].
     pub fn of_chunk(
         text: &'a [u8],
         separator: u8,
@@ -351,7 +347,7 @@ mod tests {
         let (width, pos, line) = after_header(text, separator)?;
         let mut out = Vec::new();
         let error = collect(
-            &mut Rows::new(text, separator, width, pos, line),
+            &mut Rows::of_chunk(text, separator, width, pos, line, true),
             width,
             &mut out,
         );
@@ -374,7 +370,7 @@ mod tests {
             }
             (pos, line) = rows.position();
             if rows.wants_rest() {
-                let mut rows = Rows::new(&text[start..], separator, width, pos, line);
+                let mut rows = Rows::of_chunk(&text[start..], separator, width, pos, line, true);
                 let error = collect(&mut rows, width, &mut out);
                 return Some((out, error));
             }

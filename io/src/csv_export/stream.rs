@@ -1,7 +1,7 @@
 //! A CSV export read from its file chunk by chunk, so that the file's bytes in memory are a
 //! chunk and not the file: the dialect from the file's first lines (`dialect::detect`), a last
 //! line cut short by an interrupted recording from its last lines (read from the end), then the
-//! rows chunk by chunk, each chunk of whole lines. What is read is what [`read_csv_from`] reads
+//! rows chunk by chunk, each chunk of whole lines. What is read is what [`read_csv_from`](super::read_csv_from) reads
 //! from the whole file: the same records, notices and errors.
 
 use std::fs::File;
@@ -13,12 +13,12 @@ use memchr::{memchr_iter, memrchr};
 use super::contract::{CsvImport, Layout};
 use super::dialect::{self, HEAD_LINES, Head, LinesFromEnd, is_blank};
 use super::error::{CsvError, csv_error};
-use super::read::{import_of, read_csv_from};
+use super::read::{import_of, read_bytes};
+use super::row_parts::PartRule;
 use super::row_steps::RowSteps;
-use super::rows::Rows;
 
 /// Bytes read from the file at a time.
-pub(super) const CHUNK_BYTES: usize = 4 << 20;
+pub(super) const CHUNK_BYTES: usize = 16 << 20;
 
 /// The bytes of the file's end first looked at for its last lines (doubled until they hold
 /// them).
@@ -29,6 +29,15 @@ const BYTE_ORDER_MARK: &[u8] = b"\xEF\xBB\xBF";
 /// Reads the export at `path` in chunks of about `chunk_bytes`. A file whose head (the lines
 /// the dialect is detected from) is the whole file is read whole.
 pub fn read_csv_in_chunks(path: &Path, chunk_bytes: usize) -> Result<CsvImport, CsvError> {
+    read_in_chunks(path, chunk_bytes, PartRule::of_machine())
+}
+
+/// [`read_csv_in_chunks`], each chunk's rows split over the cores by `rule`.
+pub(super) fn read_in_chunks(
+    path: &Path,
+    chunk_bytes: usize,
+    rule: PartRule,
+) -> Result<CsvImport, CsvError> {
     let chunk_bytes = chunk_bytes.max(1);
     let io_error = |action: &'static str| {
         move |source: io::Error| CsvError::Io {
@@ -47,7 +56,7 @@ pub fn read_csv_in_chunks(path: &Path, chunk_bytes: usize) -> Result<CsvImport, 
         let from = buf.len();
         if fill(&mut file, &mut buf, chunk_bytes).map_err(io_error("cannot read"))? == 0 {
             // The whole file is its head.
-            return read_csv_from(&buf[..], path);
+            return read_bytes(&buf, path, rule);
         }
         lines += memchr_iter(b'\n', &buf[from..]).count();
     }
@@ -100,7 +109,7 @@ pub fn read_csv_in_chunks(path: &Path, chunk_bytes: usize) -> Result<CsvImport, 
     let (mut pos, mut line) = (after_header.byte() as usize, after_header.line());
     drop(rdr);
 
-    let mut read = RowSteps::new(path, &layout, head.dialect.units.is_some());
+    let mut read = RowSteps::new(path, &layout, head.dialect.units.is_some(), rule);
     // Line feeds of the data before the cut, for the notice's line.
     let mut line_feeds = 0;
     loop {
@@ -112,11 +121,10 @@ pub fn read_csv_in_chunks(path: &Path, chunk_bytes: usize) -> Result<CsvImport, 
             memrchr(b'\n', &buf).map_or(0, |i| i + 1)
         };
         if complete > pos {
-            let mut rows =
-                Rows::of_chunk(&buf[..complete], separator, header.len(), pos, line, whole);
-            read.rows(&mut rows)?;
-            (pos, line) = rows.position();
-            if rows.wants_rest() {
+            let ended =
+                read.text_rows(&buf[..complete], separator, header.len(), pos, line, whole)?;
+            (pos, line) = (ended.pos, ended.line);
+            if ended.wants_rest {
                 // A row the `csv` crate reads: with the rest of the file, in memory.
                 let rest = (end - read_to) as usize;
                 let from = buf.len();
@@ -127,8 +135,7 @@ pub fn read_csv_in_chunks(path: &Path, chunk_bytes: usize) -> Result<CsvImport, 
                     dialect::decimal_points(&mut buf[from..]);
                 }
                 line_feeds += memchr_iter(b'\n', &buf).count();
-                let mut rows = Rows::new(&buf, separator, header.len(), pos, line);
-                read.rows(&mut rows)?;
+                read.text_rows(&buf, separator, header.len(), pos, line, true)?;
                 break;
             }
             if cut.is_some() {
@@ -153,6 +160,8 @@ pub fn read_csv_in_chunks(path: &Path, chunk_bytes: usize) -> Result<CsvImport, 
         }
         read_to += n as u64;
     }
+    // The file's bytes go before the label check's peak.
+    drop(buf);
     let (steps, unlabelled_times) = read.finish()?;
     let mut notices = head.notices.clone();
     if let Some((_, why)) = &cut {
