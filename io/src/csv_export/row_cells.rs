@@ -23,6 +23,14 @@ pub(super) struct RowHead {
     pub step: usize,
     /// `None` stands for random excitation (0 or empty).
     pub frequency_hz: Option<f64>,
+    /// A multisine's or a sweep's label (boxed: most rows have none, and a chunk's rows are
+    /// held parsed).
+    pub labels: Option<Box<RowLabels>>,
+}
+
+/// A row's multisine and sweep labels.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct RowLabels {
     pub multisine: Option<MultisineLabel>,
     pub sweep: Option<SweepLabel>,
 }
@@ -84,8 +92,8 @@ pub(super) fn parse_head(path: &Path, layout: &Layout, rows: &Rows) -> Result<Ro
         time_resolution_s: decimal_resolution(time_text),
         step,
         frequency_hz: freq,
-        multisine,
-        sweep,
+        labels: (multisine.is_some() || sweep.is_some())
+            .then(|| Box::new(RowLabels { multisine, sweep })),
     })
 }
 

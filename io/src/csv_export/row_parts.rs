@@ -58,9 +58,7 @@ impl PartRule {
     /// rule's size).
     pub fn parts(self, text: &[u8], pos: usize) -> Vec<(usize, usize)> {
         let rest = text.len().saturating_sub(pos);
-        // The rows estimated from the first line's length.
-        let first_line = memchr(b'\n', &text[pos.min(text.len())..]).map_or(rest, |i| i + 1);
-        let rows = rest / first_line.max(1);
+        let rows = estimated_rows(&text[pos.min(text.len())..]);
         let parts = self.threads.min(rows / self.min_rows.max(1)).max(1);
         let mut starts = vec![pos];
         for k in 1..parts {
@@ -75,6 +73,12 @@ impl PartRule {
         let ends = starts.iter().skip(1).copied().chain([text.len()]);
         starts.iter().copied().zip(ends).collect()
     }
+}
+
+/// The rows of `text` estimated from its first line's length.
+fn estimated_rows(text: &[u8]) -> usize {
+    let first_line = memchr(b'\n', text).map_or(text.len(), |i| i + 1);
+    text.len() / first_line.max(1)
 }
 
 /// The first row end at or after byte `from`: after a row's line feed, or at it when a carriage
@@ -109,10 +113,21 @@ pub(super) fn parse_parts(
     path: &Path,
     layout: &Layout,
 ) -> Vec<PartRows> {
-    // Each part's buffers go to its thread and come back filled.
+    // Each part's buffers go to its thread and come back filled. They are sized here for the
+    // rows estimated: a buffer a thread grows stays in that thread's allocator arena, which
+    // keeps its memory after the reading.
+    let columns = layout.channel_cols.len();
     let work: Vec<((usize, usize), Mutex<PartRows>)> = parts
         .iter()
-        .map(|&range| (range, Mutex::new(kept.pop().unwrap_or_default())))
+        .map(|&(start, end)| {
+            let mut out = kept.pop().unwrap_or_default();
+            // An eighth more for lines shorter than the first.
+            let rows = estimated_rows(&text[start..end]) * 9 / 8;
+            out.heads.reserve(rows.saturating_sub(out.heads.len()));
+            out.values
+                .reserve((rows * columns).saturating_sub(out.values.len()));
+            ((start, end), Mutex::new(out))
+        })
         .collect();
     parallel::in_parts_on(threads, &work, 1, |ps| {
         ps.iter()

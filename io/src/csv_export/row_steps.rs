@@ -200,9 +200,9 @@ impl<'a> RowSteps<'a> {
             time_resolution_s,
             step,
             frequency_hz: freq,
-            multisine,
-            sweep: swept,
+            labels,
         } = head;
+        let (multisine, swept) = labels.map_or((None, None), |l| (l.multisine, l.sweep));
         if !*labelled {
             unlabelled_times.push(time);
         }
