@@ -50,11 +50,14 @@ pub(super) fn read_in_chunks(
     let file_len = file.metadata().map_err(io_error("cannot read"))?.len();
 
     // The head: lines enough to detect the dialect and a line more (the head's lines whole).
-    let mut buf = Vec::with_capacity(chunk_bytes + (64 << 10));
+    // A short file's buffer is the file's length (and a byte more, to see its end), not a
+    // chunk: the buffer is zeroed before it is read into.
+    let short = |read: usize| chunk_bytes.min((file_len as usize).saturating_sub(read) + 1);
+    let mut buf = Vec::with_capacity(short(0) + (64 << 10));
     let mut lines = 0;
     while lines <= HEAD_LINES {
         let from = buf.len();
-        if fill(&mut file, &mut buf, chunk_bytes).map_err(io_error("cannot read"))? == 0 {
+        if fill(&mut file, &mut buf, short(from)).map_err(io_error("cannot read"))? == 0 {
             // The whole file is its head.
             return read_bytes(&buf, path, rule);
         }
