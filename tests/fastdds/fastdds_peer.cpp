@@ -198,13 +198,27 @@ static void write_reliably(DataWriter* w, M& m) {
 
 // Waits for a theta that uses `expected_steps` steps (each theta is printed by the listener),
 // then deletes the participant; exits with a failure after `timeout_s`.
-static int await_theta_and_close(DomainParticipant* p, ThetaListener& listener, int expected_steps,
-                                 double timeout_s) {
+// Whether the theta reader has matched forcemap's identifier. The bench waits for it before
+// publishing, so every theta is sent to a matched reader, not left to the late-joiner
+// delivery of transient local.
+static bool theta_matched(DataReader* reader) {
+  SubscriptionMatchedStatus m;
+  reader->get_subscription_matched_status(m);
+  return m.current_count > 0;
+}
+
+static int await_theta_and_close(DomainParticipant* p, DataReader* reader, ThetaListener& listener,
+                                 int expected_steps, double timeout_s) {
   auto t0 = Clock::now();
   while (listener.last_steps < expected_steps) {
-    if (std::chrono::duration<double>(Clock::now() - t0).count() > timeout_s)
+    if (std::chrono::duration<double>(Clock::now() - t0).count() > timeout_s) {
+      SubscriptionMatchedStatus m;
+      reader->get_subscription_matched_status(m);
       fail("no theta with " + std::to_string(expected_steps) + " steps within the timeout (" +
-           std::to_string(listener.count) + " thetas received)");
+           std::to_string(listener.count) + " thetas received; the theta reader matched " +
+           std::to_string(m.current_count) + " writer(s) now, " + std::to_string(m.total_count) +
+           " in all)");
+    }
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   p->delete_contained_entities();
@@ -240,9 +254,9 @@ static int run_publish(int domain, const std::string& path, int expected_steps, 
   PublicationMatchedStatus st;
   for (;;) {
     s_w->get_publication_matched_status(st);
-    if (st.current_count > 0) break;
+    if (st.current_count > 0 && theta_matched(t_r)) break;
     if (Clock::now() - t0 > std::chrono::seconds(30))
-      fail("no subscriber (forcemap's harmonic node) matched rt/rig/samples within 30 s");
+      fail("no subscriber (forcemap's harmonic node) matched rt/rig/samples, or no publisher (its identifier) rt/rig/theta, within 30 s");
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
@@ -290,7 +304,7 @@ static int run_publish(int domain, const std::string& path, int expected_steps, 
   s_w->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(30, 0));
   e_w->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(30, 0));
 
-  return await_theta_and_close(p, listener, expected_steps, timeout_s);
+  return await_theta_and_close(p, t_r, listener, expected_steps, timeout_s);
 }
 
 // A bench publishing its own standard topics (for forcemap's foreign node): lines
@@ -323,9 +337,9 @@ static int run_bench(int domain, const std::string& path, int expected_steps, do
   for (;;) {
     j_w->get_publication_matched_status(js);
     l_w->get_publication_matched_status(ls);
-    if (js.current_count > 0 && ls.current_count > 0) break;
+    if (js.current_count > 0 && ls.current_count > 0 && theta_matched(t_r)) break;
     if (Clock::now() - t0 > std::chrono::seconds(30))
-      fail("no subscriber (forcemap's foreign node) matched rt/bench/joints and rt/bench/load within 30 s");
+      fail("no subscriber (forcemap's foreign node) matched rt/bench/joints and rt/bench/load, or no publisher (its identifier) rt/rig/theta, within 30 s");
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
@@ -359,7 +373,7 @@ static int run_bench(int domain, const std::string& path, int expected_steps, do
             << " wrenches" << std::endl;
   j_w->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(30, 0));
   l_w->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(30, 0));
-  return await_theta_and_close(p, listener, expected_steps, timeout_s);
+  return await_theta_and_close(p, t_r, listener, expected_steps, timeout_s);
 }
 
 static int run_late(int domain, double listen_s) {
