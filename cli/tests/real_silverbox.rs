@@ -116,7 +116,7 @@ fn the_silverbox_duffing_oscillator_predicts_its_test_record() {
         let model = Model::by_name(name, &ModelOptions::default()).unwrap();
         let (theta, ours) = forcemap_on_arrow(name, plots.path());
         let ls = reference::least_squares_theta(&model, true, &fit);
-        let reference = validate_forced_element(&model, None, &ls, &held[0])
+        let reference = validate_forced_element(&model, None, None, &ls, &held[0])
             .unwrap()
             .rms_error_m;
         println!(

@@ -18,6 +18,7 @@ use crate::sim::{ReplayOptions, RigInitial, SimError, ZeroPhaseLowpass, simulate
 mod broadband;
 mod element;
 mod estimator_choice;
+mod hysteresis_records;
 pub use broadband::{
     SWEEP_TRANSIENT_WINDOWS, analyse_sweep_records, identify_element_sample_records,
     identify_random_records, multisine_too_short, sample_records,
@@ -27,6 +28,9 @@ pub use element::{
     validate_forced_element,
 };
 pub use estimator_choice::{CHOICE_MARGIN, MIN_CROSS_VALIDATION_STEPS, choose_estimator};
+pub use hysteresis_records::{
+    HYSTERESIS_PARAMETERS, HysteresisRefit, refine_hysteresis_on_records,
+};
 
 #[derive(Debug, Error)]
 pub enum PipelineError {
@@ -369,6 +373,7 @@ pub fn validate_rig_with(
         initial: RigInitial {
             relative_displacement_m: rel[0],
             mass_velocity_mps: mass_velocity,
+            first_internal_state: 0.0,
         },
         prefilter: base_lowpass_hz.map(|cutoff_hz| ZeroPhaseLowpass { cutoff_hz }),
         ..ReplayOptions::default()

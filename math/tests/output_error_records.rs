@@ -64,7 +64,7 @@ fn dyno_random_strokes(element: TruthElement, snr_db: Option<f64>) -> Vec<Record
 /// RMS error [m] of a simulated displacement against the record's measured one.
 fn prediction_rms_m(model: &Model, theta: &[f64], record: &Record) -> f64 {
     let x = record.channel(Channel::RelativeDisplacementM).unwrap();
-    let p = RecordsOutputError::predict_forced(model, Some(MASS_KG), theta, record).unwrap();
+    let p = RecordsOutputError::predict_forced(model, Some(MASS_KG), None, theta, record).unwrap();
     let e: Vec<f64> = x.iter().zip(&p).map(|(m, s)| m - s).collect();
     rms(&e)
 }

@@ -71,6 +71,7 @@ fn linear_free_response_matches_closed_form() {
         RigInitial {
             relative_displacement_m: x0,
             mass_velocity_mps: 0.0,
+            first_internal_state: 0.0,
         },
         &SolverOptions::default(),
     )
@@ -191,6 +192,7 @@ fn coulomb_free_decay_matches_closed_form() {
         RigInitial {
             relative_displacement_m: x0,
             mass_velocity_mps: 0.0,
+            first_internal_state: 0.0,
         },
         &SolverOptions::default(),
     )

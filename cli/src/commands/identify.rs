@@ -240,8 +240,14 @@ fn held_out_validations(
                         && !matches!(r.excitation, Excitation::Sine { .. });
                     let simulated = if forced {
                         Some(
-                            pipeline::validate_forced_element(model, *moving_mass_kg, theta, r)
-                                .with_context(context)?,
+                            pipeline::validate_forced_element(
+                                model,
+                                *moving_mass_kg,
+                                None,
+                                theta,
+                                r,
+                            )
+                            .with_context(context)?,
                         )
                     } else {
                         None

@@ -34,6 +34,7 @@ use super::diagnose::{Data, ElementFit, Fitted, PeriodicFit, fit_element_steps};
 use super::identify::{
     check_frequency_tolerance, data_name, held_out_records, no_better_than_zero,
 };
+use super::identify_hysteresis_records::{Refinement, predict_forced, refined_parameters};
 use super::identify_plots::{LoopRecord, write_loop_plots};
 use crate::cli::IdentifyArgs;
 use forcemap_io::steps::unlabelled::frequencies_from_data;
@@ -55,8 +56,12 @@ struct HeldOut {
     step: usize,
     /// NMSE of the element force (element test) or of the mass acceleration (rig) [%].
     nmse_percent: f64,
-    /// RMS error of the element force [N] (element tests).
+    /// RMS error of the element force [N] (displacement-driven element tests).
+    #[serde(skip_serializing_if = "Option::is_none")]
     rms_error_n: Option<f64>,
+    /// RMS error of the displacement [m] (force-driven element tests).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rms_error_m: Option<f64>,
     /// RMS error of the mass acceleration [m/s^2] (rigs).
     #[serde(skip_serializing_if = "Option::is_none")]
     rms_error_mps2: Option<f64>,
@@ -67,7 +72,8 @@ struct HeldOut {
 }
 
 /// The rig a fitted element is put back into when the data are a base-excited rig's: its mass,
-/// its sine steps as measured, and the records with no steps of the fitted files (the export's
+/// its fitted records as measured (its sine steps; where it has none, its records with no
+/// steps), and the records with no steps held out of a fit on sine steps (the export's
 /// validation records).
 struct Rig {
     mass_kg: f64,
@@ -83,21 +89,25 @@ fn rig_steps_as_element(
     file: &str,
     name: &str,
 ) -> anyhow::Result<(Data, Rig)> {
-    let (steps, others): (Vec<Record>, Vec<Record>) = records
+    let (mut steps, mut others): (Vec<Record>, Vec<Record>) = records
         .into_iter()
         .partition(|r| matches!(r.excitation, Excitation::Sine { .. }));
+    let fitted = if steps.is_empty() {
+        std::mem::swap(&mut steps, &mut others);
+        "records (it has no sine steps; the fit is then refined by output error on the rig)"
+    } else {
+        "sine steps"
+    };
     if steps.is_empty() {
-        bail!(
-            "{file}: model {name} is fitted on a rig's sine steps; these records have none (fit their samples with `forcemap diagnose --model BASE`, which names a hysteresis where the data show one)"
-        );
+        bail!("{file}: model {name}: the files hold no records");
     }
     let view = steps
         .iter()
         .map(|r| element_view_of_rig(r, mass_kg))
         .collect::<Result<Vec<_>, _>>()
-        .with_context(|| format!("{file}: the rig's sine steps"))?;
+        .with_context(|| format!("{file}: the rig's {fitted}"))?;
     eprintln!(
-        "note: {file}: the rig's sine steps fitted as the element between base and mass, its force the one that holds the {mass_kg} kg mass (-m a_o) along the relative motion; held-out records simulated on the rig"
+        "note: {file}: the rig's {fitted} fitted as the element between base and mass, its force the one that holds the {mass_kg} kg mass (-m a_o) along the relative motion; held-out records simulated on the rig"
     );
     let data = Data {
         records: view,
@@ -134,6 +144,7 @@ fn predict_held_out(
             step: record.step,
             nmse_percent: v.nmse_percent,
             rms_error_n: Some(v.rms_error_n),
+            rms_error_m: None,
             rms_error_mps2: None,
             simulated: None,
         });
@@ -159,6 +170,7 @@ fn predict_held_out(
         step: record.step,
         nmse_percent: h.nmse_percent,
         rms_error_n: None,
+        rms_error_m: None,
         rms_error_mps2: Some((sse / n).sqrt()),
         simulated: Some([
             (0..h.measured_mps2.len())
@@ -176,15 +188,11 @@ fn check_options(args: &IdentifyArgs, name: &str) -> anyhow::Result<()> {
         (args.forgetting_per_step != 1.0, "--forgetting-per-step"),
         (args.update_period_s.is_some(), "--update-period-s"),
         (args.td_points.is_some(), "--td-points"),
-        (
-            args.drive.map(ElementDrive::from) == Some(ElementDrive::Force),
-            "--drive force",
-        ),
     ];
     if let Some((_, option)) = refused.iter().find(|(set, _)| *set) {
         bail!(
-            "model {name}: {option} is not available with a hysteresis state (it is fitted along \
-             the measured motion of a displacement-driven element test or a rig's sine steps, converged over every step)"
+            "model {name}: {option} is not available with a hysteresis state (the model is fitted \
+             offline, on all the fitted records at once)"
         );
     }
     Ok(())
@@ -244,22 +252,50 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
         .with_context(|| format!("{file}: fitting model {name}"))?;
     let (h, findings, note) = fit(&data, &baseline, fitted_on)
         .with_context(|| format!("{file}: fitting model {name}"))?;
-    let fit = h
+    let mut fit = h
         .fit
         .clone()
         .with_context(|| format!("{file}: model {name}: the fit holds no element force"))?;
-    let parameters: Vec<ParameterValue> = h
+    let mut parameters: Vec<ParameterValue> = h
         .refitted_baseline
         .iter()
         .chain(&h.added_parameters)
         .cloned()
         .collect();
+    let fitted_records = rig.as_ref().map_or(&data.records, |rig| &rig.steps);
+    let refinement = Refinement::of(
+        &data.setup,
+        args.drive.map(ElementDrive::from),
+        fitted_records,
+    );
+    let refit = refinement
+        .refine(&baseline, fitted_records, &fit)
+        .with_context(|| format!("{file}: fitting model {name}"))?;
+    if let Some(r) = &refit {
+        fit = r.fit.clone();
+        parameters = refined_parameters(&r.identification, &r.fit);
+    }
     // The held-out records as read (a rig's as the element between base and mass, for the
     // loops) beside their predictions.
     let mut held_out = Vec::new();
     let mut held_out_records_read = Vec::new();
     let mut predict = |shown: &str, r: Record| -> anyhow::Result<()> {
-        held_out.push(predict_held_out(&fit, rig.as_ref(), shown, &r)?);
+        held_out.push(match refinement {
+            Refinement::Forced { .. } => {
+                let (nmse_percent, rms_error_m) = predict_forced(&baseline, &fit, &r)
+                    .with_context(|| format!("{shown}: record {}", r.step))?;
+                HeldOut {
+                    file: shown.to_string(),
+                    step: r.step,
+                    nmse_percent,
+                    rms_error_n: None,
+                    rms_error_m: Some(rms_error_m),
+                    rms_error_mps2: None,
+                    simulated: None,
+                }
+            }
+            _ => predict_held_out(&fit, rig.as_ref(), shown, &r)?,
+        });
         held_out_records_read.push(match &rig {
             Some(rig) => element_view_of_rig(&r, rig.mass_kg)
                 .with_context(|| format!("{shown}: record {}", r.step))?,
@@ -325,7 +361,7 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
             "{}",
             json!({
                 "model": name,
-                "method": "hysteresis-refit",
+                "method": if refit.is_some() { "hysteresis-output-error" } else { "hysteresis-refit" },
                 "parameters": parameters,
                 "steps": findings.steps,
                 "cv_percent": h.cv_percent,
@@ -335,6 +371,11 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
                 "fit_choice": choice,
                 "notes": note.iter().collect::<Vec<_>>(),
                 "held_out": held_out,
+                "output_error": refit.as_ref().map(|r| json!({
+                    "refined_on": refinement.describe(r.identification.steps_used.len()),
+                    "residual_rms_noise_std": r.identification.residual_rms,
+                    "warnings": r.identification.warnings,
+                })),
             })
         );
         return Ok(());
@@ -352,10 +393,21 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
             p.std.map_or("(searched)".into(), |s| format!("{s:.3e}"))
         );
     }
+    let before = if refit.is_some() {
+        "the fit along the measured motion (the start of output error): "
+    } else {
+        ""
+    };
     println!(
-        "cross-validated force error {:.2} % ({base} alone: {:.2} %; the force noise alone: {:.2} %)",
+        "{before}cross-validated force error {:.2} % ({base} alone: {:.2} %; the force noise alone: {:.2} %)",
         h.cv_percent, f.gap_before_percent, f.floor_percent
     );
+    if let Some(r) = &refit {
+        println!("{}", refinement.describe(r.identification.steps_used.len()));
+        for w in &r.identification.warnings {
+            println!("{w}");
+        }
+    }
     if let Some(c) = &choice {
         println!("fitted on: {c}");
     }
@@ -365,6 +417,10 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
     for h in &held_out {
         let (what, rms) = match (h.rms_error_n, h.rms_error_mps2) {
             (Some(n), _) => ("force", format!("{n:.3e} N")),
+            (None, None) if h.rms_error_m.is_some() => (
+                "displacement (the mass simulated under its measured force)",
+                format!("{:.3e} m", h.rms_error_m.unwrap_or(f64::NAN)),
+            ),
             (None, a) => (
                 "mass-acceleration (the mass simulated under its measured base)",
                 format!("{:.3e} m/s^2", a.unwrap_or(f64::NAN)),

@@ -9,6 +9,7 @@ pub mod diagnose_eval;
 pub mod element_outputs;
 pub mod identify;
 pub mod identify_hysteresis;
+pub mod identify_hysteresis_records;
 mod identify_plots;
 pub mod import;
 pub mod info;

@@ -113,6 +113,7 @@ pub fn predict_record(
         initial: RigInitial {
             relative_displacement_m: rel[k0],
             mass_velocity_mps: mass_velocity,
+            first_internal_state: 0.0,
         },
         prefilter: None,
         solver: SolverOptions {

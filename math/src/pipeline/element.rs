@@ -11,6 +11,7 @@ use crate::identify::RecordsOutputError;
 use crate::measured_state::MeasuredState;
 use crate::model::{IdentifiedModel, Model};
 use crate::record::{Channel, Record};
+use crate::signal::bouc_wen::HysteresisLaw;
 
 /// The prediction of an element model on one held-out record.
 #[derive(Debug, Clone, Serialize)]
@@ -84,16 +85,19 @@ pub struct ForcedValidation {
 }
 
 /// Simulates the mass of a force-driven element test (`moving_mass_kg`, or the identified
-/// mass after theta in `element` when None) under `record`'s measured force from the initial
+/// mass after theta in `element` when None; with a `hysteresis` law's shape, its alpha and
+/// yield after those) under `record`'s measured force from the initial
 /// state that fits the record best with the parameters held
 /// ([`RecordsOutputError::predict_forced`]), and scores its displacement.
 pub fn validate_forced_element(
     model: &Model,
     moving_mass_kg: Option<f64>,
+    hysteresis: Option<HysteresisLaw>,
     element: &[f64],
     record: &Record,
 ) -> Result<ForcedValidation, PipelineError> {
-    let predicted = RecordsOutputError::predict_forced(model, moving_mass_kg, element, record)?;
+    let predicted =
+        RecordsOutputError::predict_forced(model, moving_mass_kg, hysteresis, element, record)?;
     let measured =
         record
             .channel(Channel::RelativeDisplacementM)

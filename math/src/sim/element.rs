@@ -160,11 +160,14 @@ pub fn simulate_element(
 
 type RunOut = (Vec<[f64; 3]>, Vec<SampleTrace>, RunStats);
 
-/// The state a force-driven mass starts from (internal element states at zero).
+/// The state a force-driven mass starts from.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ForcedInitial {
     pub displacement_m: f64,
     pub velocity_mps: f64,
+    /// The element's first internal state (a fitted element's Bouc-Wen z [m],
+    /// `diagnose::fitted_element`); any others start at zero.
+    pub first_internal_state: f64,
 }
 
 /// Response of a force-driven element test at its samples.
@@ -232,6 +235,9 @@ fn run_forced(
     let mut y = vec![0.0; sys.dim()];
     y[0] = initial.displacement_m;
     y[1] = initial.velocity_mps;
+    if nz > 0 {
+        y[2] = initial.first_internal_state;
+    }
     let breaks = sys.force.breakpoints();
     let mut out = vec![[0.0; 3]; samples];
     let mut trace = vec![SampleTrace::default(); samples];

@@ -68,6 +68,10 @@ impl Default for RigEffects {
 pub struct RigInitial {
     pub relative_displacement_m: f64,
     pub mass_velocity_mps: f64,
+    /// The element's first internal state (a fitted element's Bouc-Wen z [m],
+    /// `diagnose::fitted_element`); any others start at zero.
+    #[serde(default)]
+    pub first_internal_state: f64,
 }
 
 pub(crate) struct RigSystem<'a> {
@@ -416,6 +420,9 @@ pub(crate) fn run_rig_streamed(
     let b0 = sys.base_true.eval_right(0.0);
     y[0] = init.relative_displacement_m;
     y[1] = init.mass_velocity_mps - b0.d1;
+    if nz > 0 {
+        y[2] = init.first_internal_state;
+    }
     if sys.omega_c.is_some() {
         // Filters at rest on the values before the start (mass and base at rest).
         let m0 = sys.base_meas.eval_left(0.0);

@@ -137,7 +137,7 @@ fn refit_one(sim: &SimulatedRecords, model: &Model) -> anyhow::Result<Refit> {
                 .validation
                 .iter()
                 .map(|r| {
-                    validate_forced_element(model, moving_mass_kg, &theta, r)
+                    validate_forced_element(model, moving_mass_kg, None, &theta, r)
                         .map(|v| (v.nmse_percent, v.rms_error_m))
                 })
                 .collect::<Result<Vec<_>, _>>()

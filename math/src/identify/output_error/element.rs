@@ -5,6 +5,7 @@
 use crate::element::{Element, Friction};
 use crate::identify::IdentifyError;
 use crate::model::{IdentifiedModel, Model};
+use crate::signal::bouc_wen::HysteresisLaw;
 
 /// `model` with parameters `theta`, as the simulators run it.
 pub(crate) struct ModelElement {
@@ -15,6 +16,9 @@ pub(crate) struct ModelElement {
     /// A constant force on the moving mass, taken off the element's (a force drive's static
     /// part).
     force_offset_n: f64,
+    /// A Bouc-Wen state beside the terms: its force coefficient alpha [N/m] and law, the state
+    /// z [m] the element's one internal state.
+    hysteresis: Option<(f64, HysteresisLaw)>,
 }
 
 /// Checks that the simulators can run `model` exactly: every term that jumps where x' changes
@@ -61,6 +65,16 @@ impl ModelElement {
             friction,
             x_offset_m: 0.0,
             force_offset_n: 0.0,
+            hysteresis: None,
+        }
+    }
+
+    /// The element with a Bouc-Wen state beside its terms: force `alpha_n_per_m * z`, z
+    /// following `law`.
+    pub(crate) fn with_hysteresis(self, alpha_n_per_m: f64, law: HysteresisLaw) -> ModelElement {
+        ModelElement {
+            hysteresis: Some((alpha_n_per_m, law)),
+            ..self
         }
     }
 
@@ -78,17 +92,33 @@ impl ModelElement {
 impl Element for ModelElement {
     fn smooth_force(&self, x: f64, v: f64, z: &[f64]) -> f64 {
         // IdentifiedModel's smooth force leaves every jumping term out.
-        self.smooth.smooth_force(self.x_offset_m + x, v, z) - self.force_offset_n
+        let hysteresis = match (self.hysteresis, z.first()) {
+            (Some((alpha, _)), Some(z)) => alpha * z,
+            _ => 0.0,
+        };
+        self.smooth.smooth_force(self.x_offset_m + x, v, z) - self.force_offset_n + hysteresis
     }
 
     fn friction(&self) -> Option<Friction> {
         self.friction
     }
 
+    fn internal_states(&self) -> usize {
+        usize::from(self.hysteresis.is_some())
+    }
+
+    fn internal_rates(&self, _x: f64, v: f64, z: &[f64], dz: &mut [f64]) {
+        if let (Some((_, law)), Some(&z), Some(d)) = (self.hysteresis, z.first(), dz.first_mut()) {
+            *d = law.rate(z, v);
+        }
+    }
+
     fn linear_coefficients(&self) -> Option<(f64, f64)> {
-        // With an offset the force is affine in x, not linear.
+        // With an offset the force is affine in x, not linear; a state makes it dynamic.
         let offset = self.x_offset_m != 0.0 || self.force_offset_n != 0.0;
-        self.smooth.linear_coefficients().filter(|_| !offset)
+        self.smooth
+            .linear_coefficients()
+            .filter(|_| !offset && self.hysteresis.is_none())
     }
 }
 

@@ -38,6 +38,7 @@ use crate::measured_state::{
 };
 use crate::model::Model;
 use crate::record::{Channel, Excitation, Record};
+use crate::signal::bouc_wen::HysteresisLaw;
 use crate::signal::differentiate::band_limited_derivative;
 use crate::sim::{
     ElementDrive, ForcedInitial, ReplayOptions, RigInitial, SolverOptions,
@@ -152,7 +153,9 @@ enum SampledDrive {
 }
 
 /// The output-error problem of records driven by a sampled input. Parameters: the model's,
-/// the moving mass when it is identified, then each record's initial state (two numbers).
+/// the moving mass when it is identified, a Bouc-Wen state's force coefficient and yield when
+/// the model has one, then each record's initial state (displacement, velocity, and the
+/// Bouc-Wen state z when there is one).
 pub struct RecordsOutputError<'a> {
     model: Model,
     drive: SampledDrive,
@@ -165,9 +168,13 @@ pub struct RecordsOutputError<'a> {
     record_rows: Vec<Range<usize>>,
     /// Residual rows of each record's channels (contiguous runs of one channel).
     blocks: Vec<Range<usize>>,
-    /// Scale of each record's two initial-state numbers (the RMS of those states).
-    state_scale: Vec<[f64; 2]>,
-    start_states: Vec<[f64; 2]>,
+    /// Scale of each record's initial-state numbers (the RMS of those states; the yield for
+    /// z).
+    state_scale: Vec<[f64; 3]>,
+    start_states: Vec<[f64; 3]>,
+    /// The Bouc-Wen law's shape (n, r) held and its yield's start, when the model has a
+    /// hysteresis state beside its terms ([`Self::with_hysteresis`]).
+    hysteresis: Option<HysteresisLaw>,
     /// Compared channels whose noise no record could measure (no band above
     /// [`CUTOFF_MULTIPLE`] times the excitation's top frequency below the Nyquist frequency):
     /// their weight is the floor of [`noise_std`], and the misfit says nothing of the noise.
@@ -279,8 +286,8 @@ impl<'a> RecordsOutputError<'a> {
             record_rows.push(first..rows);
             inputs.push(input);
             compared.push(channels);
-            state_scale.push(scale);
-            start_states.push(start);
+            state_scale.push([scale[0], scale[1], 1.0]);
+            start_states.push([start[0], start[1], 0.0]);
         }
         Ok(RecordsOutputError {
             model: model.clone(),
@@ -292,24 +299,78 @@ impl<'a> RecordsOutputError<'a> {
             blocks,
             state_scale,
             start_states,
+            hysteresis: None,
             noise_unmeasured: Vec::new(),
             solver: SolverOptions::default(),
         })
     }
 
-    fn p_element(&self) -> usize {
-        let fitted_mass = matches!(
+    /// The problem with a Bouc-Wen state beside the model's terms, its law of `law`'s shape
+    /// (n, r) and its yield fitted from `law.yield_m`: two more element parameters (the force
+    /// coefficient alpha [N/m], then the yield [m]) and each record's initial z (from 0: from
+    /// rest, or a start fitted with the state integrated from rest).
+    ///
+    /// Each initial z has a prior, zero with a std of one yield (a residual row per record
+    /// after the samples): the law keeps z within the yield, and where a record's motion
+    /// wipes its start out within a few yields of travel the samples say nothing of it, a flat
+    /// direction whose Gauss-Newton steps (tens of yields) would stall the fit.
+    pub fn with_hysteresis(self, law: HysteresisLaw) -> Self {
+        let state_scale = self
+            .state_scale
+            .iter()
+            .map(|s| [s[0], s[1], law.yield_m])
+            .collect();
+        RecordsOutputError {
+            hysteresis: Some(law),
+            state_scale,
+            ..self
+        }
+    }
+
+    /// Whether the moving mass is a parameter (a force drive with the mass not known).
+    fn fitted_mass(&self) -> bool {
+        matches!(
             self.drive,
             SampledDrive::Force {
                 moving_mass_kg: None
             }
-        );
-        self.model.terms.len() + usize::from(fitted_mass)
+        )
     }
 
-    /// Initial-state parameter index of record `k` (the second number is the next).
+    /// Residual rows of the compared samples (a hysteresis state's priors follow them).
+    fn data_rows(&self) -> usize {
+        self.blocks.last().map_or(0, |b| b.end)
+    }
+
+    fn p_element(&self) -> usize {
+        self.model.terms.len()
+            + usize::from(self.fitted_mass())
+            + 2 * usize::from(self.hysteresis.is_some())
+    }
+
+    /// Initial-state numbers of each record: displacement, velocity, and z with hysteresis.
+    fn state_len(&self) -> usize {
+        2 + usize::from(self.hysteresis.is_some())
+    }
+
+    /// Initial-state parameter index of record `k` (its other numbers follow).
     fn state_index(&self, k: usize) -> usize {
-        self.p_element() + 2 * k
+        self.p_element() + self.state_len() * k
+    }
+
+    /// The element the records are simulated with at element parameters `element`; None when
+    /// they hold no element (a yield that is not positive).
+    fn element(&self, element: &[f64]) -> Option<ModelElement> {
+        let p = self.model.terms.len();
+        let el = ModelElement::new(&self.model, &element[..p]);
+        match self.hysteresis {
+            None => Some(el),
+            Some(law) => {
+                let at = p + usize::from(self.fitted_mass());
+                let (alpha, yield_m) = (element[at], element[at + 1]);
+                (yield_m > 0.0).then(|| el.with_hysteresis(alpha, HysteresisLaw { yield_m, ..law }))
+            }
+        }
     }
 
     /// The compared channels of record `k` simulated with element parameters `element`
@@ -319,20 +380,24 @@ impl<'a> RecordsOutputError<'a> {
         &self,
         k: usize,
         element: &[f64],
-        initial: [f64; 2],
+        initial: &[f64],
     ) -> Result<Vec<Vec<f64>>, IdentifyError> {
         let r = self.records[k];
         let p = self.model.terms.len();
-        let el = ModelElement::new(&self.model, &element[..p]);
+        let el = self
+            .element(element)
+            .ok_or_else(|| step_error(r.step, "output-error simulation: a yield not positive"))?;
         let fs = r.sample_rate_hz;
         let failed =
             |e: crate::sim::SimError| step_error(r.step, format!("output-error simulation: {e}"));
+        let z0 = initial.get(2).copied().unwrap_or(0.0);
         let out = match self.drive {
             SampledDrive::Force { moving_mass_kg } => {
                 let mass = moving_mass_kg.unwrap_or_else(|| element[p]);
                 let initial = ForcedInitial {
                     displacement_m: initial[0],
                     velocity_mps: initial[1],
+                    first_internal_state: z0,
                 };
                 let resp = simulate_on_sampled_force(
                     &el,
@@ -350,6 +415,7 @@ impl<'a> RecordsOutputError<'a> {
                     initial: RigInitial {
                         relative_displacement_m: initial[0],
                         mass_velocity_mps: initial[1],
+                        first_internal_state: z0,
                     },
                     solver: self.solver,
                     ..ReplayOptions::default()
@@ -368,10 +434,10 @@ impl<'a> RecordsOutputError<'a> {
 
     /// Whether every record simulates at parameters `p` (all of this problem's).
     fn simulates(&self, p: &[f64]) -> Result<(), IdentifyError> {
-        let np = self.p_element();
+        let (np, ns) = (self.p_element(), self.state_len());
         for k in 0..self.records.len() {
             let j = self.state_index(k);
-            self.simulate(k, &p[..np], [p[j], p[j + 1]])?;
+            self.simulate(k, &p[..np], &p[j..j + ns])?;
         }
         Ok(())
     }
@@ -388,7 +454,7 @@ impl<'a> RecordsOutputError<'a> {
             ));
         }
         for s in &self.start_states {
-            p0.extend(s);
+            p0.extend(&s[..self.state_len()]);
         }
         self.simulates(&p0).map_err(|e| {
             step_error(
@@ -397,19 +463,34 @@ impl<'a> RecordsOutputError<'a> {
             )
         })?;
         // Initial states first, theta held: a start far from the record's state would
-        // otherwise pull theta along.
-        let states = Partial {
-            inner: self,
-            full: p0.clone(),
-            free: (self.p_element()..p0.len()).collect(),
+        // otherwise pull theta along. A hysteresis state's initial z is held at zero until the
+        // last stage: far from the solution its Gauss-Newton steps run to tens of yields (it
+        // acts as a free force offset at each record's start), and the step limit that stops
+        // them would stall every other parameter.
+        let np = self.p_element();
+        let ns = self.state_len();
+        let is_z0 = |j: usize| j >= np && (j - np) % ns == 2;
+        let mut p = p0;
+        let free_sets: Vec<Vec<usize>> = if self.hysteresis.is_some() {
+            vec![
+                (np..p.len()).filter(|&j| !is_z0(j)).collect(),
+                (0..p.len()).filter(|&j| !is_z0(j)).collect(),
+                (np..p.len()).collect(),
+            ]
+        } else {
+            vec![(np..p.len()).collect()]
         };
-        let fit = lm::levenberg_marquardt_within(
-            &states,
-            p0[self.p_element()..].to_vec(),
-            FROM_TIME_DOMAIN,
-        )?;
-        let p1 = states.expand(&fit.p);
-        let fit = lm::levenberg_marquardt_within(self, p1, FROM_TIME_DOMAIN)?;
+        for free in free_sets {
+            let stage = Partial {
+                inner: self,
+                full: p.clone(),
+                free,
+            };
+            let start: Vec<f64> = stage.free.iter().map(|&j| p[j]).collect();
+            let fit = lm::levenberg_marquardt_within(&stage, start, FROM_TIME_DOMAIN)?;
+            p = stage.expand(&fit.p);
+        }
+        let fit = lm::levenberg_marquardt_within(self, p, FROM_TIME_DOMAIN)?;
         let cov = sandwich_covariance(self, &fit, &self.blocks)?;
         Ok(self.identification(start, &fit, &cov))
     }
@@ -421,7 +502,9 @@ impl<'a> RecordsOutputError<'a> {
         cov: &DMatrix<f64>,
     ) -> Identification {
         let np = self.p_element();
-        let rms = fit.rms();
+        // Over the compared samples, a hysteresis state's priors left out.
+        let data = &fit.residual[..self.data_rows()];
+        let rms = (data.iter().map(|r| r * r).sum::<f64>() / data.len().max(1) as f64).sqrt();
         let parameters: Vec<Parameter> = (0..np)
             .map(|i| Parameter {
                 name: start.parameters[i].name.clone(),
@@ -443,13 +526,13 @@ impl<'a> RecordsOutputError<'a> {
         let simulated = format!(
             "output error: the mass simulated under the measured {input} of {} record(s), each from its fitted initial state; {} samples",
             self.records.len(),
-            fit.residual.len()
+            data.len()
         );
         if !self.noise_unmeasured.is_empty() {
             let names: Vec<&str> = self.noise_unmeasured.iter().map(|c| c.name()).collect();
             warnings.push(format!(
                 "{simulated}; RMS misfit {}: the noise of {} cannot be measured (the records hold no band above {CUTOFF_MULTIPLE} times their excitation's top frequency below the Nyquist frequency), so the misfit is not compared with noise; held-out records measure the fit",
-                self.misfit_in_units(&fit.residual),
+                self.misfit_in_units(data),
                 names.join(" and ")
             ));
         } else {
@@ -469,7 +552,7 @@ impl<'a> RecordsOutputError<'a> {
             parameters,
             covariance,
             condition_number: (sv.max() / sv.min()).sqrt(),
-            equations: fit.residual.len(),
+            equations: data.len(),
             r: start.r.clone(),
             residual_rms: rms,
             steps_used: self.records.iter().map(|r| r.step).collect(),
@@ -503,16 +586,21 @@ impl<'a> RecordsOutputError<'a> {
     }
 
     /// The displacement of a force-driven `record` (not among the fitted ones) predicted by
-    /// simulation with the element parameters `element` (theta, then the mass when fitted),
-    /// from the initial state that fits it best with those parameters held.
+    /// simulation with the element parameters `element` (theta, then the mass when fitted,
+    /// then with `hysteresis` (the law's shape) its alpha and yield), from the initial state
+    /// that fits it best with those parameters held.
     pub fn predict_forced(
         model: &Model,
         moving_mass_kg: Option<f64>,
+        hysteresis: Option<HysteresisLaw>,
         element: &[f64],
         record: &Record,
     ) -> Result<Vec<f64>, IdentifyError> {
-        let problem = RecordsOutputError::forced(model, moving_mass_kg, &[record])?;
-        let np = problem.p_element();
+        let mut problem = RecordsOutputError::forced(model, moving_mass_kg, &[record])?;
+        if let Some(law) = hysteresis {
+            problem = problem.with_hysteresis(law);
+        }
+        let (np, ns) = (problem.p_element(), problem.state_len());
         // With the mass known, values after theta (an identified mass already folded into
         // `moving_mass_kg`) are not parameters of this simulation.
         let element = element.get(..np).ok_or_else(|| {
@@ -522,43 +610,54 @@ impl<'a> RecordsOutputError<'a> {
             )
         })?;
         let mut full = element.to_vec();
-        full.extend(problem.start_states[0]);
+        full.extend(&problem.start_states[0][..ns]);
         let states = Partial {
             inner: &problem,
             full: full.clone(),
-            free: vec![np, np + 1],
+            free: (np..np + ns).collect(),
         };
         let fit = lm::levenberg_marquardt_within(&states, full[np..].to_vec(), FROM_TIME_DOMAIN)?;
-        let mut out = problem.simulate(0, element, [fit.p[0], fit.p[1]])?;
+        let mut out = problem.simulate(0, element, &fit.p)?;
         Ok(out.swap_remove(0))
     }
 }
 
 impl Problem for RecordsOutputError<'_> {
     fn residual(&self, p: &[f64]) -> Result<Vec<f64>, IdentifyError> {
-        let np = self.p_element();
-        let n = self.blocks.last().map_or(0, |b| b.end);
-        let mut out = Vec::with_capacity(n);
+        let (np, ns) = (self.p_element(), self.state_len());
+        let n = self.data_rows();
+        let priors = if self.hysteresis.is_some() {
+            self.records.len()
+        } else {
+            0
+        };
+        let mut out = Vec::with_capacity(n + priors);
         for (k, r) in self.records.iter().enumerate() {
             let j = self.state_index(k);
-            let Ok(simulated) = self.simulate(k, &p[..np], [p[j], p[j + 1]]) else {
-                return Ok(vec![FAILED_TRIAL_RESIDUAL; n]);
+            let Ok(simulated) = self.simulate(k, &p[..np], &p[j..j + ns]) else {
+                return Ok(vec![FAILED_TRIAL_RESIDUAL; n + priors]);
             };
             for ((c, sigma), sim) in self.compared[k].iter().zip(&simulated) {
                 let measured = r.channel(*c).unwrap_or(&[]);
                 out.extend(measured.iter().zip(sim).map(|(m, s)| (m - s) / sigma));
             }
         }
+        if priors > 0 {
+            // Each record's initial z, one yield std about zero (see `with_hysteresis`).
+            let yield_m = p[np - 1];
+            out.extend((0..self.records.len()).map(|k| p[self.state_index(k) + 2] / yield_m));
+        }
         Ok(out)
     }
 
     /// Each record's initial state moves its own rows only, so one simulation gives the finite
-    /// differences of every record's first number; the same for the second.
+    /// differences of every record's first number; the same for the second (and third).
     fn column_groups(&self, np: usize) -> Vec<Vec<usize>> {
-        let pe = self.p_element();
+        let (pe, ns) = (self.p_element(), self.state_len());
         let mut groups: Vec<Vec<usize>> = (0..pe.min(np)).map(|j| vec![j]).collect();
-        groups.push((pe..np).step_by(2).collect());
-        groups.push((pe + 1..np).step_by(2).collect());
+        for first in 0..ns {
+            groups.push((pe + first..np).step_by(ns).collect());
+        }
         groups.retain(|g| !g.is_empty());
         groups
     }
@@ -568,7 +667,7 @@ impl Problem for RecordsOutputError<'_> {
         if j < pe {
             0..n
         } else {
-            self.record_rows[(j - pe) / 2].clone()
+            self.record_rows[(j - pe) / self.state_len()].clone()
         }
     }
 
@@ -580,8 +679,8 @@ impl Problem for RecordsOutputError<'_> {
                 if j < pe {
                     if v.abs() > 0.0 { v.abs() } else { 1.0 }
                 } else {
-                    let [xs, vs] = self.state_scale[(j - pe) / 2];
-                    if (j - pe).is_multiple_of(2) { xs } else { vs }
+                    let ns = self.state_len();
+                    self.state_scale[(j - pe) / ns][(j - pe) % ns]
                 }
             })
             .collect()
