@@ -263,17 +263,19 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
         .cloned()
         .collect();
     let fitted_records = rig.as_ref().map_or(&data.records, |rig| &rig.steps);
-    let refinement = Refinement::of(
-        &data.setup,
-        args.drive.map(ElementDrive::from),
-        fitted_records,
-    );
+    let setup = match &rig {
+        Some(rig) => Setup::BaseExcited {
+            mass_kg: rig.mass_kg,
+        },
+        None => data.setup.clone(),
+    };
+    let refinement = Refinement::of(&setup, args.drive.map(ElementDrive::from), fitted_records);
     let refit = refinement
         .refine(&baseline, fitted_records, &fit)
         .with_context(|| format!("{file}: fitting model {name}"))?;
     if let Some(r) = &refit {
         fit = r.fit.clone();
-        parameters = refined_parameters(&r.identification, &r.fit);
+        parameters = refined_parameters(&r.identification, &parameters);
     }
     // The held-out records as read (a rig's as the element between base and mass, for the
     // loops) beside their predictions.

@@ -93,9 +93,9 @@ impl Refinement {
     }
 }
 
-/// The refined parameters with their standard deviations, then the loop's shape (held, as
-/// the search chose it).
-pub fn refined_parameters(id: &Identification, fit: &TermFit) -> Vec<ParameterValue> {
+/// The refined parameters with their standard deviations, then the searched values of
+/// `start` (the fit along the motion) that output error held: the loop's shape.
+pub fn refined_parameters(id: &Identification, start: &[ParameterValue]) -> Vec<ParameterValue> {
     let mut out: Vec<ParameterValue> = id
         .parameters
         .iter()
@@ -105,15 +105,12 @@ pub fn refined_parameters(id: &Identification, fit: &TermFit) -> Vec<ParameterVa
             std: Some(p.std),
         })
         .collect();
-    if let Some((law, _)) = fit.hysteresis {
-        out.extend(
-            [("n", law.n), ("r", law.r)].map(|(name, value)| ParameterValue {
-                name: name.into(),
-                value,
-                std: None,
-            }),
-        );
-    }
+    let held: Vec<ParameterValue> = start
+        .iter()
+        .filter(|p| p.std.is_none() && !out.iter().any(|q| q.name == p.name))
+        .cloned()
+        .collect();
+    out.extend(held);
     out
 }
 

@@ -173,12 +173,16 @@ fn force_driven_records(
     };
     *drive = Some(named);
     let moving_mass_kg = *moving_mass_kg;
+    // The records `identify` fits sample by sample: band-random, and multisines too short for
+    // the periodic analysis.
     let stepless = |records: &[Record]| -> Vec<Record> {
-        records
-            .iter()
-            .filter(|r| matches!(r.excitation, Excitation::Random { .. }))
-            .cloned()
-            .collect()
+        forcemap_math::pipeline::sample_records(
+            records,
+            &forcemap_math::phasor::MultisineOptions::default(),
+        )
+        .into_iter()
+        .cloned()
+        .collect()
     };
     let records = stepless(&data.records);
     if named != ElementDrive::Force || records.is_empty() {

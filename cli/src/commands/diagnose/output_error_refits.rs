@@ -12,11 +12,15 @@
 //! has no such bias, at seconds per model.
 
 use forcemap_math::diagnose::PhasorFindings;
+use forcemap_math::diagnose::effects::Transform;
+use forcemap_math::diagnose::element_heldout::TermFit;
+use forcemap_math::diagnose::fitted_element::FittedElement;
+use forcemap_math::diagnose::score::predict_record;
 use forcemap_math::identify::Method;
 use forcemap_math::model::{IdentifiedModel, Model};
 use forcemap_math::pipeline::{
-    identify_element_sample_records, identify_random_records, validate_forced_element,
-    validate_rig_on_random_records,
+    identify_element_sample_records, identify_random_records, refine_hysteresis_on_records,
+    validate_forced_element, validate_rig_on_random_records,
 };
 use forcemap_math::recipe::Setup;
 use forcemap_math::record::Record;
@@ -71,39 +75,128 @@ pub(super) struct Refit {
     pub heldout_rms_error: Vec<f64>,
 }
 
-/// The baseline and, when the diagnosis names an effect made of extra element terms, the
-/// baseline with them, each refitted by output error on `sim`'s records and simulated on its
-/// held-out records. An effect with an internal state or a channel transformation (hysteresis,
-/// a lag) is not a model `identify` fits: only the baseline is refitted then.
+/// The baseline and, when the diagnosis names an effect made of extra element terms or a
+/// hysteresis state, the baseline with it, each refitted by output error on `sim`'s records
+/// and simulated on its held-out records (a hysteresis from the fit along the motion, its
+/// loop's shape held: `identify --model NAME+hysteresis`'s refinement). An effect with another
+/// internal state or a channel transformation (a series spring, a lag) is not a model
+/// `identify` fits: only the baseline is refitted then.
 pub(super) fn refit(
     sim: &SimulatedRecords,
     baseline: &Model,
     f: &PhasorFindings,
 ) -> anyhow::Result<Vec<Refit>> {
-    let named = f
+    let named_fit = f
         .findings
         .top_effect
         .and_then(|e| f.ranked_effects.iter().find(|r| r.effect == e))
-        .and_then(|r| {
-            let fit = r.fit.as_ref()?;
-            let extra = fit.terms.len() > baseline.terms.len() && fit.hysteresis.is_none();
-            extra.then(|| {
-                Model::new(
-                    format!("{} + {}", baseline.name, r.effect.name()),
-                    fit.terms.clone(),
-                )
-            })
-        });
-    std::iter::once(baseline.clone())
-        .chain(named)
-        .map(|model| {
-            let pb = super::super::progress_spinner();
-            pb.set_message(format!("refitting {} by output error", model.name));
-            let refit = refit_one(sim, &model);
-            pb.finish_and_clear();
-            refit
+        .and_then(|r| Some((r.effect, r.fit.as_ref()?)));
+    let named = named_fit.and_then(|(effect, fit)| {
+        let extra = fit.terms.len() > baseline.terms.len() && fit.hysteresis.is_none();
+        extra.then(|| {
+            Model::new(
+                format!("{} + {}", baseline.name, effect.name()),
+                fit.terms.clone(),
+            )
         })
-        .collect()
+    });
+    let hysteresis = named_fit
+        .filter(|(_, fit)| fit.hysteresis.is_some() && fit.terms.len() == baseline.terms.len());
+    let with_progress = |name: &str, run: &dyn Fn() -> anyhow::Result<Refit>| {
+        let pb = super::super::progress_spinner();
+        pb.set_message(format!("refitting {name} by output error"));
+        let refit = run();
+        pb.finish_and_clear();
+        refit
+    };
+    let mut out = std::iter::once(baseline.clone())
+        .chain(named)
+        .map(|model| with_progress(&model.name, &|| refit_one(sim, &model)))
+        .collect::<anyhow::Result<Vec<Refit>>>()?;
+    if let Some((effect, fit)) = hysteresis {
+        let name = format!("{} + {}", baseline.name, effect.name());
+        out.push(with_progress(&name, &|| {
+            refit_hysteresis(sim, baseline, fit, &name)
+        })?);
+    }
+    Ok(out)
+}
+
+/// `baseline` with the hysteresis of `start` (the fit along the measured motion) refitted by
+/// output error on `sim`'s records, the held-out records simulated with it (a rig's from rest).
+fn refit_hysteresis(
+    sim: &SimulatedRecords,
+    baseline: &Model,
+    start: &TermFit,
+    name: &str,
+) -> anyhow::Result<Refit> {
+    let refitting = || format!("refitting {name} by output error");
+    let simulating = || format!("simulating {name} on the held-out records");
+    let setup = match sim.simulation {
+        Simulation::Rig { mass_kg } => Setup::BaseExcited { mass_kg },
+        Simulation::Forced { moving_mass_kg } => Setup::Element {
+            moving_mass_kg,
+            drive: Some(ElementDrive::Force),
+        },
+    };
+    let refs: Vec<&Record> = sim.records.iter().collect();
+    let r = refine_hysteresis_on_records(baseline, &setup, &refs, start).with_context(refitting)?;
+    let (law, alpha) = r
+        .fit
+        .hysteresis
+        .context("the refit has no hysteresis state")?;
+    let held = sim
+        .validation
+        .iter()
+        .map(|record| -> anyhow::Result<(f64, f64)> {
+            match sim.simulation {
+                Simulation::Rig { mass_kg } => {
+                    let element = FittedElement::new(
+                        r.fit.terms.clone(),
+                        r.fit.theta.clone(),
+                        Some((alpha, law)),
+                        None,
+                        None,
+                    );
+                    let h = predict_record(&element, mass_kg, record, &Transform::default())?;
+                    let sse: f64 = h
+                        .measured_mps2
+                        .iter()
+                        .zip(&h.predicted_mps2)
+                        .map(|(m, p)| (m - p).powi(2))
+                        .sum();
+                    Ok((
+                        h.nmse_percent,
+                        (sse / h.measured_mps2.len().max(1) as f64).sqrt(),
+                    ))
+                }
+                Simulation::Forced { .. } => {
+                    let mut element = r.fit.theta.clone();
+                    element.extend([alpha, law.yield_m]);
+                    let v = validate_forced_element(
+                        baseline,
+                        Some(r.fit.mass_kg),
+                        Some(law),
+                        &element,
+                        record,
+                    )?;
+                    Ok((v.nmse_percent, v.rms_error_m))
+                }
+            }
+        })
+        .collect::<anyhow::Result<Vec<_>>>()
+        .with_context(simulating)?;
+    Ok(Refit {
+        model: format!("{name} (loop shape n {}, r {} held)", law.n, law.r),
+        parameters: r
+            .identification
+            .parameters
+            .iter()
+            .map(|p| (p.name.clone(), p.value, p.std))
+            .collect(),
+        heldout_nmse_percent: held.iter().map(|h| h.0).collect(),
+        heldout_rms_error: held.iter().map(|h| h.1).collect(),
+    })
 }
 
 fn refit_one(sim: &SimulatedRecords, model: &Model) -> anyhow::Result<Refit> {

@@ -273,7 +273,14 @@ pub(super) fn run(
         }
         println!("{v}");
     } else {
-        print_summary(source, &setup, baseline, &f, note.as_deref());
+        print_summary(
+            source,
+            &setup,
+            baseline,
+            &f,
+            note.as_deref(),
+            simulated.is_some(),
+        );
         print_held_out(&held, baseline);
         if let Some(sim) = simulated {
             super::output_error_refits::print(sim, &refits);
@@ -314,6 +321,7 @@ fn print_summary(
     baseline: &Model,
     f: &PhasorFindings,
     note: Option<&str>,
+    simulated: bool,
 ) {
     let steps = if f.sampled_records > 0 {
         format!(
@@ -329,11 +337,18 @@ fn print_summary(
             f.multisine_steps
         )
     };
+    let measure = f.findings.evidence.measure();
+    let evidence = if simulated {
+        format!(
+            "the evidence is the {measure}; the baseline and the named effect are then refitted by output error on the records, simulated"
+        )
+    } else {
+        format!("no records to simulate on, so the evidence is the {measure}")
+    };
     println!(
-        "{source}: baseline {} on {steps} ({} setup); no records to simulate on, so the evidence is the {}",
+        "{source}: baseline {} on {steps} ({} setup); {evidence}",
         baseline.name,
         setup.kind(),
-        f.findings.evidence.measure()
     );
     if !f.not_fitted.is_empty() {
         println!(
