@@ -23,26 +23,30 @@
 //! as they are (a sandwich covariance over their correlation length), since the noise on the
 //! measured input makes them coloured.
 
+mod drive_channel;
+mod report;
+
+pub use drive_channel::records_drive;
+
 use std::ops::Range;
 
 use nalgebra::DMatrix;
-use num_complex::Complex64;
 
 use super::element::{ModelElement, check_model};
 use super::lm::{self, Limits, Partial, Problem};
 use super::sandwich::sandwich_covariance;
-use crate::identify::{Identification, IdentifyError, Method, Parameter};
+use crate::identify::{Identification, IdentifyError};
 use crate::measured_state::{
     CUTOFF_MULTIPLE, MeasuredState, noise_std, rms_about_mean as rms, top_frequency_hz,
     unmeasured_noise,
 };
 use crate::model::Model;
-use crate::record::{Channel, Excitation, Record};
+use crate::record::{Channel, Record};
 use crate::signal::bouc_wen::HysteresisLaw;
 use crate::signal::differentiate::band_limited_derivative;
 use crate::sim::{
-    ElementDrive, ForcedInitial, ReplayOptions, RigInitial, SolverOptions,
-    simulate_on_sampled_base, simulate_on_sampled_force,
+    ForcedInitial, ReplayOptions, RigInitial, SolverOptions, simulate_on_sampled_base,
+    simulate_on_sampled_force,
 };
 
 /// The fit starts from the time-domain estimate, which noise in the differentiated
@@ -66,64 +70,6 @@ fn step_error(step: usize, problem: impl Into<String>) -> IdentifyError {
     IdentifyError::Step {
         step,
         problem: problem.into(),
-    }
-}
-
-/// Share of a channel's power at the bins a periodic multisine record does not excite, over
-/// the record's last whole periods; None when the record is not a multisine of whole samples
-/// per period.
-fn off_line_share(r: &Record, c: Channel) -> Option<f64> {
-    let Excitation::Multisine {
-        base_frequency_hz,
-        lines,
-        ..
-    } = &r.excitation
-    else {
-        return None;
-    };
-    let y = r.channel(c)?;
-    let per = r.sample_rate_hz / base_frequency_hz;
-    if (per - per.round()).abs() > 1e-6 || per.round() < 4.0 {
-        return None;
-    }
-    let per = per.round() as usize;
-    let periods = y.len() / per;
-    if periods == 0 {
-        return None;
-    }
-    let tail = &y[y.len() - periods * per..];
-    let mut buf: Vec<Complex64> = tail.iter().map(|v| Complex64::new(*v, 0.0)).collect();
-    crate::signal::fft::forward(buf.len()).process(&mut buf);
-    let (mut on, mut off) = (0.0, 0.0);
-    for (k, b) in buf.iter().enumerate().take(buf.len() / 2).skip(1) {
-        let line = k % periods == 0 && lines.binary_search(&(k / periods)).is_ok();
-        if line {
-            on += b.norm_sqr();
-        } else {
-            off += b.norm_sqr();
-        }
-    }
-    Some(off / (on + off).max(f64::MIN_POSITIVE))
-}
-
-/// What the bench controlled in records that are not sine steps: where every record is a
-/// labelled multisine, the channel of x and F with the smaller share of its power off the
-/// excited lines (the other carries the element's distortion, as [`super::element_drive_of`]
-/// decides for sine steps); otherwise the displacement, as element benches are (a damper dyno,
-/// a mount tester).
-pub fn records_drive(records: &[&Record]) -> ElementDrive {
-    let share = |c: Channel| -> Option<f64> {
-        records
-            .iter()
-            .map(|r| off_line_share(r, c))
-            .sum::<Option<f64>>()
-    };
-    match (
-        share(Channel::RelativeDisplacementM),
-        share(Channel::ForceN),
-    ) {
-        (Some(x), Some(f)) if f < x => ElementDrive::Force,
-        _ => ElementDrive::Displacement,
     }
 }
 
@@ -493,96 +439,6 @@ impl<'a> RecordsOutputError<'a> {
         let fit = lm::levenberg_marquardt_within(self, p, FROM_TIME_DOMAIN)?;
         let cov = sandwich_covariance(self, &fit, &self.blocks)?;
         Ok(self.identification(start, &fit, &cov))
-    }
-
-    fn identification(
-        &self,
-        start: &Identification,
-        fit: &lm::Fit,
-        cov: &DMatrix<f64>,
-    ) -> Identification {
-        let np = self.p_element();
-        // Over the compared samples, a hysteresis state's priors left out.
-        let data = &fit.residual[..self.data_rows()];
-        let rms = (data.iter().map(|r| r * r).sum::<f64>() / data.len().max(1) as f64).sqrt();
-        let parameters: Vec<Parameter> = (0..np)
-            .map(|i| Parameter {
-                name: start.parameters[i].name.clone(),
-                value: fit.p[i],
-                std: cov[(i, i)].sqrt(),
-            })
-            .collect();
-        let covariance = (0..np)
-            .map(|i| (0..np).map(|j| cov[(i, j)]).collect())
-            .collect();
-        let mut warnings = start.warnings.clone();
-        let (input, outputs) = match self.drive {
-            SampledDrive::Force { .. } => ("force", "displacement"),
-            SampledDrive::Base { .. } => (
-                "base displacement",
-                "mass acceleration and relative displacement",
-            ),
-        };
-        let simulated = format!(
-            "output error: the mass simulated under the measured {input} of {} record(s), each from its fitted initial state; {} samples",
-            self.records.len(),
-            data.len()
-        );
-        if !self.noise_unmeasured.is_empty() {
-            let names: Vec<&str> = self.noise_unmeasured.iter().map(|c| c.name()).collect();
-            warnings.push(format!(
-                "{simulated}; RMS misfit {}: the noise of {} cannot be measured (the records hold no band above {CUTOFF_MULTIPLE} times their excitation's top frequency below the Nyquist frequency), so the misfit is not compared with noise; held-out records measure the fit",
-                self.misfit_in_units(data),
-                names.join(" and ")
-            ));
-        } else {
-            warnings.push(format!("{simulated}, RMS misfit {rms:.3} noise std"));
-        }
-        if self.noise_unmeasured.is_empty() && rms * rms > super::FORM_MISFIT_VARIANCE {
-            warnings.push(format!(
-                "output error: the simulated model misses the measured {outputs} by {rms:.1} noise std (RMS); the model's form may not describe these data (try diagnose)"
-            ));
-        }
-        let info = fit.information.clone();
-        let sub = info.view((0, 0), (np, np)).into_owned();
-        let sv = sub.singular_values();
-        Identification {
-            model: self.model.name.clone(),
-            method: Method::OutputError.name(),
-            parameters,
-            covariance,
-            condition_number: (sv.max() / sv.min()).sqrt(),
-            equations: data.len(),
-            r: start.r.clone(),
-            residual_rms: rms,
-            steps_used: self.records.iter().map(|r| r.step).collect(),
-            fit_quality: None,
-            warnings,
-        }
-    }
-
-    /// The RMS of `residual` (rows divided by each channel's noise std) in each compared
-    /// channel's own unit: "relative_displacement_m 4.553e-4".
-    fn misfit_in_units(&self, residual: &[f64]) -> String {
-        let mut per: Vec<(Channel, f64, usize)> = Vec::new();
-        let blocks = self.compared.iter().flatten().zip(&self.blocks);
-        for ((c, sigma), rows) in blocks {
-            let sum: f64 = residual[rows.clone()]
-                .iter()
-                .map(|r| (r * sigma).powi(2))
-                .sum();
-            match per.iter_mut().find(|(d, ..)| d == c) {
-                Some((_, s, n)) => {
-                    *s += sum;
-                    *n += rows.len();
-                }
-                None => per.push((*c, sum, rows.len())),
-            }
-        }
-        per.iter()
-            .map(|(c, s, n)| format!("{} {:.3e}", c.name(), (s / (*n).max(1) as f64).sqrt()))
-            .collect::<Vec<_>>()
-            .join(", ")
     }
 
     /// The displacement of a force-driven `record` (not among the fitted ones) predicted by
