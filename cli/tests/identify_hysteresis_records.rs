@@ -12,10 +12,11 @@ mod common;
 
 use forcemap_io::csv_export::write_csv;
 use forcemap_math::diagnose::effects::Transform;
+use forcemap_math::diagnose::element_heldout::TermFit;
 use forcemap_math::diagnose::fitted_element::FittedElement;
 use forcemap_math::diagnose::score::predict_record;
 use forcemap_math::model::{Model, ModelOptions};
-use forcemap_math::pipeline::validate_forced_element;
+use forcemap_math::pipeline::validate_forced_hysteresis;
 use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::Record;
 use forcemap_math::signal::bouc_wen::HysteresisLaw;
@@ -96,15 +97,13 @@ fn a_force_driven_loop_is_refined_by_output_error_and_simulated_on_a_held_out_re
     // The truth's own misfit on the held-out record (its noise floor), simulated from the
     // initial state that fits it best.
     let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
-    let law = truth_law();
-    let floor = validate_forced_element(
-        &model,
-        Some(2.0),
-        Some(law),
-        &[4.0e4, 60.0, 2.0e4, law.yield_m],
-        &held_out[0],
-    )
-    .unwrap();
+    let truth = TermFit {
+        terms: model.terms.clone(),
+        theta: vec![4.0e4, 60.0],
+        mass_kg: 2.0,
+        hysteresis: Some((truth_law(), 2.0e4)),
+    };
+    let floor = validate_forced_hysteresis(&model, &truth, &held_out[0]).unwrap();
     // The model without the loop, by the default (output error) on the same records.
     let plain = common::forcemap(&[
         "identify",

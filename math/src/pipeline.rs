@@ -29,7 +29,7 @@ pub use element::{
 };
 pub use estimator_choice::{CHOICE_MARGIN, MIN_CROSS_VALIDATION_STEPS, choose_estimator};
 pub use hysteresis_records::{
-    HYSTERESIS_PARAMETERS, HysteresisRefit, refine_hysteresis_on_records,
+    HysteresisRefit, refine_hysteresis_on_records, validate_forced_hysteresis,
 };
 
 #[derive(Debug, Error)]

@@ -60,13 +60,15 @@ fn records(snr_db: f64, seed: u64) -> Vec<Record> {
     .unwrap()
 }
 
-/// From a start 15-25 % off (what the fit along the differentiated motion gives), at 30 dB,
-/// over seeds 1-4: k, c, alpha and the yield within 2 % of the truth (measured: k within
-/// 0.15 %, c 0.64 %, alpha 1.86 %, the yield 1.35 %; alpha and the yield have a std of about 1 %
-/// here, the loop's 8 N against the spring's 40-80 N), each within 3.5 of its standard
-/// deviations and their RMS in standard deviations below 2 (1.47 measured), the shape held, the
-/// fit's misfit at the noise (1.08 noise std RMS on seed 1), and the held-out record simulated
-/// within 1.2 times the truth's own misfit on it, the noise floor (1.00 measured).
+/// From a start 15-25 % off (what the fit along the differentiated motion gives) and the loop's
+/// share r at 0.85 (the truth's 0.7), at 30 dB, over seeds 1-4: k and c within 1.5 % of the
+/// truth (measured: 0.17 % and 1.03 %), alpha and the yield within 10 % (4.5 % and 7.2 %; their
+/// standard deviations 2.4-3.7 %: the loop's 8 N against the spring's 40-80 N, and r fitted
+/// beside them), r within 30 % (24 %, its standard deviation 10-13 %), each within 4 of its
+/// standard deviations and their RMS in standard deviations below 2 (1.43 measured), the
+/// exponent n held, the fit's misfit at the noise (below 1.2 noise std RMS), and the held-out
+/// record simulated within 1.2 times the truth's own misfit on it, the noise floor (1.00
+/// measured).
 #[test]
 fn a_force_driven_loop_is_refined_from_one_period_multisines() {
     let model = Model::by_name("linear", &ModelOptions::default()).unwrap();
@@ -86,6 +88,7 @@ fn a_force_driven_loop_is_refined_from_one_period_multisines() {
             hysteresis: Some((
                 HysteresisLaw {
                     yield_m: 1.25 * law().yield_m,
+                    r: 0.85,
                     ..law()
                 },
                 0.8 * ALPHA_N_PER_M,
@@ -98,6 +101,7 @@ fn a_force_driven_loop_is_refined_from_one_period_multisines() {
             ("c", DAMPING_N_S_PER_M),
             ("alpha", ALPHA_N_PER_M),
             ("yield_m", law().yield_m),
+            ("bouc_wen_r", law().r),
         ];
         for (name, value) in truth {
             let p = id.parameters.iter().find(|p| p.name == name).unwrap();
@@ -110,25 +114,30 @@ fn a_force_driven_loop_is_refined_from_one_period_multisines() {
                 100.0 * p.std / value
             );
             in_std_squares.push(in_std * in_std);
+            let bound = match name {
+                "k" | "c" => 0.015,
+                "alpha" | "yield_m" => 0.10,
+                _ => 0.30,
+            };
             assert!(
-                error.abs() < 0.02 && in_std.abs() < 3.5,
+                error.abs() < bound && in_std.abs() < 4.0,
                 "seed {seed}: {name} {} against {value}",
                 p.value
             );
         }
         assert!(id.residual_rms < 1.2, "{:?}", id.warnings);
         let (law_fitted, alpha) = refit.fit.hysteresis.unwrap();
-        assert_eq!((law_fitted.n, law_fitted.r), (law().n, law().r));
-        let element = |theta: &[f64], alpha: f64, yield_m: f64| {
+        assert_eq!(law_fitted.n, law().n);
+        let element = |theta: &[f64], alpha: f64, law: HysteresisLaw| {
             let mut v = theta.to_vec();
-            v.extend([alpha, yield_m]);
+            v.extend([alpha, law.yield_m, law.r]);
             v
         };
         let predicted = validate_forced_element(
             &model,
             Some(MASS_KG),
             Some(law_fitted),
-            &element(&refit.fit.theta, alpha, law_fitted.yield_m),
+            &element(&refit.fit.theta, alpha, law_fitted),
             &held_out[0],
         )
         .unwrap();
@@ -139,7 +148,7 @@ fn a_force_driven_loop_is_refined_from_one_period_multisines() {
             &element(
                 &[STIFFNESS_N_PER_M, DAMPING_N_S_PER_M],
                 ALPHA_N_PER_M,
-                law().yield_m,
+                law(),
             ),
             &held_out[0],
         )

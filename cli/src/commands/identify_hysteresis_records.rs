@@ -13,7 +13,7 @@ use forcemap_math::diagnose::element_heldout::TermFit;
 use forcemap_math::identify::{Identification, records_drive};
 use forcemap_math::model::Model;
 use forcemap_math::pipeline::{
-    HysteresisRefit, refine_hysteresis_on_records, validate_forced_element,
+    HysteresisRefit, refine_hysteresis_on_records, validate_forced_hysteresis,
 };
 use forcemap_math::recipe::Setup;
 use forcemap_math::record::{Excitation, Record};
@@ -84,17 +84,17 @@ impl Refinement {
         match self {
             Refinement::AlongMotion => String::new(),
             Refinement::Forced { .. } => format!(
-                "refined by output error: the mass simulated under the measured force of {records} record(s), the terms, alpha, the yield and each record's initial displacement, velocity and z fitted to the measured displacement (the loop's shape held)"
+                "refined by output error: the mass simulated under the measured force of {records} record(s), the terms, alpha, the yield, the loop's share r and each record's initial displacement, velocity and z fitted to the measured displacement (its exponent n held)"
             ),
             Refinement::Rig { .. } => format!(
-                "refined by output error: the mass simulated under the measured base of {records} record(s), the terms, alpha, the yield and each record's initial state fitted to the mass acceleration and the relative displacement (the loop's shape held)"
+                "refined by output error: the mass simulated under the measured base of {records} record(s), the terms, alpha, the yield, the loop's share r and each record's initial state fitted to the mass acceleration and the relative displacement (its exponent n held)"
             ),
         }
     }
 }
 
 /// The refined parameters with their standard deviations, then the searched values of
-/// `start` (the fit along the motion) that output error held: the loop's shape.
+/// `start` (the fit along the motion) that output error held: the loop's exponent.
 pub fn refined_parameters(id: &Identification, start: &[ParameterValue]) -> Vec<ParameterValue> {
     let mut out: Vec<ParameterValue> = id
         .parameters
@@ -121,11 +121,6 @@ pub fn predict_forced(
     fit: &TermFit,
     record: &Record,
 ) -> anyhow::Result<(f64, f64)> {
-    let (law, alpha) = fit
-        .hysteresis
-        .context("the fit has no hysteresis state to simulate")?;
-    let mut element = fit.theta.clone();
-    element.extend([alpha, law.yield_m]);
-    let v = validate_forced_element(baseline, Some(fit.mass_kg), Some(law), &element, record)?;
+    let v = validate_forced_hysteresis(baseline, fit, record)?;
     Ok((v.nmse_percent, v.rms_error_m))
 }

@@ -13,7 +13,7 @@ use crate::basis::{
 use crate::element::GAUSSIAN_STRIBECK_EXPONENT;
 use crate::model::Model;
 use crate::recipe::SetupKind;
-use crate::signal::bouc_wen::HysteresisLaw;
+use crate::signal::bouc_wen::{self, HysteresisLaw};
 
 /// A candidate unmodelled effect, by the name the diagnosis reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -453,8 +453,8 @@ pub const BOUC_WEN_SHAPES: [(f64, f64); 6] = [
 pub fn hysteresis_structure(law: HysteresisLaw, shape_searched: bool) -> Structure {
     let mut searched = vec![("yield_m".to_string(), law.yield_m)];
     if shape_searched {
-        searched.push(("bouc_wen_n".into(), law.n));
-        searched.push(("bouc_wen_r".into(), law.r));
+        searched.push((bouc_wen::EXPONENT_NAME.into(), law.n));
+        searched.push((bouc_wen::SHARE_NAME.into(), law.r));
     }
     Structure {
         effects: vec![Effect::Hysteresis],

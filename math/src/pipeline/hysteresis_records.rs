@@ -6,24 +6,23 @@
 //! The start is the fit along the measured motion (the terms, the moving mass, the state's
 //! force coefficient and its law, z integrated from rest), whose velocity and acceleration are
 //! differentiated from the noisy displacement: errors in variables bias it (friction low,
-//! damping high). Output error keeps the law's shape (n, r) and fits the terms, the mass where
-//! it is unknown, alpha and the yield, with each record's initial displacement, velocity and
-//! state z, so records may start in motion with the loop anywhere.
+//! damping high). Output error keeps the law's exponent n and fits the terms, the mass where it
+//! is unknown, alpha, the yield and the share r, with each record's initial displacement,
+//! velocity and state z, so records may start in motion with the loop anywhere.
 
 use super::PipelineError;
+use super::element::{ForcedValidation, validate_forced_element};
 use crate::diagnose::element_heldout::TermFit;
-use crate::identify::{Identification, IdentifyError, Parameter, RecordsOutputError};
+use crate::identify::{
+    HYSTERESIS_PARAMETERS, Identification, IdentifyError, Parameter, RecordsOutputError,
+};
 use crate::model::Model;
 use crate::recipe::Setup;
 use crate::record::Record;
 use crate::signal::bouc_wen::HysteresisLaw;
 
-/// Names of the two element parameters the Bouc-Wen state adds, after the terms' and the
-/// moving mass.
-pub const HYSTERESIS_PARAMETERS: [&str; 2] = ["alpha", "yield_m"];
-
-/// The refined model: its identification (the terms, the mass where fitted, alpha and the
-/// yield, with their standard deviations) and the same as the element force a held-out
+/// The refined model: its identification (the terms, the mass where fitted, alpha, the yield
+/// and r, with their standard deviations) and the same as the element force a held-out
 /// record is predicted with.
 #[derive(Debug, Clone)]
 pub struct HysteresisRefit {
@@ -72,8 +71,12 @@ pub fn refine_hysteresis_on_records(
     if fitted_mass {
         parameters.push(parameter(setup.extra_parameters()[0].into(), start.mass_kg));
     }
-    parameters.push(parameter(HYSTERESIS_PARAMETERS[0].into(), alpha));
-    parameters.push(parameter(HYSTERESIS_PARAMETERS[1].into(), law.yield_m));
+    for (name, value) in HYSTERESIS_PARAMETERS
+        .iter()
+        .zip([alpha, law.yield_m, law.r])
+    {
+        parameters.push(parameter((*name).into(), value));
+    }
     let first = Identification {
         model: format!("{}+hysteresis", model.name),
         method: "time-domain".into(),
@@ -103,6 +106,7 @@ pub fn refine_hysteresis_on_records(
         hysteresis: Some((
             HysteresisLaw {
                 yield_m: values[at + 1],
+                r: values[at + 2],
                 ..law
             },
             values[at],
@@ -112,6 +116,26 @@ pub fn refine_hysteresis_on_records(
         identification,
         fit,
     })
+}
+
+/// A force-driven `record`'s displacement simulated under its measured force with `fit` (the
+/// terms, the moving mass and the Bouc-Wen state), from the initial state (x, v and z) that
+/// fits it best with the model held.
+pub fn validate_forced_hysteresis(
+    model: &Model,
+    fit: &TermFit,
+    record: &Record,
+) -> Result<ForcedValidation, PipelineError> {
+    let Some((law, alpha)) = fit.hysteresis else {
+        return Err(IdentifyError::Step {
+            step: record.step,
+            problem: "the fit has no hysteresis state to simulate".into(),
+        }
+        .into());
+    };
+    let mut element = fit.theta.clone();
+    element.extend([alpha, law.yield_m, law.r]);
+    validate_forced_element(model, Some(fit.mass_kg), Some(law), &element, record)
 }
 
 fn parameter(name: String, value: f64) -> Parameter {

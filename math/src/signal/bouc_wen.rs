@@ -54,6 +54,10 @@ pub const ARC_STEP_PER_YIELD: f64 = 1.0 / 16.0;
 /// a stretch in one direction leaves it unchanged to rounding).
 const SATURATED_WITHIN: f64 = 1e-13;
 
+/// The names of a law's exponent n and share r among a fit's parameters.
+pub const EXPONENT_NAME: &str = "bouc_wen_n";
+pub const SHARE_NAME: &str = "bouc_wen_r";
+
 /// A member of the Bouc-Wen family the diagnoses fit: a = 1, yield displacement zy
 /// (`yield_m`), exponent n and r = beta / (beta + gamma), with beta = r / zy^n and
 /// gamma = (1 - r) / zy^n so that z saturates at +/- zy whatever the shape. The one-parameter

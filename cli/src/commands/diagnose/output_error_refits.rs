@@ -20,7 +20,7 @@ use forcemap_math::identify::Method;
 use forcemap_math::model::{IdentifiedModel, Model};
 use forcemap_math::pipeline::{
     identify_element_sample_records, identify_random_records, refine_hysteresis_on_records,
-    validate_forced_element, validate_rig_on_random_records,
+    validate_forced_element, validate_forced_hysteresis, validate_rig_on_random_records,
 };
 use forcemap_math::recipe::Setup;
 use forcemap_math::record::Record;
@@ -78,7 +78,7 @@ pub(super) struct Refit {
 /// The baseline and, when the diagnosis names an effect made of extra element terms or a
 /// hysteresis state, the baseline with it, each refitted by output error on `sim`'s records
 /// and simulated on its held-out records (a hysteresis from the fit along the motion, its
-/// loop's shape held: `identify --model NAME+hysteresis`'s refinement). An effect with another
+/// exponent held: `identify --model NAME+hysteresis`'s refinement). An effect with another
 /// internal state or a channel transformation (a series spring, a lag) is not a model
 /// `identify` fits: only the baseline is refitted then.
 pub(super) fn refit(
@@ -171,15 +171,7 @@ fn refit_hysteresis(
                     ))
                 }
                 Simulation::Forced { .. } => {
-                    let mut element = r.fit.theta.clone();
-                    element.extend([alpha, law.yield_m]);
-                    let v = validate_forced_element(
-                        baseline,
-                        Some(r.fit.mass_kg),
-                        Some(law),
-                        &element,
-                        record,
-                    )?;
+                    let v = validate_forced_hysteresis(baseline, &r.fit, record)?;
                     Ok((v.nmse_percent, v.rms_error_m))
                 }
             }
@@ -187,7 +179,7 @@ fn refit_hysteresis(
         .collect::<anyhow::Result<Vec<_>>>()
         .with_context(simulating)?;
     Ok(Refit {
-        model: format!("{name} (loop shape n {}, r {} held)", law.n, law.r),
+        model: format!("{name} (loop exponent n {} held)", law.n),
         parameters: r
             .identification
             .parameters

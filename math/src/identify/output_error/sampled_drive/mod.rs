@@ -24,6 +24,11 @@
 //! measured input makes them coloured.
 
 mod drive_channel;
+
+/// Names of the element parameters a Bouc-Wen state adds, after the terms' and the moving
+/// mass: its force coefficient, its yield and its share r (`signal::bouc_wen::SHARE_NAME`).
+pub const HYSTERESIS_PARAMETERS: [&str; 3] =
+    ["alpha", "yield_m", crate::signal::bouc_wen::SHARE_NAME];
 mod report;
 
 pub use drive_channel::records_drive;
@@ -251,21 +256,19 @@ impl<'a> RecordsOutputError<'a> {
         })
     }
 
-    /// The problem with a Bouc-Wen state beside the model's terms, its law of `law`'s shape
-    /// (n, r) and its yield fitted from `law.yield_m`: two more element parameters (the force
-    /// coefficient alpha [N/m], then the yield [m]) and each record's initial z (from 0: from
-    /// rest, or a start fitted with the state integrated from rest).
+    /// The problem with a Bouc-Wen state beside the model's terms, its law of `law`'s exponent
+    /// n: three more element parameters ([`HYSTERESIS_PARAMETERS`]: the force coefficient alpha
+    /// [N/m], the yield [m] and the share r, from `law`'s) and each record's initial z (from 0:
+    /// from rest, or a start fitted with the state integrated from rest). The exponent n stays
+    /// the one the search chose from its grid.
     ///
-    /// Each initial z has a prior, zero with a std of one yield (a residual row per record
-    /// after the samples): the law keeps z within the yield, and where a record's motion
-    /// wipes its start out within a few yields of travel the samples say nothing of it, a flat
-    /// direction whose Gauss-Newton steps (tens of yields) would stall the fit.
+    /// Each initial z is the yield times tanh(u), u the fitted number: the law keeps z within
+    /// the yield, and at its edge the response bends (saturation). u has a prior, zero with a
+    /// std of 4 (a residual row per record after the samples): where a record's motion wipes
+    /// its start out within a few yields of travel the samples say nothing of it, a flat
+    /// direction whose Gauss-Newton steps would stall the fit.
     pub fn with_hysteresis(self, law: HysteresisLaw) -> Self {
-        let state_scale = self
-            .state_scale
-            .iter()
-            .map(|s| [s[0], s[1], law.yield_m])
-            .collect();
+        let state_scale = self.state_scale.iter().map(|s| [s[0], s[1], 1.0]).collect();
         RecordsOutputError {
             hysteresis: Some(law),
             state_scale,
@@ -291,7 +294,12 @@ impl<'a> RecordsOutputError<'a> {
     fn p_element(&self) -> usize {
         self.model.terms.len()
             + usize::from(self.fitted_mass())
-            + 2 * usize::from(self.hysteresis.is_some())
+            + HYSTERESIS_PARAMETERS.len() * usize::from(self.hysteresis.is_some())
+    }
+
+    /// Index of the first hysteresis parameter (alpha; the yield and r follow).
+    fn hysteresis_index(&self) -> usize {
+        self.model.terms.len() + usize::from(self.fitted_mass())
     }
 
     /// Initial-state numbers of each record: displacement, velocity, and z with hysteresis.
@@ -312,9 +320,10 @@ impl<'a> RecordsOutputError<'a> {
         match self.hysteresis {
             None => Some(el),
             Some(law) => {
-                let at = p + usize::from(self.fitted_mass());
-                let (alpha, yield_m) = (element[at], element[at + 1]);
-                (yield_m > 0.0).then(|| el.with_hysteresis(alpha, HysteresisLaw { yield_m, ..law }))
+                let at = self.hysteresis_index();
+                let (alpha, yield_m, r) = (element[at], element[at + 1], element[at + 2]);
+                (yield_m > 0.0)
+                    .then(|| el.with_hysteresis(alpha, HysteresisLaw { yield_m, r, ..law }))
             }
         }
     }
@@ -336,7 +345,12 @@ impl<'a> RecordsOutputError<'a> {
         let fs = r.sample_rate_hz;
         let failed =
             |e: crate::sim::SimError| step_error(r.step, format!("output-error simulation: {e}"));
-        let z0 = initial.get(2).copied().unwrap_or(0.0);
+        // A record's initial z is yield tanh(u): the law keeps z within the yield, and at its
+        // edge the response bends (saturation), which the bound keeps the fit off.
+        let z0 = match (self.hysteresis, initial.get(2)) {
+            (Some(_), Some(u)) => element[self.hysteresis_index() + 1] * u.tanh(),
+            _ => 0.0,
+        };
         let out = match self.drive {
             SampledDrive::Force { moving_mass_kg } => {
                 let mass = moving_mass_kg.unwrap_or_else(|| element[p]);
@@ -410,18 +424,24 @@ impl<'a> RecordsOutputError<'a> {
         })?;
         // Initial states first, theta held: a start far from the record's state would
         // otherwise pull theta along. A hysteresis state's initial z is held at zero until the
-        // last stage: far from the solution its Gauss-Newton steps run to tens of yields (it
-        // acts as a free force offset at each record's start), and the step limit that stops
-        // them would stall every other parameter.
+        // records' other states and the element are fitted: far from the solution its
+        // Gauss-Newton steps run to tens of yields (it acts as a free force offset at each
+        // record's start), and the step limit that stops them would stall every other
+        // parameter. The share r is held until then too (freed with the element from a start
+        // 15-25 % off, it ran to 34 and k stalled 11 % off), then fitted with the element and
+        // the initial states held (with them free a flat initial z stopped the fit before r
+        // moved), then everything together.
         let np = self.p_element();
         let ns = self.state_len();
         let is_z0 = |j: usize| j >= np && (j - np) % ns == 2;
+        let held = |j: usize| is_z0(j) || j == self.hysteresis_index() + 2;
         let mut p = p0;
         let free_sets: Vec<Vec<usize>> = if self.hysteresis.is_some() {
             vec![
                 (np..p.len()).filter(|&j| !is_z0(j)).collect(),
-                (0..p.len()).filter(|&j| !is_z0(j)).collect(),
+                (0..p.len()).filter(|&j| !held(j)).collect(),
                 (np..p.len()).collect(),
+                (0..p.len()).filter(|&j| !is_z0(j)).collect(),
             ]
         } else {
             vec![(np..p.len()).collect()]
@@ -443,7 +463,7 @@ impl<'a> RecordsOutputError<'a> {
 
     /// The displacement of a force-driven `record` (not among the fitted ones) predicted by
     /// simulation with the element parameters `element` (theta, then the mass when fitted,
-    /// then with `hysteresis` (the law's shape) its alpha and yield), from the initial state
+    /// then with `hysteresis` (the law's exponent) its alpha, yield and r), from the initial state
     /// that fits it best with those parameters held.
     pub fn predict_forced(
         model: &Model,
@@ -500,8 +520,7 @@ impl Problem for RecordsOutputError<'_> {
         }
         if priors > 0 {
             // Each record's initial z, one yield std about zero (see `with_hysteresis`).
-            let yield_m = p[np - 1];
-            out.extend((0..self.records.len()).map(|k| p[self.state_index(k) + 2] / yield_m));
+            out.extend((0..self.records.len()).map(|k| p[self.state_index(k) + 2] / 4.0));
         }
         Ok(out)
     }
