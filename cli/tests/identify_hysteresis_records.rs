@@ -20,46 +20,16 @@ use forcemap_math::pipeline::validate_forced_hysteresis;
 use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::Record;
 use forcemap_math::signal::bouc_wen::HysteresisLaw;
-use forcemap_math::sim::{ElementDrive, MultisineDesign, RunSpec, StepSpec, TruthElement};
+use forcemap_math::sim::RunSpec;
 
-/// The force-driven loop of `math/tests/output_error_hysteresis.rs`: 2 kg on k 40 000 N/m and
-/// c 60 N s/m with a Bouc-Wen loop of alpha 20 000 N/m, yield 0.4 mm, shape n 2, r 0.7; six
-/// one-period multisines of 40 N RMS (5-60 Hz every 0.5 Hz, 1 kHz) back to back, 30 dB.
-fn truth_law() -> HysteresisLaw {
-    HysteresisLaw {
-        yield_m: 4.0e-4,
-        n: 2.0,
-        r: 0.7,
-    }
-}
-
+/// The force-driven loop of `math/tests/output_error_hysteresis.rs`
+/// (`RunSpec::shaker_loop_one_period`): 2 kg on k 40 000 N/m and c 60 N s/m with a Bouc-Wen
+/// loop of alpha 20 000 N/m, yield 0.4 mm, shape n 2, r 0.7; six one-period multisines of 40 N
+/// RMS (5-60 Hz every 0.5 Hz, 1 kHz) back to back, 30 dB.
 fn forced_loop_records(seed: u64) -> Vec<Record> {
-    let law = truth_law();
-    let element = TruthElement {
-        bouc_wen: Some(law.bouc_wen(2.0e4)),
-        ..TruthElement::linear(4.0e4, 60.0)
-    };
-    let step = StepSpec::Multisine {
-        base_frequency_hz: 0.5,
-        low_hz: 5.0,
-        high_hz: 60.0,
-        rms: 40.0,
-        design: MultisineDesign::Full,
-    };
-    RunSpec {
-        snr_db: Some(30.0),
-        seed,
-        ..RunSpec::element_test(
-            ElementDrive::Force,
-            2.0,
-            element,
-            vec![step; 6],
-            1000.0,
-            2000,
-        )
-    }
-    .simulate()
-    .unwrap()
+    RunSpec::shaker_loop_one_period(Some(30.0), seed)
+        .simulate()
+        .unwrap()
 }
 
 #[test]
@@ -101,7 +71,7 @@ fn a_force_driven_loop_is_refined_by_output_error_and_simulated_on_a_held_out_re
         terms: model.terms.clone(),
         theta: vec![4.0e4, 60.0],
         mass_kg: 2.0,
-        hysteresis: Some((truth_law(), 2.0e4)),
+        hysteresis: Some(RunSpec::SHAKER_LOOP),
     };
     let floor = validate_forced_hysteresis(&model, &truth, &held_out[0]).unwrap();
     // The model without the loop, by the default (output error) on the same records.

@@ -14,50 +14,24 @@ use forcemap_math::pipeline::{refine_hysteresis_on_records, validate_forced_elem
 use forcemap_math::recipe::Setup;
 use forcemap_math::record::Record;
 use forcemap_math::signal::bouc_wen::HysteresisLaw;
-use forcemap_math::sim::{ElementDrive, MultisineDesign, RunSpec, StepSpec, TruthElement};
+use forcemap_math::sim::{ElementDrive, RunSpec};
 
 const MASS_KG: f64 = 2.0;
-const STIFFNESS_N_PER_M: f64 = 4.0e4;
-const DAMPING_N_S_PER_M: f64 = 60.0;
-const ALPHA_N_PER_M: f64 = 2.0e4;
+const STIFFNESS_N_PER_M: f64 = RunSpec::SHAKER_LOOP_THETA[0].1;
+const DAMPING_N_S_PER_M: f64 = RunSpec::SHAKER_LOOP_THETA[1].1;
+const ALPHA_N_PER_M: f64 = RunSpec::SHAKER_LOOP.1;
 
 /// The loop's law: yield 0.4 mm (saturating at 8 N), the shape n = 2, r = 0.7.
 fn law() -> HysteresisLaw {
-    HysteresisLaw {
-        yield_m: 4.0e-4,
-        n: 2.0,
-        r: 0.7,
-    }
+    RunSpec::SHAKER_LOOP.0
 }
 
 /// Six one-period multisines of 40 N RMS on every 0.5 Hz line from 5 to 60 Hz, back to back
-/// at 1 kHz, at `snr_db` with `seed`.
+/// at 1 kHz, at `snr_db` with `seed` (`RunSpec::shaker_loop_one_period`).
 fn records(snr_db: f64, seed: u64) -> Vec<Record> {
-    let element = TruthElement {
-        bouc_wen: Some(law().bouc_wen(ALPHA_N_PER_M)),
-        ..TruthElement::linear(STIFFNESS_N_PER_M, DAMPING_N_S_PER_M)
-    };
-    let step = StepSpec::Multisine {
-        base_frequency_hz: 0.5,
-        low_hz: 5.0,
-        high_hz: 60.0,
-        rms: 40.0,
-        design: MultisineDesign::Full,
-    };
-    RunSpec {
-        snr_db: Some(snr_db),
-        seed,
-        ..RunSpec::element_test(
-            ElementDrive::Force,
-            MASS_KG,
-            element,
-            vec![step; 6],
-            1000.0,
-            2000,
-        )
-    }
-    .simulate()
-    .unwrap()
+    RunSpec::shaker_loop_one_period(Some(snr_db), seed)
+        .simulate()
+        .unwrap()
 }
 
 /// From a start 15-25 % off (what the fit along the differentiated motion gives) and the loop's

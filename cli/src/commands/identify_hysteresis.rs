@@ -158,20 +158,14 @@ fn predict_held_out(
     );
     let h = predict_record(&element, rig.mass_kg, record, &Transform::default())
         .with_context(context)?;
-    let n = h.measured_mps2.len().max(1) as f64;
-    let sse: f64 = h
-        .measured_mps2
-        .iter()
-        .zip(&h.predicted_mps2)
-        .map(|(m, p)| (m - p).powi(2))
-        .sum();
+    let rms_error_mps2 = h.rms_error_mps2();
     Ok(HeldOut {
         file: file.to_string(),
         step: record.step,
         nmse_percent: h.nmse_percent,
         rms_error_n: None,
         rms_error_m: None,
-        rms_error_mps2: Some((sse / n).sqrt()),
+        rms_error_mps2: Some(rms_error_mps2),
         simulated: Some([
             (0..h.measured_mps2.len())
                 .map(|i| record.time_s(i))

@@ -25,6 +25,19 @@ pub struct HeldOut {
     pub relative_velocity_mps: Vec<f64>,
 }
 
+impl HeldOut {
+    /// RMS of the measured less the predicted mass acceleration [m/s^2].
+    pub fn rms_error_mps2(&self) -> f64 {
+        let sse: f64 = self
+            .measured_mps2
+            .iter()
+            .zip(&self.predicted_mps2)
+            .map(|(m, p)| (m - p).powi(2))
+            .sum();
+        (sse / self.measured_mps2.len().max(1) as f64).sqrt()
+    }
+}
+
 /// Samples of `x` at times shifted by `-delay_s` (Catmull-Rom cubic interpolation, ends held).
 pub fn delayed(x: &[f64], sample_rate_hz: f64, delay_s: f64) -> Vec<f64> {
     let n = x.len();

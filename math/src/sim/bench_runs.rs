@@ -13,6 +13,7 @@ use super::run::RunSpec;
 use super::truth::{AsymmetricDamping, TruthElement};
 use crate::element::Friction;
 use crate::phasor::SweepKind;
+use crate::signal::bouc_wen::HysteresisLaw;
 
 /// Components of the band-random identification record of [`RunSpec::rig_random`].
 pub const RIG_RANDOM_COMPONENTS: usize = 256;
@@ -157,6 +158,43 @@ impl RunSpec {
             cubic_stiffness_n_per_m3: s,
             ..TruthElement::linear(k, c)
         };
+        RunSpec::shaker_one_period_multisines(element, snr_db, seed)
+    }
+
+    /// The same shaker's single-DOF system with a hysteresis loop in place of the cubic
+    /// stiffness: 2 kg on 40 000 N/m and 60 N s/m with a Bouc-Wen loop of alpha 20 000 N/m
+    /// ([`RunSpec::SHAKER_LOOP`]: yield 0.4 mm, saturating at 8 N, n 2, r 0.7), measured with
+    /// the same six one-period multisines. The `linear+hysteresis` model's truth.
+    pub fn shaker_loop_one_period(snr_db: Option<f64>, seed: u64) -> RunSpec {
+        let [(_, k), (_, c)] = RunSpec::SHAKER_LOOP_THETA;
+        let (law, alpha) = RunSpec::SHAKER_LOOP;
+        let element = TruthElement {
+            bouc_wen: Some(law.bouc_wen(alpha)),
+            ..TruthElement::linear(k, c)
+        };
+        RunSpec::shaker_one_period_multisines(element, snr_db, seed)
+    }
+
+    /// The `linear` terms of [`RunSpec::shaker_loop_one_period`] (its moving mass is 2 kg).
+    pub const SHAKER_LOOP_THETA: [(&'static str, f64); 2] = [("k", 4.0e4), ("c", 60.0)];
+
+    /// The loop of [`RunSpec::shaker_loop_one_period`]: its law and alpha [N/m].
+    pub const SHAKER_LOOP: (HysteresisLaw, f64) = (
+        HysteresisLaw {
+            yield_m: 4.0e-4,
+            n: 2.0,
+            r: 0.7,
+        },
+        2.0e4,
+    );
+
+    /// `element` on the 2 kg shaker under six one-period multisines (see
+    /// [`RunSpec::shaker_duffing_one_period`]).
+    fn shaker_one_period_multisines(
+        element: TruthElement,
+        snr_db: Option<f64>,
+        seed: u64,
+    ) -> RunSpec {
         let step = StepSpec::Multisine {
             base_frequency_hz: 0.5,
             low_hz: 5.0,

@@ -159,16 +159,7 @@ fn refit_hysteresis(
                         None,
                     );
                     let h = predict_record(&element, mass_kg, record, &Transform::default())?;
-                    let sse: f64 = h
-                        .measured_mps2
-                        .iter()
-                        .zip(&h.predicted_mps2)
-                        .map(|(m, p)| (m - p).powi(2))
-                        .sum();
-                    Ok((
-                        h.nmse_percent,
-                        (sse / h.measured_mps2.len().max(1) as f64).sqrt(),
-                    ))
+                    Ok((h.nmse_percent, h.rms_error_mps2()))
                 }
                 Simulation::Forced { .. } => {
                     let v = validate_forced_hysteresis(baseline, &r.fit, record)?;
