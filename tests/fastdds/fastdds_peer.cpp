@@ -196,8 +196,6 @@ static void write_reliably(DataWriter* w, M& m) {
   }
 }
 
-// Waits for a theta that uses `expected_steps` steps (each theta is printed by the listener),
-// then deletes the participant; exits with a failure after `timeout_s`.
 // Whether the theta reader has matched forcemap's identifier. The bench waits for it before
 // publishing, so every theta is sent to a matched reader, not left to the late-joiner
 // delivery of transient local.
@@ -207,6 +205,8 @@ static bool theta_matched(DataReader* reader) {
   return m.current_count > 0;
 }
 
+// Waits for a theta that uses `expected_steps` steps (each theta is printed by the listener),
+// then deletes the participant; exits with a failure after `timeout_s`.
 static int await_theta_and_close(DomainParticipant* p, DataReader* reader, ThetaListener& listener,
                                  int expected_steps, double timeout_s) {
   auto t0 = Clock::now();

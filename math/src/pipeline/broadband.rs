@@ -7,8 +7,8 @@
 use super::PipelineError;
 use crate::diagnose::element_heldout::TermFit;
 use crate::identify::{
-    self, FORM_MISFIT_VARIANCE, IdentifyError, Method, RecordsOutputError, StepEquations,
-    records_drive, td_range_equations,
+    self, FORM_MAY_BE_WRONG, FORM_MISFIT_VARIANCE, IdentifyError, Method, RecordsOutputError,
+    StepEquations, records_drive, td_range_equations,
 };
 use crate::measured_state::{CUTOFF_MULTIPLE, MeasuredState, white_noise_std_above};
 use crate::model::Model;
@@ -183,7 +183,7 @@ pub fn identify_element_sample_records(
                 && rms * rms > FORM_MISFIT_VARIANCE
             {
                 id.warnings.push(format!(
-                    "output error: the model misses the measured force by {rms:.1} noise std (RMS); the model's form may not describe these data (try diagnose)"
+                    "output error: the model misses the measured force by {rms:.1} noise std (RMS); {FORM_MAY_BE_WRONG}"
                 ));
             }
             id

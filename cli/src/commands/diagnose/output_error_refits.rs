@@ -16,7 +16,7 @@ use forcemap_math::diagnose::effects::Transform;
 use forcemap_math::diagnose::element_heldout::TermFit;
 use forcemap_math::diagnose::fitted_element::FittedElement;
 use forcemap_math::diagnose::score::predict_record;
-use forcemap_math::identify::Method;
+use forcemap_math::identify::{FORM_MAY_BE_WRONG, Method};
 use forcemap_math::model::{IdentifiedModel, Model};
 use forcemap_math::pipeline::{
     identify_element_sample_records, identify_random_records, refine_hysteresis_on_records,
@@ -27,6 +27,10 @@ use forcemap_math::record::Record;
 use forcemap_math::sim::ElementDrive;
 
 use anyhow::Context as _;
+
+/// The note of a candidate refitted because the baseline's simulation misses the records
+/// beyond their noise though no effect was named along the measured motion.
+const BEST_RANKED_NOTE: &str = "no effect was named along the measured motion, but the baseline's simulation misses the records beyond their noise: the best-ranked candidate, refitted";
 
 /// What the records' simulation drives.
 pub(super) enum Simulation {
@@ -73,6 +77,8 @@ pub(super) struct Refit {
     pub heldout_nmse_percent: Vec<f64>,
     /// Held-out RMS error of that channel in its own unit (m/s^2; m).
     pub heldout_rms_error: Vec<f64>,
+    /// The fit's own lines: its misfit against the noise, and whether the form may be wrong.
+    pub notes: Vec<String>,
 }
 
 /// The baseline and, when the diagnosis names an effect made of extra element terms or a
@@ -86,11 +92,24 @@ pub(super) fn refit(
     baseline: &Model,
     f: &PhasorFindings,
 ) -> anyhow::Result<Vec<Refit>> {
-    let named_fit = f
-        .findings
-        .top_effect
-        .and_then(|e| f.ranked_effects.iter().find(|r| r.effect == e))
-        .and_then(|r| Some((r.effect, r.fit.as_ref()?)));
+    let with_progress = |name: &str, run: &dyn Fn() -> anyhow::Result<Refit>| {
+        let pb = super::super::progress_spinner();
+        pb.set_message(format!("refitting {name} by output error"));
+        let refit = run();
+        pb.finish_and_clear();
+        refit
+    };
+    let base = with_progress(&baseline.name, &|| refit_one(sim, baseline))?;
+    // Along the measured motion the differentiated noise can hide what the simulation shows:
+    // where the baseline's simulation misses the records beyond their noise and no effect was
+    // named, the best-ranked candidate is refitted too.
+    let form_wrong = base.notes.iter().any(|n| n.contains(FORM_MAY_BE_WRONG));
+    let candidate = match f.findings.top_effect {
+        Some(e) => f.ranked_effects.iter().find(|r| r.effect == e),
+        None if form_wrong => f.ranked_effects.first(),
+        None => None,
+    };
+    let named_fit = candidate.and_then(|r| Some((r.effect, r.fit.as_ref()?)));
     let named = named_fit.and_then(|(effect, fit)| {
         let extra = fit.terms.len() > baseline.terms.len() && fit.hysteresis.is_none();
         extra.then(|| {
@@ -102,22 +121,22 @@ pub(super) fn refit(
     });
     let hysteresis = named_fit
         .filter(|(_, fit)| fit.hysteresis.is_some() && fit.terms.len() == baseline.terms.len());
-    let with_progress = |name: &str, run: &dyn Fn() -> anyhow::Result<Refit>| {
-        let pb = super::super::progress_spinner();
-        pb.set_message(format!("refitting {name} by output error"));
-        let refit = run();
-        pb.finish_and_clear();
-        refit
-    };
-    let mut out = std::iter::once(baseline.clone())
-        .chain(named)
-        .map(|model| with_progress(&model.name, &|| refit_one(sim, &model)))
-        .collect::<anyhow::Result<Vec<Refit>>>()?;
+    let mut out = vec![base];
+    if let Some(model) = named {
+        out.push(with_progress(&model.name, &|| refit_one(sim, &model))?);
+    }
+    if f.findings.top_effect.is_none()
+        && let Some(r) = out.get_mut(1)
+    {
+        r.notes.insert(0, BEST_RANKED_NOTE.into());
+    }
     if let Some((effect, fit)) = hysteresis {
         let name = format!("{} + {}", baseline.name, effect.name());
-        out.push(with_progress(&name, &|| {
-            refit_hysteresis(sim, baseline, fit, &name)
-        })?);
+        let mut r = with_progress(&name, &|| refit_hysteresis(sim, baseline, fit, &name))?;
+        if f.findings.top_effect.is_none() {
+            r.notes.insert(0, BEST_RANKED_NOTE.into());
+        }
+        out.push(r);
     }
     Ok(out)
 }
@@ -179,6 +198,7 @@ fn refit_hysteresis(
             .collect(),
         heldout_nmse_percent: held.iter().map(|h| h.0).collect(),
         heldout_rms_error: held.iter().map(|h| h.1).collect(),
+        notes: r.identification.warnings.clone(),
     })
 }
 
@@ -230,6 +250,7 @@ fn refit_one(sim: &SimulatedRecords, model: &Model) -> anyhow::Result<Refit> {
             .collect(),
         heldout_nmse_percent: held.iter().map(|h| h.0).collect(),
         heldout_rms_error: held.iter().map(|h| h.1).collect(),
+        notes: id.warnings.clone(),
     })
 }
 
@@ -261,5 +282,8 @@ pub(super) fn print(sim: &SimulatedRecords, refits: &[Refit]) {
                 held.join(", ")
             }
         );
+        for n in &r.notes {
+            println!("    {n}");
+        }
     }
 }

@@ -41,6 +41,9 @@ pub use sampled_drive::{HYSTERESIS_PARAMETERS, RecordsOutputError, records_drive
 /// model's form may not describe the data.
 pub const FORM_MISFIT_VARIANCE: f64 = 2.0;
 
+/// What a fit's warning says when its misfit exceeds [`FORM_MISFIT_VARIANCE`] noise variances.
+pub const FORM_MAY_BE_WRONG: &str = "the model's form may not describe these data (try diagnose)";
+
 /// Floor of each channel's noise std, relative to its fundamental.
 const NOISE_FLOOR: f64 = 1e-6;
 

@@ -6,7 +6,7 @@ use nalgebra::DMatrix;
 
 use super::RecordsOutputError;
 use super::SampledDrive;
-use crate::identify::output_error::{FORM_MISFIT_VARIANCE, lm};
+use crate::identify::output_error::{FORM_MAY_BE_WRONG, FORM_MISFIT_VARIANCE, lm};
 use crate::identify::{Identification, Method, Parameter};
 use crate::measured_state::CUTOFF_MULTIPLE;
 use crate::record::Channel;
@@ -57,7 +57,7 @@ impl RecordsOutputError<'_> {
         }
         if self.noise_unmeasured.is_empty() && rms * rms > FORM_MISFIT_VARIANCE {
             warnings.push(format!(
-                "output error: the simulated model misses the measured {outputs} by {rms:.1} noise std (RMS); the model's form may not describe these data (try diagnose)"
+                "output error: the simulated model misses the measured {outputs} by {rms:.1} noise std (RMS); {FORM_MAY_BE_WRONG}"
             ));
         }
         let info = fit.information.clone();
