@@ -11,6 +11,11 @@
 //! the mass simulated under each record's measured base displacement, with the fitted element
 //! (its friction's stick-slip and its Bouc-Wen state), scored on the mass acceleration.
 //!
+//! Records with no steps whose motion the bench did not impose (a force-driven element test's,
+//! a rig's) are fitted along the measured motion, then refined by output error
+//! ([`super::identify_hysteresis_records`]); a force-driven held-out record's displacement is
+//! simulated under its measured force.
+//!
 //! Sine steps are fitted either on one rebuilt period each (the diagnosis' fit, each test
 //! counted once) or on their samples (the least squares of the force along the measured
 //! motion, each test counted by its length), chosen as `identify` chooses between fd-multi and
