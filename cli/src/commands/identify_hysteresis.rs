@@ -381,9 +381,13 @@ pub fn run(args: &IdentifyArgs, base: &str) -> anyhow::Result<()> {
         );
         return Ok(());
     }
+    let fitted = if findings.sampled_records == findings.steps {
+        format!("{} records with no steps", findings.steps)
+    } else {
+        format!("{} steps", findings.steps)
+    };
     println!(
-        "{file}: model {name} on {} steps: the {base} terms and a Bouc-Wen state, fitted as `diagnose` refits {base} with its hysteresis (yield and loop shape chosen by leave-one-step-out prediction of the force, coefficients by least squares)",
-        findings.steps
+        "{file}: model {name} on {fitted}: the {base} terms and a Bouc-Wen state, fitted as `diagnose` refits {base} with its hysteresis (yield and loop shape chosen by leave-one-out prediction of the force, coefficients by least squares)",
     );
     println!("{:<12} {:>14} {:>12}", "param", "value", "std");
     for p in &parameters {
