@@ -189,9 +189,10 @@ fn a_rig_with_a_loop_is_refined_by_output_error_on_its_random_records() {
         path
     };
     let (a, b, held) = (csv(1), csv(2), csv(3));
-    let identify = |model: &str| -> serde_json::Value {
+    // `forcemap COMMAND` of `model` on the fitted and held-out files, its JSON.
+    let run = |command: &str, model: &str| -> serde_json::Value {
         let o = common::forcemap(&[
-            "identify",
+            command,
             &a,
             &b,
             "--model",
@@ -205,7 +206,7 @@ fn a_rig_with_a_loop_is_refined_by_output_error_on_its_random_records() {
         assert!(o.status.success(), "{}", common::stderr(&o));
         serde_json::from_slice(&o.stdout).unwrap()
     };
-    let v = identify("coulomb+hysteresis");
+    let v = run("identify", "coulomb+hysteresis");
     assert_eq!(v["method"], "hysteresis-output-error", "{v:#}");
     let (yield_m, alpha) = (0.005, 4000.0);
     let truth = [
@@ -246,7 +247,7 @@ fn a_rig_with_a_loop_is_refined_by_output_error_on_its_random_records() {
         .unwrap()
         .nmse_percent;
     let found = v["held_out"][0]["nmse_percent"].as_f64().unwrap();
-    let plain = identify("coulomb");
+    let plain = run("identify", "coulomb");
     let without = plain["held_out"][0]["nmse_percent"].as_f64().unwrap();
     eprintln!(
         "misfit {misfit:.3} noise std; held out {found:.3} % (the truth {floor:.3} %, coulomb alone {without:.3} %)"
@@ -256,20 +257,7 @@ fn a_rig_with_a_loop_is_refined_by_output_error_on_its_random_records() {
     // `diagnose` names nothing along the measured motion (the differentiated noise hides the
     // loop: its floor is 6.7 % of the force), but the baseline's simulation misses the records
     // by 8.8 noise std, so the best-ranked candidate, the loop, is refitted by simulation too.
-    let o = common::forcemap(&[
-        "diagnose",
-        &a,
-        &b,
-        "--model",
-        "coulomb",
-        "--mass-kg",
-        "36",
-        "--validate",
-        &held,
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", common::stderr(&o));
-    let d: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let d = run("diagnose", "coulomb");
     let refits = d["output_error_refits"].as_array().unwrap();
     let looped = refits
         .iter()

@@ -154,13 +154,7 @@ fn predict_held_out(
             simulated: None,
         });
     };
-    let element = FittedElement::new(
-        fit.terms.clone(),
-        fit.theta.clone(),
-        fit.hysteresis.map(|(law, alpha)| (alpha, law)),
-        None,
-        None,
-    );
+    let element = FittedElement::of_term_fit(fit);
     let h = predict_record(&element, rig.mass_kg, record, &Transform::default())
         .with_context(context)?;
     let rms_error_mps2 = h.rms_error_mps2();

@@ -4,6 +4,7 @@
 
 use std::sync::Arc;
 
+use super::element_heldout::TermFit;
 use crate::basis::Term;
 use crate::element::{Element, Friction};
 use crate::signal::bouc_wen::HysteresisLaw;
@@ -50,6 +51,18 @@ impl FittedElement {
             drift,
             smooth_terms,
         }
+    }
+
+    /// The element of a fit along the measured motion (its terms and its Bouc-Wen state, no
+    /// series spring or drift).
+    pub fn of_term_fit(fit: &TermFit) -> FittedElement {
+        FittedElement::new(
+            fit.terms.clone(),
+            fit.theta.clone(),
+            fit.hysteresis.map(|(law, alpha)| (alpha, law)),
+            None,
+            None,
+        )
     }
 
     /// Offsets of the (series force, clock) internal states, after the hysteresis state.

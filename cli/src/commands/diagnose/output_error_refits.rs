@@ -16,7 +16,7 @@ use forcemap_math::diagnose::effects::Transform;
 use forcemap_math::diagnose::element_heldout::TermFit;
 use forcemap_math::diagnose::fitted_element::FittedElement;
 use forcemap_math::diagnose::score::predict_record;
-use forcemap_math::identify::{FORM_MAY_BE_WRONG, Method};
+use forcemap_math::identify::{FORM_MAY_BE_WRONG, Identification, Method};
 use forcemap_math::model::{IdentifiedModel, Model};
 use forcemap_math::pipeline::{
     identify_element_sample_records, identify_random_records, refine_hysteresis_on_records,
@@ -79,6 +79,23 @@ pub(super) struct Refit {
     pub heldout_rms_error: Vec<f64>,
     /// The fit's own lines: its misfit against the noise, and whether the form may be wrong.
     pub notes: Vec<String>,
+}
+
+impl Refit {
+    /// `model` refitted as `id`, with each held-out record's (NMSE [%], RMS error).
+    fn new(model: String, id: &Identification, held: &[(f64, f64)]) -> Refit {
+        Refit {
+            model,
+            parameters: id
+                .parameters
+                .iter()
+                .map(|p| (p.name.clone(), p.value, p.std))
+                .collect(),
+            heldout_nmse_percent: held.iter().map(|h| h.0).collect(),
+            heldout_rms_error: held.iter().map(|h| h.1).collect(),
+            notes: id.warnings.clone(),
+        }
+    }
 }
 
 /// The baseline and, when the diagnosis names an effect made of extra element terms or a
@@ -160,7 +177,7 @@ fn refit_hysteresis(
     };
     let refs: Vec<&Record> = sim.records.iter().collect();
     let r = refine_hysteresis_on_records(baseline, &setup, &refs, start).with_context(refitting)?;
-    let (law, alpha) = r
+    let (law, _) = r
         .fit
         .hysteresis
         .context("the refit has no hysteresis state")?;
@@ -170,13 +187,7 @@ fn refit_hysteresis(
         .map(|record| -> anyhow::Result<(f64, f64)> {
             match sim.simulation {
                 Simulation::Rig { mass_kg } => {
-                    let element = FittedElement::new(
-                        r.fit.terms.clone(),
-                        r.fit.theta.clone(),
-                        Some((alpha, law)),
-                        None,
-                        None,
-                    );
+                    let element = FittedElement::of_term_fit(&r.fit);
                     let h = predict_record(&element, mass_kg, record, &Transform::default())?;
                     Ok((h.nmse_percent, h.rms_error_mps2()))
                 }
@@ -188,18 +199,11 @@ fn refit_hysteresis(
         })
         .collect::<anyhow::Result<Vec<_>>>()
         .with_context(simulating)?;
-    Ok(Refit {
-        model: format!("{name} (loop exponent n {} held)", law.n),
-        parameters: r
-            .identification
-            .parameters
-            .iter()
-            .map(|p| (p.name.clone(), p.value, p.std))
-            .collect(),
-        heldout_nmse_percent: held.iter().map(|h| h.0).collect(),
-        heldout_rms_error: held.iter().map(|h| h.1).collect(),
-        notes: r.identification.warnings.clone(),
-    })
+    Ok(Refit::new(
+        format!("{name} (loop exponent n {} held)", law.n),
+        &r.identification,
+        &held,
+    ))
 }
 
 fn refit_one(sim: &SimulatedRecords, model: &Model) -> anyhow::Result<Refit> {
@@ -241,17 +245,7 @@ fn refit_one(sim: &SimulatedRecords, model: &Model) -> anyhow::Result<Refit> {
             (id, held)
         }
     };
-    Ok(Refit {
-        model: model.name.clone(),
-        parameters: id
-            .parameters
-            .iter()
-            .map(|p| (p.name.clone(), p.value, p.std))
-            .collect(),
-        heldout_nmse_percent: held.iter().map(|h| h.0).collect(),
-        heldout_rms_error: held.iter().map(|h| h.1).collect(),
-        notes: id.warnings.clone(),
-    })
+    Ok(Refit::new(model.name.clone(), &id, &held))
 }
 
 pub(super) fn print(sim: &SimulatedRecords, refits: &[Refit]) {
