@@ -6,7 +6,10 @@
 //! and explains the gap, and the held-out force NMSE falls to under half. The baseline and the
 //! named model are then refitted by output error on the rig's records: F_d within 1 % of the
 //! truth (the fit along the measured motion is biased low by the noisy velocity), and the
-//! held-out record simulated with it leaves under a tenth of the baseline's acceleration NMSE.
+//! held-out record simulated with it leaves under a tenth of the baseline's acceleration NMSE,
+//! and the verdict from the simulations agrees. A channel effect no candidate is (a 4 Hz
+//! sensor low-pass on every channel of the Coulomb rig, against `coulomb`) earns no name by
+//! simulation.
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
@@ -16,39 +19,53 @@ mod common;
 
 use forcemap_io::csv_export::write_csv;
 use forcemap_math::recipe::SetupKind;
-use forcemap_math::sim::RunSpec;
+use forcemap_math::sim::{RigEffects, RunSpec, RunSystem};
 
-#[test]
-fn a_rigs_random_records_are_diagnosed_on_their_samples() {
+/// `forcemap diagnose` of the rig's band-random records of seeds 1 to `records` (40 dB), the
+/// last held out, against `model`; `effects` on the rig's channels.
+fn diagnose_random_records(
+    model: &str,
+    records: u64,
+    effects: RigEffects,
+) -> (std::process::Output, serde_json::Value) {
     let dir = tempfile::tempdir().unwrap();
-    let files: Vec<String> = (1..=4)
+    let files: Vec<String> = (1..=records)
         .map(|seed| {
             let path = dir.path().join(format!("random{seed}.csv"));
-            let records = RunSpec::rig_random(Some(40.0), seed).simulate().unwrap();
-            write_csv(&path, &records, SetupKind::BaseExcited).unwrap();
+            let mut spec = RunSpec::rig_random(Some(40.0), seed);
+            if let RunSystem::Rig { effects: e, .. } = &mut spec.system {
+                *e = effects;
+            }
+            write_csv(&path, &spec.simulate().unwrap(), SetupKind::BaseExcited).unwrap();
             path.display().to_string()
         })
         .collect();
-    let o = common::forcemap(&[
-        "diagnose",
-        &files[0],
-        &files[1],
-        &files[2],
+    let (validation, fitted) = files.split_last().unwrap();
+    let mut args: Vec<&str> = vec!["diagnose"];
+    args.extend(fitted.iter().map(String::as_str));
+    args.extend([
         "--model",
-        "linear",
+        model,
         "--mass-kg",
         "36",
         "--validate",
-        &files[3],
+        validation,
         "--json",
     ]);
+    let o = common::forcemap(&args);
     assert!(o.status.success(), "{}", common::stderr(&o));
+    let v = serde_json::from_slice(&o.stdout).unwrap();
+    (o, v)
+}
+
+#[test]
+fn a_rigs_random_records_are_diagnosed_on_their_samples() {
+    let (o, v) = diagnose_random_records("linear", 4, RigEffects::default());
     assert!(
         common::stderr(&o).contains("the rig's records have no sine steps"),
         "{}",
         common::stderr(&o)
     );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     println!("{} by {}; {}", v["verdict"], v["top_effect"], v["heldout"]);
     assert_eq!(v["sampled_records"], 3, "{v}");
     assert_eq!(v["verdict"], "explained", "{v}");
@@ -73,4 +90,37 @@ fn a_rigs_random_records_are_diagnosed_on_their_samples() {
     assert!((fd / 12.3 - 1.0).abs() < 0.01, "fd {fd}");
     let nmse = |r: &serde_json::Value| r["heldout_nmse_percent"][0].as_f64().unwrap();
     assert!(nmse(&refits[1]) < 0.1 * nmse(&refits[0]), "{refits:?}");
+    // The verdict from the simulations agrees with the one along the measured motion.
+    let by_sim = &v["simulation_verdict"];
+    println!("verdict by simulation: {by_sim}");
+    assert_eq!(by_sim["verdict"], "explained", "{by_sim}");
+    assert_eq!(by_sim["effect"], "coulomb_friction", "{by_sim}");
+}
+
+/// A 4 Hz first-order low-pass on every measured channel of the Coulomb rig (records of
+/// 1.6-3.4 Hz), diagnosed against `coulomb`: a filter is not a candidate on records with no
+/// steps, the baseline's simulation misses the records beyond their noise, and the best-ranked
+/// candidate refitted by simulation must not be named for it.
+#[test]
+fn a_channel_filter_earns_no_name_by_simulation() {
+    let (_, v) = diagnose_random_records(
+        "coulomb",
+        3,
+        RigEffects {
+            sensor_lowpass_hz: Some(4.0),
+            ..RigEffects::default()
+        },
+    );
+    let by_sim = &v["simulation_verdict"];
+    let refits = v["output_error_refits"].as_array().unwrap();
+    println!("along the motion {}; by simulation {by_sim}", v["verdict"]);
+    let misfit = refits[0]["misfit_noise_std"].as_f64().unwrap();
+    assert!(misfit > 2f64.sqrt(), "{refits:?}");
+    assert!(
+        !matches!(
+            by_sim["verdict"].as_str().unwrap(),
+            "explained" | "explained_in_part"
+        ),
+        "{by_sim}"
+    );
 }

@@ -144,6 +144,10 @@ fn a_force_driven_loop_is_refined_by_output_error_and_simulated_on_a_held_out_re
         "{diag_loop} against {held_rms_m}"
     );
     assert!(diag_plain > 2.5 * diag_loop);
+    let by_sim = &dj["simulation_verdict"];
+    eprintln!("verdict by simulation {by_sim}");
+    assert_eq!(by_sim["verdict"], "explained", "{by_sim}");
+    assert_eq!(by_sim["effect"], "hysteresis", "{by_sim}");
     let text = common::forcemap(&args);
     let out = String::from_utf8_lossy(&text.stdout);
     assert!(out.contains("refined by output error"), "{out}");
@@ -281,4 +285,12 @@ fn a_rig_with_a_loop_is_refined_by_output_error_on_its_random_records() {
             .contains("best-ranked candidate"),
         "{looped}"
     );
+    // The verdict from the simulations names the loop the fit along the motion could not see.
+    let by_sim = &d["simulation_verdict"];
+    eprintln!(
+        "verdict along the motion {}, by simulation {by_sim}",
+        d["verdict"]
+    );
+    assert_eq!(by_sim["verdict"], "explained", "{by_sim}");
+    assert_eq!(by_sim["effect"], "hysteresis", "{by_sim}");
 }

@@ -380,6 +380,7 @@ impl IdentifiedParameters {
             residual_rms: self.residual_rms,
             // Not on the wire (its warning is, among the warnings).
             fit_quality: None,
+            misfit_noise_std: None,
             steps_used: self.steps_used.iter().map(|s| *s as usize).collect(),
             warnings: self.warnings.clone(),
         })

@@ -294,6 +294,7 @@ fn identification() -> Identification {
         steps_used: vec![0, 2, 3],
         warnings: vec!["few equations".into()],
         fit_quality: None,
+        misfit_noise_std: None,
     }
 }
 

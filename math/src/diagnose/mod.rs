@@ -65,6 +65,7 @@ pub mod score;
 pub mod search;
 pub mod sensor;
 pub mod series;
+pub mod simulated_gap;
 pub mod stribeck;
 pub mod time_domain;
 

@@ -234,6 +234,7 @@ impl EquationAccumulator {
             residual_rms: sol.residual_rms,
             steps_used: self.steps_used.clone(),
             fit_quality,
+            misfit_noise_std: None,
             warnings,
         };
         Ok((id, flags))

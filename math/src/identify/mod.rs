@@ -343,6 +343,10 @@ pub struct Identification {
     /// The residual against the noise, by band of harmonics (`None` where the equations are
     /// not of harmonics with a noise estimate: the time-domain method).
     pub fit_quality: Option<FitQuality>,
+    /// The RMS of an output-error fit's residual in noise standard deviations (each compared
+    /// sample over its channel's measured noise); `None` where the fit is not output error or
+    /// the noise could not be measured.
+    pub misfit_noise_std: Option<f64>,
     pub warnings: Vec<String>,
 }
 

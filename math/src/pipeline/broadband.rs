@@ -174,6 +174,7 @@ pub fn identify_element_sample_records(
             let mut id = start;
             id.method = Method::OutputError.name();
             let misfit = force_misfit(model, &setup, &id.theta(), records);
+            id.misfit_noise_std = misfit.in_noise_std;
             id.warnings.push(format!(
                 "output error: the displacement is the drive, so the model's output is the force along the measured motion, linear in theta: its least squares over every sample of {} record(s), {}",
                 records.len(),

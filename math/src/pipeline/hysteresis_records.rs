@@ -88,6 +88,7 @@ pub fn refine_hysteresis_on_records(
         residual_rms: f64::NAN,
         steps_used: records.iter().map(|r| r.step).collect(),
         fit_quality: None,
+        misfit_noise_std: None,
         warnings: Vec::new(),
     };
     let mut identification = problem.with_hysteresis(law).fit(&first)?;

@@ -11,12 +11,13 @@
 //! resonance has few samples per period; the simulation takes the motion from the model and
 //! has no such bias, at seconds per model.
 
-use forcemap_math::diagnose::PhasorFindings;
-use forcemap_math::diagnose::effects::Transform;
+use forcemap_math::diagnose::effects::{Effect, Transform};
 use forcemap_math::diagnose::element_heldout::TermFit;
 use forcemap_math::diagnose::fitted_element::FittedElement;
 use forcemap_math::diagnose::score::predict_record;
-use forcemap_math::identify::{FORM_MAY_BE_WRONG, Identification, Method};
+use forcemap_math::diagnose::simulated_gap::{SimulatedGap, SimulatedModel};
+use forcemap_math::diagnose::{PhasorFindings, Verdict};
+use forcemap_math::identify::{FORM_MISFIT_VARIANCE, Identification, Method};
 use forcemap_math::model::{IdentifiedModel, Model};
 use forcemap_math::pipeline::{
     identify_element_sample_records, identify_random_records, refine_hysteresis_on_records,
@@ -64,12 +65,28 @@ impl SimulatedRecords {
             ),
         }
     }
+
+    /// The verdict from the refits' simulations of the held-out records (None without held-out
+    /// records): the baseline's held-out NMSE the gap, the refitted candidate's what it leaves.
+    pub fn verdict(&self, refits: &[Refit]) -> Option<SimulatedGap> {
+        let base = refits.first()?;
+        if self.validation.is_empty() {
+            return None;
+        }
+        let candidate = refits[1..].iter().find(|r| r.effect.is_some());
+        Some(SimulatedGap::judge(
+            base.simulated(),
+            candidate.map(Refit::simulated),
+        ))
+    }
 }
 
 /// One model refitted by output error on the records.
 #[derive(Debug, Clone, serde::Serialize)]
 pub(super) struct Refit {
     pub model: String,
+    /// The effect added to the baseline (None: the baseline itself).
+    pub effect: Option<Effect>,
     /// (name, value, std).
     pub parameters: Vec<(String, f64, f64)>,
     /// Held-out NMSE of the simulated channel (the rig's mass acceleration, eq. 27; a
@@ -77,15 +94,19 @@ pub(super) struct Refit {
     pub heldout_nmse_percent: Vec<f64>,
     /// Held-out RMS error of that channel in its own unit (m/s^2; m).
     pub heldout_rms_error: Vec<f64>,
+    /// The fit's misfit in noise std (None: the noise could not be measured).
+    pub misfit_noise_std: Option<f64>,
     /// The fit's own lines: its misfit against the noise, and whether the form may be wrong.
     pub notes: Vec<String>,
 }
 
 impl Refit {
-    /// `model` refitted as `id`, with each held-out record's (NMSE [%], RMS error).
+    /// `model` refitted as `id`, with each held-out record's (NMSE [%], RMS error); the effect
+    /// it adds is the caller's to set.
     fn new(model: String, id: &Identification, held: &[(f64, f64)]) -> Refit {
         Refit {
             model,
+            effect: None,
             parameters: id
                 .parameters
                 .iter()
@@ -93,7 +114,16 @@ impl Refit {
                 .collect(),
             heldout_nmse_percent: held.iter().map(|h| h.0).collect(),
             heldout_rms_error: held.iter().map(|h| h.1).collect(),
+            misfit_noise_std: id.misfit_noise_std,
             notes: id.warnings.clone(),
+        }
+    }
+
+    fn simulated(&self) -> SimulatedModel<'_> {
+        SimulatedModel {
+            effect: self.effect,
+            heldout_nmse_percent: &self.heldout_nmse_percent,
+            misfit_noise_std: self.misfit_noise_std,
         }
     }
 }
@@ -120,7 +150,9 @@ pub(super) fn refit(
     // Along the measured motion the differentiated noise can hide what the simulation shows:
     // where the baseline's simulation misses the records beyond their noise and no effect was
     // named, the best-ranked candidate is refitted too.
-    let form_wrong = base.notes.iter().any(|n| n.contains(FORM_MAY_BE_WRONG));
+    let form_wrong = base
+        .misfit_noise_std
+        .is_some_and(|m| m * m > FORM_MISFIT_VARIANCE);
     let candidate = match f.findings.top_effect {
         Some(e) => f.ranked_effects.iter().find(|r| r.effect == e),
         None if form_wrong => f.ranked_effects.first(),
@@ -130,17 +162,17 @@ pub(super) fn refit(
     let named = named_fit.and_then(|(effect, fit)| {
         let extra = fit.terms.len() > baseline.terms.len() && fit.hysteresis.is_none();
         extra.then(|| {
-            Model::new(
-                format!("{} + {}", baseline.name, effect.name()),
-                fit.terms.clone(),
-            )
+            let name = format!("{} + {}", baseline.name, effect.name());
+            (effect, Model::new(name, fit.terms.clone()))
         })
     });
     let hysteresis = named_fit
         .filter(|(_, fit)| fit.hysteresis.is_some() && fit.terms.len() == baseline.terms.len());
     let mut out = vec![base];
-    if let Some(model) = named {
-        out.push(with_progress(&model.name, &|| refit_one(sim, &model))?);
+    if let Some((effect, model)) = named {
+        let mut r = with_progress(&model.name, &|| refit_one(sim, &model))?;
+        r.effect = Some(effect);
+        out.push(r);
     }
     if f.findings.top_effect.is_none()
         && let Some(r) = out.get_mut(1)
@@ -150,6 +182,7 @@ pub(super) fn refit(
     if let Some((effect, fit)) = hysteresis {
         let name = format!("{} + {}", baseline.name, effect.name());
         let mut r = with_progress(&name, &|| refit_hysteresis(sim, baseline, fit, &name))?;
+        r.effect = Some(effect);
         if f.findings.top_effect.is_none() {
             r.notes.insert(0, BEST_RANKED_NOTE.into());
         }
@@ -279,5 +312,34 @@ pub(super) fn print(sim: &SimulatedRecords, refits: &[Refit]) {
         for n in &r.notes {
             println!("    {n}");
         }
+    }
+}
+
+/// The verdict by simulation, and where it differs from the one along the measured motion,
+/// which of the two to believe.
+pub(super) fn print_verdict(
+    sim: &SimulatedRecords,
+    by_simulation: Option<&SimulatedGap>,
+    along_motion: &PhasorFindings,
+) {
+    let (_, channel, _) = sim.what();
+    let Some(g) = by_simulation else {
+        println!("verdict by simulation: none: no held-out records to simulate (--validate FILE)");
+        return;
+    };
+    println!(
+        "verdict by simulation (held-out {channel} NMSE, the models refitted by output error): {}",
+        g.headline()
+    );
+    let along = &along_motion.findings;
+    let names = |v: Verdict, e: Option<Effect>| {
+        matches!(v, Verdict::Explained | Verdict::ExplainedInPart).then_some(e)
+    };
+    if (g.verdict, names(g.verdict, g.effect))
+        != (along.verdict, names(along.verdict, along.top_effect))
+    {
+        println!(
+            "  the two verdicts differ: the simulation's weighs what the refitted models predict on the held-out records, its motion the model's own (no noise differentiated into it); the one along the motion weighs the element force sample by sample along the measured, differentiated motion"
+        );
     }
 }

@@ -262,6 +262,7 @@ pub(super) fn run(
             .with_context(|| format!("{source}: the output-error refits"))?,
         None => Vec::new(),
     };
+    let by_simulation = simulated.and_then(|sim| sim.verdict(&refits));
     if args.json {
         let mut v = serde_json::to_value(&f)?;
         v["baseline_model"] = baseline.name.clone().into();
@@ -270,6 +271,7 @@ pub(super) fn run(
         v["heldout"] = serde_json::to_value(&held)?;
         if simulated.is_some() {
             v["output_error_refits"] = serde_json::to_value(&refits)?;
+            v["simulation_verdict"] = serde_json::to_value(&by_simulation)?;
         }
         println!("{v}");
     } else {
@@ -284,6 +286,7 @@ pub(super) fn run(
         print_held_out(&held, baseline);
         if let Some(sim) = simulated {
             super::output_error_refits::print(sim, &refits);
+            super::output_error_refits::print_verdict(sim, by_simulation.as_ref(), &f);
         }
     }
     if let Some(dir) = &args.report {
@@ -340,7 +343,7 @@ fn print_summary(
     let measure = f.findings.evidence.measure();
     let evidence = if simulated {
         format!(
-            "the evidence is the {measure}; the baseline and the named effect are then refitted by output error on the records, simulated"
+            "the evidence is the {measure}; the baseline and the named effect are then refitted by output error on the records and simulated on the held-out ones, a verdict of their own"
         )
     } else {
         format!("no records to simulate on, so the evidence is the {measure}")

@@ -211,9 +211,9 @@ fn identification(
     let cov = fit.covariance();
     let rms = fit.rms();
     let mut warnings = first.warnings.clone();
-    if rms * rms > 2.0 {
+    if rms * rms > FORM_MISFIT_VARIANCE {
         warnings.push(format!(
-            "output error: the simulated model misses the measured samples by {rms:.1} noise std (RMS); the exact model may not describe these data"
+            "output error: the simulated model misses the measured samples by {rms:.1} noise std (RMS); {FORM_MAY_BE_WRONG}"
         ));
     }
     let parameters: Vec<Parameter> = (0..p_model)
@@ -258,6 +258,7 @@ fn identification(
         steps_used,
         // Against the noise in the time domain: the RMS misfit above.
         fit_quality: None,
+        misfit_noise_std: Some(rms),
         warnings,
     }
 }

@@ -74,6 +74,7 @@ impl RecordsOutputError<'_> {
             residual_rms: rms,
             steps_used: self.records.iter().map(|r| r.step).collect(),
             fit_quality: None,
+            misfit_noise_std: self.noise_unmeasured.is_empty().then_some(rms),
             warnings,
         }
     }
