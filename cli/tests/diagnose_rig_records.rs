@@ -22,12 +22,13 @@ use forcemap_math::recipe::SetupKind;
 use forcemap_math::sim::{RigEffects, RunSpec, RunSystem};
 
 /// `forcemap diagnose` of the rig's band-random records of seeds 1 to `records` (40 dB), the
-/// last held out, against `model`; `effects` on the rig's channels.
+/// last held out, against `model`; `effects` on the rig's channels. Its output, its JSON and
+/// its HTML report.
 fn diagnose_random_records(
     model: &str,
     records: u64,
     effects: RigEffects,
-) -> (std::process::Output, serde_json::Value) {
+) -> (std::process::Output, serde_json::Value, String) {
     let dir = tempfile::tempdir().unwrap();
     let files: Vec<String> = (1..=records)
         .map(|seed| {
@@ -52,15 +53,19 @@ fn diagnose_random_records(
         validation,
         "--json",
     ]);
+    let report = dir.path().join("report");
+    let report_arg = report.display().to_string();
+    args.extend(["--report", &report_arg]);
     let o = common::forcemap(&args);
     assert!(o.status.success(), "{}", common::stderr(&o));
     let v = serde_json::from_slice(&o.stdout).unwrap();
-    (o, v)
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    (o, v, html)
 }
 
 #[test]
 fn a_rigs_random_records_are_diagnosed_on_their_samples() {
-    let (o, v) = diagnose_random_records("linear", 4, RigEffects::default());
+    let (o, v, html) = diagnose_random_records("linear", 4, RigEffects::default());
     assert!(
         common::stderr(&o).contains("the rig's records have no sine steps"),
         "{}",
@@ -95,6 +100,12 @@ fn a_rigs_random_records_are_diagnosed_on_their_samples() {
     println!("verdict by simulation: {by_sim}");
     assert_eq!(by_sim["verdict"], "explained", "{by_sim}");
     assert_eq!(by_sim["effect"], "coulomb_friction", "{by_sim}");
+    // The report shows the refits and the verdict by simulation too.
+    assert!(
+        html.contains("verdict by simulation: explained by coulomb_friction: 4.23 %"),
+        "{html}"
+    );
+    assert!(html.contains("linear + coulomb_friction: k "), "{html}");
 }
 
 /// A 4 Hz first-order low-pass on every measured channel of the Coulomb rig (records of
@@ -103,7 +114,7 @@ fn a_rigs_random_records_are_diagnosed_on_their_samples() {
 /// candidate refitted by simulation must not be named for it.
 #[test]
 fn a_channel_filter_earns_no_name_by_simulation() {
-    let (_, v) = diagnose_random_records(
+    let (_, v, _) = diagnose_random_records(
         "coulomb",
         3,
         RigEffects {

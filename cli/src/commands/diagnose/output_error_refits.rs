@@ -285,38 +285,58 @@ pub(super) fn print(sim: &SimulatedRecords, refits: &[Refit]) {
     if refits.is_empty() {
         return;
     }
-    let (how, channel, unit) = sim.what();
+    let (how, ..) = sim.what();
     println!("refitted by output error on the records ({how}):");
     for r in refits {
-        let params: Vec<String> = r
-            .parameters
-            .iter()
-            .map(|(n, v, s)| format!("{n} {v:.5e} +/- {s:.1e}"))
-            .collect();
-        let held: Vec<String> = r
-            .heldout_nmse_percent
-            .iter()
-            .zip(&r.heldout_rms_error)
-            .map(|(nmse, rms)| format!("{nmse:.2} % (RMS {rms:.3e} {unit})"))
-            .collect();
-        println!(
-            "  {}: {}; held-out {channel} NMSE {}",
-            r.model,
-            params.join(", "),
-            if held.is_empty() {
-                "- (no held-out records)".to_string()
-            } else {
-                held.join(", ")
-            }
-        );
+        println!("  {}", refit_line(sim, r));
         for n in &r.notes {
             println!("    {n}");
         }
     }
 }
 
+/// The report's lines: each refit, then the verdict by simulation.
+pub(super) fn report_lines(
+    sim: &SimulatedRecords,
+    refits: &[Refit],
+    by_simulation: Option<&SimulatedGap>,
+) -> Vec<String> {
+    let mut lines: Vec<String> = refits.iter().map(|r| refit_line(sim, r)).collect();
+    lines.push(match by_simulation {
+        Some(g) => format!("verdict by simulation: {}", g.headline()),
+        None => "verdict by simulation: none: no held-out records".into(),
+    });
+    lines
+}
+
+/// One refit: its parameters and its held-out records' NMSE and RMS error.
+fn refit_line(sim: &SimulatedRecords, r: &Refit) -> String {
+    let (_, channel, unit) = sim.what();
+    let params: Vec<String> = r
+        .parameters
+        .iter()
+        .map(|(n, v, s)| format!("{n} {v:.5e} +/- {s:.1e}"))
+        .collect();
+    let held: Vec<String> = r
+        .heldout_nmse_percent
+        .iter()
+        .zip(&r.heldout_rms_error)
+        .map(|(nmse, rms)| format!("{nmse:.2} % (RMS {rms:.3e} {unit})"))
+        .collect();
+    format!(
+        "{}: {}; held-out {channel} NMSE {}",
+        r.model,
+        params.join(", "),
+        if held.is_empty() {
+            "- (no held-out records)".to_string()
+        } else {
+            held.join(", ")
+        }
+    )
+}
+
 /// The verdict by simulation, and where it differs from the one along the measured motion,
-/// which of the two to believe.
+/// what each weighs.
 pub(super) fn print_verdict(
     sim: &SimulatedRecords,
     by_simulation: Option<&SimulatedGap>,

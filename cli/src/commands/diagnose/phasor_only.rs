@@ -290,7 +290,10 @@ pub(super) fn run(
         }
     }
     if let Some(dir) = &args.report {
-        write_report(dir, source, baseline, &f)?;
+        let by_simulation = simulated.map(|sim| {
+            super::output_error_refits::report_lines(sim, &refits, by_simulation.as_ref())
+        });
+        write_report(dir, source, baseline, &f, by_simulation.as_deref())?;
         eprintln!("wrote {}", dir.join("index.html").display());
     }
     Ok(())
@@ -405,11 +408,14 @@ fn print_summary(
     println!("rule: {}", f.findings.rule);
 }
 
+/// `by_simulation`: the output-error refits' lines and their verdict, where the records were
+/// simulated.
 fn write_report(
     dir: &std::path::Path,
     source: &str,
     baseline: &Model,
     f: &PhasorFindings,
+    by_simulation: Option<&[String]>,
 ) -> anyhow::Result<()> {
     write_dir_atomically(dir, |tmp| {
         let mut page = HtmlReport::new(&format!("Gap diagnosis: baseline {}", baseline.name));
@@ -434,6 +440,9 @@ fn write_report(
             &["effect", "CV [%]", "score [%]", "significant", "added"],
             &rows,
         );
+        if let Some(lines) = by_simulation {
+            page.list("Refitted by output error and simulated", lines);
+        }
         write_atomically(&tmp.join("index.html"), &page.finish(&f.findings.rule))
     })
 }
