@@ -196,6 +196,13 @@ fn the_diagnosis_names_the_silverbox_cubic_stiffness() {
         "the baseline and the named effect: {refits:?}"
     );
     assert!(rms[1] < rms[0] / 10.0, "{refits:?}");
+    // The verdict from the simulations names the cubic stiffness too; the records hold no band
+    // above the excitation to measure their noise in, so the floor is 0 and said so.
+    let by_sim = &v["simulation_verdict"];
+    println!("Silverbox verdict by simulation: {by_sim}");
+    assert_eq!(by_sim["verdict"], "explained", "{by_sim}");
+    assert_eq!(by_sim["effect"], "cubic_stiffness", "{by_sim}");
+    assert_eq!(by_sim["floor_from"], "unmeasured", "{by_sim}");
 }
 
 /// `forcemap info` lists the records the map names, by name: all eleven of the file, or those a
