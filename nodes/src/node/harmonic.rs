@@ -65,6 +65,7 @@ use stream::StepStream;
 use crate::latency_trace;
 use crate::log_line;
 use crate::ros::{NodeSetup, OnTakeError, RosNode, forward, now_time, qos};
+use forcemap_io::steps::timing::BREAK_MIN_INTERVALS;
 use forcemap_io::steps::unlabelled::DEFAULT_FREQUENCY_TOLERANCE;
 use forcemap_io::steps::{StepAssembler, StepError, StepPlan, StepSample};
 use forcemap_io::topics;
@@ -78,6 +79,19 @@ const PLAN_WAIT: Duration = Duration::from_secs(2);
 /// a flooding bench publisher with a full keep-all history stalls with it. At 2 s the graph
 /// test with a Fast DDS bench saw its last step cut in two under load.
 pub const RUN_END_SILENCE: Duration = Duration::from_secs(5);
+/// The warning when samples resume after a silence ended the run, stamped `next` where the last
+/// one was stamped `last` and `interval_s` after the one before it: none where the stamps break
+/// ([`BREAK_MIN_INTERVALS`] intervals or more: the bench paused, or lost samples).
+fn stall_warning(silence: Duration, last: Time, interval_s: f64, next: Time) -> Option<String> {
+    let gap_s = next.secs_since(last);
+    (interval_s > 0.0 && gap_s > 0.0 && gap_s < BREAK_MIN_INTERVALS * interval_s).then(|| {
+        format!(
+            "the samples stopped for {:.1} s and resumed with no break in their stamps ({gap_s:.6} s after the last, which came {interval_s:.6} s after the one before): the stream stalled (a reliable writer repairing a lost sample holds it), the bench did not pause; the run was ended at the silence and the step in progress cut in two there: raise run_end_silence_s above the stalls",
+            silence.as_secs_f64()
+        )
+    })
+}
+
 /// At most this many samples wait for their excitation state.
 const MAX_PENDING: usize = 1_000_000;
 /// Plans of this many recent steps are kept.
@@ -116,8 +130,15 @@ pub struct HarmonicState {
     idle_since: Option<Instant>,
     /// Steps found in the samples instead of told by excitation states.
     finder: Option<StepFinder>,
-    /// When the last sample came (finding steps: the run ends `RUN_END_SILENCE` after it).
+    /// When the last sample came (finding steps: the run ends `run_end_silence` after it).
     last_sample_at: Option<Instant>,
+    /// Finding steps: how long a silence ends the run (default [`RUN_END_SILENCE`]).
+    run_end_silence: Duration,
+    /// Finding steps: the stamps of the last two samples.
+    last_stamps: [Option<Time>; 2],
+    /// Finding steps: the run was ended by a silence of this long after a sample stamped so,
+    /// its interval to the one before that; checked against the next sample's stamp.
+    ended_by_silence: Option<(Duration, Time, f64)>,
     /// Provisional phasors every this many seconds of a step's samples (`None`: off).
     update_period_s: Option<f64>,
     /// The record of the last step analysed from its stream ([`HarmonicState::take_spent`]).
@@ -150,6 +171,9 @@ impl HarmonicState {
             idle_since: None,
             finder: None,
             last_sample_at: None,
+            run_end_silence: RUN_END_SILENCE,
+            last_stamps: [None; 2],
+            ended_by_silence: None,
             update_period_s: None,
             spent: None,
             frequency_tolerance: DEFAULT_FREQUENCY_TOLERANCE,
@@ -166,6 +190,19 @@ impl HarmonicState {
         );
         Ok(HarmonicState {
             frequency_tolerance: relative,
+            ..self
+        })
+    }
+
+    /// The same state ending a run whose steps it finds after `seconds` without a sample
+    /// (default [`RUN_END_SILENCE`]); refused unless it is positive and finite.
+    pub fn with_run_end_silence(self, seconds: f64) -> anyhow::Result<HarmonicState> {
+        anyhow::ensure!(
+            seconds.is_finite() && seconds > 0.0,
+            "run_end_silence_s {seconds} is not a positive number of seconds"
+        );
+        Ok(HarmonicState {
+            run_end_silence: Duration::from_secs_f64(seconds),
             ..self
         })
     }
@@ -206,18 +243,29 @@ impl HarmonicState {
     }
 
     /// Without excitation states: samples go to the finder, and the run ends (every step left
-    /// is complete) when no sample has come for `RUN_END_SILENCE`.
+    /// is complete) when no sample has come for `run_end_silence`. Where the next sample's
+    /// stamp follows the last one's with no break (the stream stalled, its bench did not
+    /// pause), a warning says that the step in progress was cut there.
     fn handle_found(&mut self, input: Input, now: Instant) -> Vec<Outcome> {
+        let mut stalled = None;
         let found = match (&mut self.finder, input) {
             (Some(f), Input::Sample(s)) => {
+                if let Some((silence, last, interval_s)) = self.ended_by_silence.take() {
+                    stalled = stall_warning(silence, last, interval_s, s.header.stamp);
+                }
                 self.last_sample_at = Some(now);
+                self.last_stamps = [self.last_stamps[1], Some(s.header.stamp)];
                 f.push(&s)
             }
             (Some(f), Input::Tick)
                 if self
                     .last_sample_at
-                    .is_some_and(|t| now.duration_since(t) > RUN_END_SILENCE) =>
+                    .is_some_and(|t| now.duration_since(t) > self.run_end_silence) =>
             {
+                if let [Some(before), Some(last)] = self.last_stamps {
+                    let silence = self.last_sample_at.map(|t| now.duration_since(t));
+                    self.ended_by_silence = silence.map(|d| (d, last, last.secs_since(before)));
+                }
                 self.last_sample_at = None;
                 f.finish()
             }
@@ -233,6 +281,7 @@ impl HarmonicState {
                 }
                 Found::Misattributed { message } => vec![Outcome::Warning(message)],
             })
+            .chain(stalled.map(Outcome::Warning))
             .collect()
     }
 
@@ -380,6 +429,7 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
         .opt_f64("frequency_tolerance")?
         .unwrap_or(DEFAULT_FREQUENCY_TOLERANCE);
     let update_period_s = p.opt_f64("update_period_s")?;
+    let run_end_silence_s = p.opt_f64("run_end_silence_s")?;
     let frame = p.opt_str("frame_id")?.unwrap_or("rig").to_string();
     let fq = setup.fully_qualified_name();
 
@@ -526,6 +576,9 @@ pub async fn run(setup: NodeSetup) -> anyhow::Result<()> {
     if let Some(t) = update_period_s {
         state = state.with_updates(t)?;
         log_line!("provisional phasors of a step in progress every {t} s of its samples");
+    }
+    if let Some(s) = run_end_silence_s {
+        state = state.with_run_end_silence(s)?;
     }
     if find_steps {
         state = state.finding_steps()?;

@@ -134,3 +134,47 @@ fn samples_without_an_excitation_state_are_dropped_after_the_wait() {
     };
     assert!(e.problem.contains("no ExcitationState"), "{}", e.problem);
 }
+
+/// Finding steps, a silence ends the run; samples that then resume with no break in their
+/// stamps were held by a stalled stream, not paused by the bench: a warning says the step in
+/// progress was cut, and names the parameter that waits longer. A bench's pause says nothing.
+#[test]
+fn samples_resuming_after_a_stall_are_told_apart_from_a_pause() {
+    let stalled = |h: &mut HarmonicState, from: i64, to: i64, at: Instant| -> Vec<String> {
+        (from..to)
+            .flat_map(|k| h.handle(Input::Sample(sample(0, k)), at))
+            .filter_map(|o| match o {
+                Outcome::Warning(w) if w.contains("stalled") => Some(w),
+                _ => None,
+            })
+            .collect()
+    };
+    let t = Instant::now();
+    let after = |s: f64| t + Duration::from_secs_f64(s);
+    let mut h = HarmonicState::new().finding_steps().unwrap();
+    assert!(stalled(&mut h, 0, 300, t).is_empty());
+    // Within the silence: the run goes on.
+    h.handle(Input::Tick, after(4.0));
+    assert!(stalled(&mut h, 300, 310, after(4.5)).is_empty());
+    h.handle(Input::Tick, after(10.6));
+    let w = stalled(&mut h, 310, 320, after(11.0));
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].contains("stopped for 6.1 s") && w[0].contains("run_end_silence_s"),
+        "{}",
+        w[0]
+    );
+    // A pause in the stamps (the next sample 2 s of stamps later) is the bench's.
+    h.handle(Input::Tick, after(20.0));
+    assert!(stalled(&mut h, 520, 530, after(21.0)).is_empty());
+    // With a longer silence the stall does not end the run.
+    let mut h = HarmonicState::new()
+        .with_run_end_silence(30.0)
+        .unwrap()
+        .finding_steps()
+        .unwrap();
+    stalled(&mut h, 0, 300, t);
+    h.handle(Input::Tick, after(10.0));
+    assert!(stalled(&mut h, 300, 310, after(10.5)).is_empty());
+    assert!(HarmonicState::new().with_run_end_silence(0.0).is_err());
+}
