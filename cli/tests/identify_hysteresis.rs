@@ -9,13 +9,12 @@
 )]
 
 mod common;
+#[path = "common/rig_loop.rs"]
+mod rig_loop;
 
 use std::path::Path;
 
-use forcemap_math::diagnose::effects::Transform;
 use forcemap_math::diagnose::element_heldout::TermFit;
-use forcemap_math::diagnose::fitted_element::FittedElement;
-use forcemap_math::diagnose::score::predict_record;
 use forcemap_math::measured_state::MeasuredState;
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::pipeline::nmse_percent;
@@ -231,19 +230,9 @@ fn the_damper_dyno_with_a_loop_is_identified_to_its_truth() {
 fn the_rig_with_a_loop_is_identified_and_simulated_on_its_random_records() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("rig.csv").display().to_string();
-    let o = common::forcemap(&[
-        "simulate",
-        "--snr-db",
-        "40",
-        "--bouc-wen-alpha-n-per-m",
-        "4000",
-        "--bouc-wen-beta-per-m-pow-n",
-        "100",
-        "--bouc-wen-gamma-per-m-pow-n",
-        "100",
-        "--csv",
-        &csv,
-    ]);
+    let mut args = vec!["simulate", "--snr-db", "40", "--csv", &csv];
+    args.extend(rig_loop::SIMULATE_ARGS);
+    let o = common::forcemap(&args);
     assert!(o.status.success(), "{}", common::stderr(&o));
     let plots = dir.path().join("plots");
     let identify = |model: &str, extra: &[&str]| -> serde_json::Value {
@@ -263,45 +252,16 @@ fn the_rig_with_a_loop_is_identified_and_simulated_on_its_random_records() {
     };
     let v = identify("coulomb+hysteresis", &["--plot", plots.to_str().unwrap()]);
     assert_eq!(v["fitted_on"], "periods", "{v}");
-    let value = |n: &str| common::parameter_value(&v["parameters"], n);
-    let (yield_m, alpha) = (0.005, 4000.0);
-    let truth = [
-        ("k", 6380.0),
-        ("c", 184.0),
-        ("fd", 12.3),
-        ("alpha", alpha),
-        ("yield_m", yield_m),
-    ];
-    for (name, t) in truth {
-        let found = value(name);
-        println!(
-            "{name}: {found:.6e} (truth {t}, {:+.2} %)",
-            100.0 * (found / t - 1.0)
-        );
-        assert!(
-            (found / t - 1.0).abs() < 0.03,
-            "{name}: {found} against {t}"
-        );
-    }
+    rig_loop::assert_parameters_within(&v["parameters"], 0.03);
     // The truth simulated on the same records: the floor the noise leaves.
     let records = forcemap_io::input::load_files(&[csv.clone().into()], None)
         .unwrap()
         .records;
-    let coulomb = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
-    let element = FittedElement::new(
-        coulomb.terms.clone(),
-        truth[..3].iter().map(|(_, t)| *t).collect(),
-        Some((alpha, HysteresisLaw::yield_law(yield_m))),
-        None,
-        None,
-    );
     let plain = identify("coulomb", &[]);
     for (i, h) in v["held_out"].as_array().unwrap().iter().enumerate() {
         let step = h["step"].as_u64().unwrap() as usize;
         let record = records.iter().find(|r| r.step == step).unwrap();
-        let floor = predict_record(&element, 36.0, record, &Transform::default())
-            .unwrap()
-            .nmse_percent;
+        let floor = rig_loop::truth_nmse_percent(record);
         let found = h["nmse_percent"].as_f64().unwrap();
         let without = plain["validation"][i]["nmse_percent"].as_f64().unwrap();
         println!(

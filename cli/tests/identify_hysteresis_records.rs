@@ -9,17 +9,15 @@
 )]
 
 mod common;
+#[path = "common/rig_loop.rs"]
+mod rig_loop;
 
 use forcemap_io::csv_export::write_csv;
-use forcemap_math::diagnose::effects::Transform;
 use forcemap_math::diagnose::element_heldout::TermFit;
-use forcemap_math::diagnose::fitted_element::FittedElement;
-use forcemap_math::diagnose::score::predict_record;
 use forcemap_math::model::{Model, ModelOptions};
 use forcemap_math::pipeline::validate_forced_hysteresis;
 use forcemap_math::recipe::SetupKind;
 use forcemap_math::record::Record;
-use forcemap_math::signal::bouc_wen::HysteresisLaw;
 use forcemap_math::sim::RunSpec;
 
 /// The force-driven loop of `math/tests/output_error_hysteresis.rs`
@@ -172,23 +170,11 @@ fn a_rig_with_a_loop_is_refined_by_output_error_on_its_random_records() {
             .join(format!("random{seed}.csv"))
             .display()
             .to_string();
-        let o = common::forcemap(&[
-            "simulate",
-            "--excitation",
-            "random",
-            "--snr-db",
-            "40",
-            "--seed",
-            &seed.to_string(),
-            "--bouc-wen-alpha-n-per-m",
-            "4000",
-            "--bouc-wen-beta-per-m-pow-n",
-            "100",
-            "--bouc-wen-gamma-per-m-pow-n",
-            "100",
-            "--csv",
-            &path,
-        ]);
+        let seed = seed.to_string();
+        let mut args = vec!["simulate", "--excitation", "random", "--snr-db", "40"];
+        args.extend(["--seed", &seed, "--csv", &path]);
+        args.extend(rig_loop::SIMULATE_ARGS);
+        let o = common::forcemap(&args);
         assert!(o.status.success(), "{}", common::stderr(&o));
         path
     };
@@ -212,25 +198,7 @@ fn a_rig_with_a_loop_is_refined_by_output_error_on_its_random_records() {
     };
     let v = run("identify", "coulomb+hysteresis");
     assert_eq!(v["method"], "hysteresis-output-error", "{v:#}");
-    let (yield_m, alpha) = (0.005, 4000.0);
-    let truth = [
-        ("k", 6380.0),
-        ("c", 184.0),
-        ("fd", 12.3),
-        ("alpha", alpha),
-        ("yield_m", yield_m),
-    ];
-    for (name, t) in truth {
-        let found = common::parameter_value(&v["parameters"], name);
-        eprintln!(
-            "{name}: {found:.6e} (truth {t}, {:+.2} %)",
-            100.0 * (found / t - 1.0)
-        );
-        assert!(
-            (found / t - 1.0).abs() < 0.005,
-            "{name}: {found} against {t}"
-        );
-    }
+    rig_loop::assert_parameters_within(&v["parameters"], 0.005);
     let misfit = v["output_error"]["residual_rms_noise_std"]
         .as_f64()
         .unwrap();
@@ -239,17 +207,7 @@ fn a_rig_with_a_loop_is_refined_by_output_error_on_its_random_records() {
         .unwrap()
         .records
         .remove(0);
-    let coulomb = Model::by_name("coulomb", &ModelOptions::default()).unwrap();
-    let element = FittedElement::new(
-        coulomb.terms.clone(),
-        truth[..3].iter().map(|(_, t)| *t).collect(),
-        Some((alpha, HysteresisLaw::yield_law(yield_m))),
-        None,
-        None,
-    );
-    let floor = predict_record(&element, 36.0, &record, &Transform::default())
-        .unwrap()
-        .nmse_percent;
+    let floor = rig_loop::truth_nmse_percent(&record);
     let found = v["held_out"][0]["nmse_percent"].as_f64().unwrap();
     let plain = run("identify", "coulomb");
     let without = plain["held_out"][0]["nmse_percent"].as_f64().unwrap();

@@ -21,7 +21,7 @@
 use serde::Serialize;
 
 use super::effects::Effect;
-use super::findings::{self, Verdict};
+use super::findings::{self, Verdict, percent_text};
 use crate::identify::FORM_MISFIT_VARIANCE;
 
 /// A refitted model as the verdict sees it.
@@ -118,15 +118,15 @@ impl SimulatedGap {
         }
     }
 
-    /// One line: "explained by hysteresis: 1.52 % -> 0.056 % (floor 0.056 %)".
+    /// One line: "explained by hysteresis: 1.52 % -> 0.06 % (floor 0.06 %)".
     pub fn headline(&self) -> String {
-        let before = percent(self.gap_before_percent);
-        let after = percent(self.gap_after_percent);
+        let before = percent_text(self.gap_before_percent);
+        let after = percent_text(self.gap_after_percent);
         let floor = match self.floor_from {
-            FloorSource::WithinNoise => format!("floor {}", percent(self.floor_percent)),
+            FloorSource::WithinNoise => format!("floor {}", percent_text(self.floor_percent)),
             FloorSource::ScaledByMisfit => format!(
                 "floor {} scaled by the misfit: no refitted model fits the records within their noise",
-                percent(self.floor_percent)
+                percent_text(self.floor_percent)
             ),
             FloorSource::Unmeasured => "floor 0: the noise could not be measured".into(),
         };
@@ -146,7 +146,7 @@ impl SimulatedGap {
             (Verdict::ExplainedInPart, Some(e)) => format!(
                 "explained in part by {}: {before} -> {after}, {} left above the floor ({floor})",
                 e.name(),
-                percent(self.gap_after_percent - self.floor_percent)
+                percent_text(self.gap_after_percent - self.floor_percent)
             ),
             (v, Some(e)) => format!(
                 "{} (gap {before}, {floor}; {} leaves {after}{}){small}",
@@ -168,14 +168,6 @@ impl SimulatedGap {
 
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
-}
-
-fn percent(p: f64) -> String {
-    if p < 0.1 {
-        format!("{p:.3} %")
-    } else {
-        format!("{p:.2} %")
-    }
 }
 
 #[cfg(test)]
@@ -200,7 +192,7 @@ mod tests {
         assert!((g.floor_percent - 0.057).abs() < 1e-12);
         assert!(
             g.headline()
-                .starts_with("explained by hysteresis: 1.52 % -> 0.057 % (floor 0.057 %)"),
+                .starts_with("explained by hysteresis: 1.52 % -> 0.06 % (floor 0.06 %)"),
             "{}",
             g.headline()
         );
