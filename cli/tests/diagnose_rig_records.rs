@@ -22,21 +22,19 @@ use forcemap_math::recipe::SetupKind;
 use forcemap_math::sim::{RigEffects, RunSpec, RunSystem};
 
 /// `forcemap diagnose` of the rig's band-random records of seeds 1 to `records` (40 dB), the
-/// last held out, against `model`; `effects` on the rig's channels. Its output, its JSON and
-/// its HTML report.
+/// last held out, against `model`, each run changed by `change`. Its output, its JSON and its
+/// HTML report.
 fn diagnose_random_records(
     model: &str,
     records: u64,
-    effects: RigEffects,
+    change: impl Fn(&mut RunSpec),
 ) -> (std::process::Output, serde_json::Value, String) {
     let dir = tempfile::tempdir().unwrap();
     let files: Vec<String> = (1..=records)
         .map(|seed| {
             let path = dir.path().join(format!("random{seed}.csv"));
             let mut spec = RunSpec::rig_random(Some(40.0), seed);
-            if let RunSystem::Rig { effects: e, .. } = &mut spec.system {
-                *e = effects;
-            }
+            change(&mut spec);
             write_csv(&path, &spec.simulate().unwrap(), SetupKind::BaseExcited).unwrap();
             path.display().to_string()
         })
@@ -65,7 +63,7 @@ fn diagnose_random_records(
 
 #[test]
 fn a_rigs_random_records_are_diagnosed_on_their_samples() {
-    let (o, v, html) = diagnose_random_records("linear", 4, RigEffects::default());
+    let (o, v, html) = diagnose_random_records("linear", 4, |_| ());
     assert!(
         common::stderr(&o).contains("the rig's records have no sine steps"),
         "{}",
@@ -109,19 +107,20 @@ fn a_rigs_random_records_are_diagnosed_on_their_samples() {
 }
 
 /// A 4 Hz first-order low-pass on every measured channel of the Coulomb rig (records of
-/// 1.6-3.4 Hz), diagnosed against `coulomb`: a filter is not a candidate on records with no
-/// steps, the baseline's simulation misses the records beyond their noise, and the best-ranked
-/// candidate refitted by simulation must not be named for it.
+/// 1.6-3.4 Hz, 65 s each), diagnosed against `coulomb`: a filter is not a candidate on records
+/// with no steps, the baseline's simulation misses the records beyond their noise, and the
+/// best-ranked candidate refitted by simulation must not be named for it.
 #[test]
 fn a_channel_filter_earns_no_name_by_simulation() {
-    let (_, v, _) = diagnose_random_records(
-        "coulomb",
-        3,
-        RigEffects {
-            sensor_lowpass_hz: Some(4.0),
-            ..RigEffects::default()
-        },
-    );
+    let (_, v, _) = diagnose_random_records("coulomb", 3, |spec| {
+        spec.samples_per_record /= 2;
+        if let RunSystem::Rig { effects, .. } = &mut spec.system {
+            *effects = RigEffects {
+                sensor_lowpass_hz: Some(4.0),
+                ..RigEffects::default()
+            };
+        }
+    });
     let by_sim = &v["simulation_verdict"];
     let refits = v["output_error_refits"].as_array().unwrap();
     println!("along the motion {}; by simulation {by_sim}", v["verdict"]);
