@@ -290,10 +290,10 @@ pub(super) fn run(
         }
     }
     if let Some(dir) = &args.report {
-        let by_simulation = simulated.map(|sim| {
+        let simulated_lines = simulated.map(|sim| {
             super::output_error_refits::report_lines(sim, &refits, by_simulation.as_ref())
         });
-        write_report(dir, source, baseline, &f, by_simulation.as_deref())?;
+        write_report(dir, source, baseline, &f, simulated_lines.as_deref())?;
         eprintln!("wrote {}", dir.join("index.html").display());
     }
     Ok(())
