@@ -7,9 +7,9 @@
 //! named model are then refitted by output error on the rig's records: F_d within 1 % of the
 //! truth (the fit along the measured motion is biased low by the noisy velocity), and the
 //! held-out record simulated with it leaves under a tenth of the baseline's acceleration NMSE,
-//! and the verdict from the simulations agrees. A channel effect no candidate is (a 4 Hz
-//! sensor low-pass on every channel of the Coulomb rig, against `coulomb`) earns no name by
-//! simulation.
+//! and the verdict from the simulations agrees. A channel effect, which has no candidate along
+//! the measured motion (a 4 Hz sensor low-pass on every channel of the Coulomb rig, against
+//! `coulomb`), is named by simulation; so is a 10 ms exciter delay.
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
@@ -79,9 +79,22 @@ fn a_rigs_random_records_are_diagnosed_on_their_samples() {
     assert!(after < 0.5 * before, "{held}");
     let refits = v["output_error_refits"].as_array().unwrap();
     println!("output-error refits: {}", v["output_error_refits"]);
-    assert_eq!(refits.len(), 2, "{v}");
-    assert_eq!(refits[0]["model"], "linear");
-    assert_eq!(refits[1]["model"], "linear + coulomb_friction");
+    // The baseline misses the records beyond their noise, so the rig's channel effects are
+    // refitted too, after the named effect.
+    let models: Vec<&str> = refits
+        .iter()
+        .map(|r| r["model"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        models,
+        [
+            "linear",
+            "linear + coulomb_friction",
+            "linear + sensor_lowpass",
+            "linear + exciter_delay"
+        ],
+        "{v}"
+    );
     let fd = refits[1]["parameters"]
         .as_array()
         .unwrap()
@@ -107,11 +120,11 @@ fn a_rigs_random_records_are_diagnosed_on_their_samples() {
 }
 
 /// A 4 Hz first-order low-pass on every measured channel of the Coulomb rig (records of
-/// 1.6-3.4 Hz, 65 s each), diagnosed against `coulomb`: a filter is not a candidate on records
-/// with no steps, the baseline's simulation misses the records beyond their noise, and the
-/// best-ranked candidate refitted by simulation must not be named for it.
+/// 1.6-3.4 Hz, 65 s each), diagnosed against `coulomb`: the baseline's simulation misses the
+/// records beyond their noise, the channel effects are refitted by simulation beside the
+/// best-ranked element candidate, and the low-pass is named with its cutoff.
 #[test]
-fn a_channel_filter_earns_no_name_by_simulation() {
+fn a_channel_filter_is_named_by_simulation() {
     let (_, v, _) = diagnose_random_records("coulomb", 3, |spec| {
         spec.samples_per_record /= 2;
         if let RunSystem::Rig { effects, .. } = &mut spec.system {
@@ -124,13 +137,63 @@ fn a_channel_filter_earns_no_name_by_simulation() {
     let by_sim = &v["simulation_verdict"];
     let refits = v["output_error_refits"].as_array().unwrap();
     println!("along the motion {}; by simulation {by_sim}", v["verdict"]);
+    println!("output-error refits: {}", v["output_error_refits"]);
     let misfit = refits[0]["misfit_noise_std"].as_f64().unwrap();
     assert!(misfit > 2f64.sqrt(), "{refits:?}");
+    assert_eq!(by_sim["verdict"], "explained", "{by_sim}");
+    assert_eq!(by_sim["effect"], "sensor_lowpass", "{by_sim}");
+    let lowpass = refits
+        .iter()
+        .find(|r| r["model"] == "coulomb + sensor_lowpass")
+        .unwrap();
+    let tau = lowpass["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p[0] == "sensor_time_constant_s")
+        .unwrap()[1]
+        .as_f64()
+        .unwrap();
+    // 4.15 Hz measured, with the refit's misfit at 1.3 noise std: short of the noise, so the
+    // cutoff is a few percent off, several of its standard deviations.
+    let cutoff_hz = 1.0 / (std::f64::consts::TAU * tau);
     assert!(
-        !matches!(
-            by_sim["verdict"].as_str().unwrap(),
-            "explained" | "explained_in_part"
-        ),
-        "{by_sim}"
+        (cutoff_hz / 4.0 - 1.0).abs() < 0.06,
+        "cutoff {cutoff_hz} Hz"
     );
+}
+
+/// An exciter delay of 10 ms (the element sees the measured base motion a sample later) on the
+/// Coulomb rig, records as above, diagnosed against `coulomb`: named by simulation, its delay
+/// refitted.
+#[test]
+fn an_exciter_delay_is_named_by_simulation() {
+    let (_, v, _) = diagnose_random_records("coulomb", 3, |spec| {
+        spec.samples_per_record /= 2;
+        if let RunSystem::Rig { effects, .. } = &mut spec.system {
+            *effects = RigEffects {
+                exciter_delay_s: 0.010,
+                ..RigEffects::default()
+            };
+        }
+    });
+    let by_sim = &v["simulation_verdict"];
+    let refits = v["output_error_refits"].as_array().unwrap();
+    println!("along the motion {}; by simulation {by_sim}", v["verdict"]);
+    println!("output-error refits: {}", v["output_error_refits"]);
+    assert_eq!(by_sim["verdict"], "explained", "{by_sim}");
+    assert_eq!(by_sim["effect"], "exciter_delay", "{by_sim}");
+    let delayed = refits
+        .iter()
+        .find(|r| r["model"] == "coulomb + exciter_delay")
+        .unwrap();
+    let delay_s = delayed["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p[0] == "exciter_delay_s")
+        .unwrap()[1]
+        .as_f64()
+        .unwrap();
+    assert!((delay_s / 0.010 - 1.0).abs() < 0.05, "delay {delay_s} s");
 }

@@ -418,11 +418,25 @@ fn scratch_for(tmp: &Path, page: &str) -> (PathBuf, String) {
 /// as written and exits 0, page by page in the order the page gives them (a command that reads
 /// what an earlier one wrote finds it, a repository script that makes it, `python3 benches/...`,
 /// among them), in a scratch directory where the repository's paths resolve; a node is run for
-/// [`NODE_RUN_S`] seconds. The longest, the wide evaluation's 900 cases, takes about 5 minutes
-/// of the test's 8 on the idle 2-core machine and more than 10 when other builds share it, so
-/// a command's limit ([`COMMAND_LIMIT_S`]) guards against a hang, not a slow machine.
+/// [`NODE_RUN_S`] seconds. A command's limit ([`COMMAND_LIMIT_S`]) guards against a hang, not
+/// a slow machine. The evaluations of [`EVALUATIONS_PARSED_ONLY`] are parsed, not run.
 /// How long a documented command (not a node) may run before it counts as hung [s].
 const COMMAND_LIMIT_S: &str = "1800";
+
+/// Documented evaluations parsed but not run here (the command, its comment left out): each takes
+/// minutes on CI's two cores (the wide one's 900 cases some 8 of this test's 11), exits 0
+/// whatever its figures, and runs the code of the shorter documented evaluation named beside
+/// it, which does run. Their figures are measurements, each quoted with its command.
+const EVALUATIONS_PARSED_ONLY: [(&str, &str); 2] = [
+    (
+        "forcemap diagnose-eval --forms wide --cases 300 --seed 1,2,3 --json-file eval.json",
+        "forcemap diagnose-eval --cases 60 --forms wide --seed 1 --threads 1 --json",
+    ),
+    (
+        "forcemap diagnose-eval --cases 200 --seed 1",
+        "forcemap diagnose-eval --cases 10 --seed 1 --threads 1 --json",
+    ),
+];
 
 #[test]
 fn every_documented_command_runs() {
@@ -434,6 +448,8 @@ fn every_documented_command_runs() {
     );
     let (mut ran, mut skipped) = (0, 0);
     let mut failures = Vec::new();
+    let mut parsed_only = [false; EVALUATIONS_PARSED_ONLY.len()];
+    let mut stand_ins = [false; EVALUATIONS_PARSED_ONLY.len()];
     for doc in documents() {
         let page = doc
             .strip_prefix(repo())
@@ -448,6 +464,18 @@ fn every_documented_command_runs() {
             };
             if !found.code || found.text.contains("...") || output_line(&words) || synopsis(&words)
             {
+                continue;
+            }
+            let command = found.text.split('#').next().unwrap_or_default().trim();
+            for (k, (_, stand_in)) in EVALUATIONS_PARSED_ONLY.iter().enumerate() {
+                stand_ins[k] |= command == *stand_in;
+            }
+            let long = EVALUATIONS_PARSED_ONLY
+                .iter()
+                .position(|(long, _)| command == *long);
+            if let Some(k) = long {
+                println!("parsed, not run (a long evaluation): {}", found.place);
+                parsed_only[k] = true;
                 continue;
             }
             if words.iter().any(|w| w == "--python") && !python {
@@ -496,6 +524,13 @@ fn every_documented_command_runs() {
         }
     }
     println!("documented commands: {ran} run, {skipped} skipped");
+    for (k, (long, stand_in)) in EVALUATIONS_PARSED_ONLY.iter().enumerate() {
+        assert!(parsed_only[k], "no documented command `{long}`");
+        assert!(
+            stand_ins[k],
+            "no documented command `{stand_in}` runs in its place"
+        );
+    }
     assert!(ran > 35, "only {ran} commands run: the extraction broke");
     assert!(
         failures.is_empty(),

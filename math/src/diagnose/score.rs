@@ -8,6 +8,7 @@ use super::sensor::{apply_samples, undo_samples};
 use crate::element::Element;
 use crate::pipeline::{VALIDATION_BASE_LOWPASS_HZ, nmse_percent};
 use crate::record::{Channel, Record};
+use crate::signal::delay::delayed;
 use crate::signal::differentiate::central_difference_at_rate;
 use crate::signal::lowpass::zero_phase_lowpass;
 use crate::sim::{ReplayOptions, RigInitial, SimError, SolverOptions, simulate_on_sampled_base};
@@ -36,25 +37,6 @@ impl HeldOut {
             .sum();
         (sse / self.measured_mps2.len().max(1) as f64).sqrt()
     }
-}
-
-/// Samples of `x` at times shifted by `-delay_s` (Catmull-Rom cubic interpolation, ends held).
-pub fn delayed(x: &[f64], sample_rate_hz: f64, delay_s: f64) -> Vec<f64> {
-    let n = x.len();
-    let at = |i: isize| x[i.clamp(0, n as isize - 1) as usize];
-    let shift = delay_s * sample_rate_hz;
-    (0..n)
-        .map(|i| {
-            let t = i as f64 - shift;
-            let i0 = t.floor() as isize;
-            let u = t - i0 as f64;
-            let (p0, p1, p2, p3) = (at(i0 - 1), at(i0), at(i0 + 1), at(i0 + 2));
-            p1 + 0.5
-                * u
-                * (p2 - p0
-                    + u * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + u * (3.0 * (p1 - p2) + p3 - p0)))
-        })
-        .collect()
 }
 
 /// Simulates `element` on the record's measured base motion and compares the mass

@@ -43,8 +43,8 @@ pub use multisine::{
 };
 pub use output_error::{
     ElementOutputError, FORM_MAY_BE_WRONG, FORM_MISFIT_VARIANCE, HYSTERESIS_PARAMETERS,
-    RecordsOutputError, RigDrive, RigMisfit, RigOutputError, element_drive_of, records_drive,
-    refine_output_error,
+    RecordsOutputError, RigChannelEffect, RigDrive, RigMisfit, RigOutputError, element_drive_of,
+    records_drive, refine_output_error,
 };
 pub use td::{element_state_equations, td_range_equations, td_step_equations};
 

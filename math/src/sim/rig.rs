@@ -328,9 +328,19 @@ pub(crate) struct RigSetup<'a> {
     base_meas: PiecewiseSignal,
     delay_s: f64,
     lowpass_hz: Option<f64>,
+    filters_start: FiltersStart,
     samples: usize,
     sample_rate_hz: f64,
     init: RigInitial,
+}
+
+/// Where the sensor low-pass filters start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum FiltersStart {
+    /// At rest on the values before the start (mass and base at rest): a run of the simulator.
+    AtRest,
+    /// On each channel's value at the start: a replay of a record cut from a longer run.
+    OnFirstValues,
 }
 
 type RigRunOut = (Vec<[f64; 5]>, Vec<SampleTrace>, RunStats);
@@ -374,6 +384,7 @@ pub(crate) fn run_rig_streamed(
         base_meas,
         delay_s,
         lowpass_hz,
+        filters_start,
         samples,
         sample_rate_hz,
         init,
@@ -424,16 +435,28 @@ pub(crate) fn run_rig_streamed(
         y[2] = init.first_internal_state;
     }
     if sys.omega_c.is_some() {
-        // Filters at rest on the values before the start (mass and base at rest).
-        let m0 = sys.base_meas.eval_left(0.0);
-        let bl = sys.base_true.eval_left(0.0);
-        y[2 + nz..2 + nz + 5].copy_from_slice(&[
-            m0.value,
-            init.relative_displacement_m,
-            0.0,
-            init.relative_displacement_m + bl.value,
-            0.0,
-        ]);
+        let start = match filters_start {
+            FiltersStart::AtRest => {
+                let m0 = sys.base_meas.eval_left(0.0);
+                let bl = sys.base_true.eval_left(0.0);
+                [
+                    m0.value,
+                    init.relative_displacement_m,
+                    0.0,
+                    init.relative_displacement_m + bl.value,
+                    0.0,
+                ]
+            }
+            FiltersStart::OnFirstValues => {
+                let mode = match (sys.friction.is_some(), y[1]) {
+                    (false, _) => Mode::Free,
+                    (true, 0.0) => Mode::Stick,
+                    (true, v) => Mode::Slip(v.signum()),
+                };
+                sys.channels(0.0, 0.0, &y, mode).0
+            }
+        };
+        y[2 + nz..2 + nz + 5].copy_from_slice(&start);
     }
     let mut breaks = sys.base_meas.breakpoints();
     breaks.extend(sys.base_true.breakpoints());
@@ -493,6 +516,7 @@ pub(crate) fn program_setup<'a>(
         base_meas: program.signal.clone(),
         delay_s: effects.exciter_delay_s,
         lowpass_hz: effects.sensor_lowpass_hz,
+        filters_start: FiltersStart::AtRest,
         samples: program.total_samples(),
         sample_rate_hz: program.sample_rate_hz,
         init,

@@ -133,7 +133,7 @@ fn rig_without_sine_steps_as_element(
             .with_context(|| format!("{}: the rig's records", data.source))
     };
     eprintln!(
-        "note: {}: the rig's records have no sine steps: each is fitted on its samples as the element between base and mass, its force the one that holds the {mass_kg} kg mass (-m a_o) along the relative motion; the rig's channel effects (exciter delay, sensor low-pass, a mass error) are not fitted this way",
+        "note: {}: the rig's records have no sine steps: each is fitted on its samples as the element between base and mass, its force the one that holds the {mass_kg} kg mass (-m a_o) along the relative motion; the rig's channel effects (exciter delay, sensor low-pass, a mass error) are not fitted this way (the first two are refitted by simulation where the baseline's misses the records beyond their noise)",
         data.source
     );
     let view_data = Data {

@@ -3,7 +3,9 @@
 //! mass under each record's measured force, where the user names the force as the drive). They
 //! are diagnosed along the measured motion (`phasor_only`: the rig as the element between base
 //! and mass), then the baseline and the named effect are refitted by output error, the fit
-//! `identify` runs on such records, and the held-out records predicted by simulation.
+//! `identify` runs on such records, and the held-out records predicted by simulation. The
+//! rig's channel effects (a sensor low-pass, an exciter delay), which the fit along the
+//! measured motion cannot see, are candidates only here.
 //!
 //! Why both: the fit along the measured motion is quick and ranks every candidate, but its
 //! velocity and acceleration are differentiated from the noisy, sampled displacement, which
@@ -15,9 +17,12 @@ use forcemap_math::diagnose::effects::{Effect, Transform};
 use forcemap_math::diagnose::element_heldout::TermFit;
 use forcemap_math::diagnose::fitted_element::FittedElement;
 use forcemap_math::diagnose::score::predict_record;
+use forcemap_math::diagnose::sensor::{ALL_CHANNELS, SensorFilter};
 use forcemap_math::diagnose::simulated_gap::{SimulatedGap, SimulatedModel};
 use forcemap_math::diagnose::{PhasorFindings, Verdict};
-use forcemap_math::identify::{FORM_MISFIT_VARIANCE, Identification, Method};
+use forcemap_math::identify::{
+    FORM_MISFIT_VARIANCE, Identification, Method, RecordsOutputError, RigChannelEffect,
+};
 use forcemap_math::model::{IdentifiedModel, Model};
 use forcemap_math::pipeline::{
     identify_element_sample_records, identify_random_records, refine_hysteresis_on_records,
@@ -73,12 +78,26 @@ impl SimulatedRecords {
         if self.validation.is_empty() {
             return None;
         }
-        let candidate = refits[1..].iter().find(|r| r.effect.is_some());
         Some(SimulatedGap::judge(
             base.simulated(),
-            candidate.map(Refit::simulated),
+            closest_candidate(&refits[1..]).map(Refit::simulated),
         ))
     }
+}
+
+/// Of the refitted candidates, the one whose simulation misses the fitted records least (in
+/// noise std; the first where a misfit could not be compared with noise): chosen on the
+/// fitted records, so that the held-out records judge it without having chosen it.
+fn closest_candidate(candidates: &[Refit]) -> Option<&Refit> {
+    let with_effect = || candidates.iter().filter(|r| r.effect.is_some());
+    if with_effect().any(|r| r.misfit_noise_std.is_none()) {
+        return with_effect().next();
+    }
+    with_effect().min_by(|a, b| {
+        a.misfit_noise_std
+            .partial_cmp(&b.misfit_noise_std)
+            .unwrap_or(std::cmp::Ordering::Equal)
+    })
 }
 
 /// One model refitted by output error on the records.
@@ -132,8 +151,9 @@ impl Refit {
 /// hysteresis state, the baseline with it, each refitted by output error on `sim`'s records
 /// and simulated on its held-out records (a hysteresis from the fit along the motion, its
 /// exponent held: `identify --model NAME+hysteresis`'s refinement). An effect with another
-/// internal state or a channel transformation (a series spring, a lag) is not a model
-/// `identify` fits: only the baseline is refitted then.
+/// internal state (a series spring, a drift) is not refitted. On the rig, where the baseline's
+/// simulation misses the records beyond their noise, the channel effects ([`CHANNEL_EFFECTS`])
+/// are refitted too, one parameter beside the baseline's element.
 pub(super) fn refit(
     sim: &SimulatedRecords,
     baseline: &Model,
@@ -146,7 +166,13 @@ pub(super) fn refit(
         pb.finish_and_clear();
         refit
     };
-    let base = with_progress(&baseline.name, &|| refit_one(sim, baseline))?;
+    let (base, base_id) = {
+        let pb = super::super::progress_spinner();
+        pb.set_message(format!("refitting {} by output error", baseline.name));
+        let refit = refit_one(sim, baseline);
+        pb.finish_and_clear();
+        refit?
+    };
     // Along the measured motion the differentiated noise can hide what the simulation shows:
     // where the baseline's simulation misses the records beyond their noise and no effect was
     // named, the best-ranked candidate is refitted too.
@@ -168,27 +194,120 @@ pub(super) fn refit(
     });
     let hysteresis = named_fit
         .filter(|(_, fit)| fit.hysteresis.is_some() && fit.terms.len() == baseline.terms.len());
+    // A candidate whose refit or held-out simulation fails (a trial model that diverges) is
+    // left out with a warning; the baseline's failure ends the diagnosis.
     let mut out = vec![base];
+    let best_ranked = f.findings.top_effect.is_none();
+    let mut add =
+        |effect: Effect, name: &str, run: &dyn Fn() -> anyhow::Result<Refit>| match with_progress(
+            name, run,
+        ) {
+            Ok(mut r) => {
+                r.effect = Some(effect);
+                if best_ranked && !is_channel_effect(effect) {
+                    r.notes.insert(0, BEST_RANKED_NOTE.into());
+                }
+                out.push(r);
+            }
+            Err(e) => eprintln!("warning: {name} not refitted by output error: {e:#}"),
+        };
     if let Some((effect, model)) = named {
-        let mut r = with_progress(&model.name, &|| refit_one(sim, &model))?;
-        r.effect = Some(effect);
-        out.push(r);
-    }
-    if f.findings.top_effect.is_none()
-        && let Some(r) = out.get_mut(1)
-    {
-        r.notes.insert(0, BEST_RANKED_NOTE.into());
+        add(effect, &model.name, &|| Ok(refit_one(sim, &model)?.0));
     }
     if let Some((effect, fit)) = hysteresis {
         let name = format!("{} + {}", baseline.name, effect.name());
-        let mut r = with_progress(&name, &|| refit_hysteresis(sim, baseline, fit, &name))?;
-        r.effect = Some(effect);
-        if f.findings.top_effect.is_none() {
-            r.notes.insert(0, BEST_RANKED_NOTE.into());
+        add(effect, &name, &|| {
+            refit_hysteresis(sim, baseline, fit, &name)
+        });
+    }
+    // The rig's channel effects have no candidate along the measured motion (its channels are
+    // taken as they are there): where the baseline's simulation misses the records beyond
+    // their noise, each is refitted by simulation beside the element candidates.
+    if let Simulation::Rig { mass_kg } = sim.simulation
+        && form_wrong
+    {
+        for (effect, channel) in CHANNEL_EFFECTS {
+            let name = format!("{} + {}", baseline.name, effect.name());
+            add(effect, &name, &|| {
+                refit_channel_effect(sim, mass_kg, baseline, &base_id, channel, &name)
+            });
         }
-        out.push(r);
     }
     Ok(out)
+}
+
+fn is_channel_effect(effect: Effect) -> bool {
+    CHANNEL_EFFECTS.iter().any(|(e, _)| *e == effect)
+}
+
+/// The rig's channel effects refitted by simulation on records with no steps.
+const CHANNEL_EFFECTS: [(Effect, RigChannelEffect); 2] = [
+    (Effect::SensorLowpass, RigChannelEffect::LowpassEveryChannel),
+    (Effect::ExciterDelay, RigChannelEffect::ExciterDelay),
+];
+
+/// `baseline` with `channel` between the rig and its channels refitted by output error on the
+/// rig's records from `baseline_id` (its own refit), the held-out records predicted through
+/// the fitted transformation.
+fn refit_channel_effect(
+    sim: &SimulatedRecords,
+    mass_kg: f64,
+    baseline: &Model,
+    baseline_id: &Identification,
+    channel: RigChannelEffect,
+    name: &str,
+) -> anyhow::Result<Refit> {
+    let refitting = || format!("refitting {name} by output error");
+    let refs: Vec<&Record> = sim.records.iter().collect();
+    let id = RecordsOutputError::rig(baseline, mass_kg, &refs)
+        .and_then(|p| p.with_channel_effect(channel))
+        .and_then(|p| p.fit_channel_effect(baseline_id))
+        .with_context(refitting)?;
+    let mut theta = id.theta();
+    let value = theta.pop().context("the refit has no channel parameter")?;
+    let (transform, note) = match channel {
+        RigChannelEffect::LowpassEveryChannel => {
+            let cutoff_hz = 1.0 / (std::f64::consts::TAU * value);
+            (
+                Transform {
+                    sensor: (value > 0.0).then_some(SensorFilter {
+                        mask: ALL_CHANNELS,
+                        order: 1,
+                        cutoff_hz,
+                        damping_ratio: 1.0,
+                        delay_s: 0.0,
+                    }),
+                    ..Transform::default()
+                },
+                format!(
+                    "a first-order low-pass on every measured channel, cutoff {cutoff_hz:.3} Hz"
+                ),
+            )
+        }
+        RigChannelEffect::ExciterDelay => (
+            Transform {
+                delay_s: value,
+                ..Transform::default()
+            },
+            format!(
+                "the element sees the measured base motion {:.2} ms later",
+                value * 1e3
+            ),
+        ),
+    };
+    let fitted = IdentifiedModel::new(baseline.clone(), theta);
+    let held = sim
+        .validation
+        .iter()
+        .map(|record| {
+            predict_record(&fitted, mass_kg, record, &transform)
+                .map(|h| (h.nmse_percent, h.rms_error_mps2()))
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .with_context(|| format!("simulating {name} on the held-out records"))?;
+    let mut r = Refit::new(name.to_string(), &id, &held);
+    r.notes.insert(0, note);
+    Ok(r)
 }
 
 /// `baseline` with the hysteresis of `start` (the fit along the measured motion) refitted by
@@ -239,7 +358,9 @@ fn refit_hysteresis(
     ))
 }
 
-fn refit_one(sim: &SimulatedRecords, model: &Model) -> anyhow::Result<Refit> {
+/// `model` refitted by output error on `sim`'s records and simulated on its held-out ones;
+/// with its identification.
+fn refit_one(sim: &SimulatedRecords, model: &Model) -> anyhow::Result<(Refit, Identification)> {
     let refitting = || format!("refitting {} by output error", model.name);
     let simulating = || format!("simulating {} on the held-out records", model.name);
     let (id, held) = match sim.simulation {
@@ -278,7 +399,7 @@ fn refit_one(sim: &SimulatedRecords, model: &Model) -> anyhow::Result<Refit> {
             (id, held)
         }
     };
-    Ok(Refit::new(model.name.clone(), &id, &held))
+    Ok((Refit::new(model.name.clone(), &id, &held), id))
 }
 
 pub(super) fn print(sim: &SimulatedRecords, refits: &[Refit]) {

@@ -4,7 +4,7 @@
 use std::f64::consts::TAU;
 
 use super::SensorFilter;
-use crate::diagnose::score::delayed;
+use crate::signal::delay::delayed;
 use crate::signal::differentiate::sixth_order_derivatives;
 use crate::signal::lowpass::first_order_lowpass;
 

@@ -35,7 +35,9 @@ use crate::sim::excitation::{Piece, PiecewiseSignal};
 
 pub use element_test::{ElementOutputError, element_drive_of};
 pub use rig::{RigDrive, RigMisfit, RigOutputError};
-pub use sampled_drive::{HYSTERESIS_PARAMETERS, RecordsOutputError, records_drive};
+pub use sampled_drive::{
+    HYSTERESIS_PARAMETERS, RecordsOutputError, RigChannelEffect, records_drive,
+};
 
 /// A misfit whose mean square exceeds this many noise variances is more than the noise: the
 /// model's form may not describe the data.

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use super::super::excitation::{CubicSpline, Piece, PiecewiseSignal, SplineEnds};
 use super::super::hybrid::SolverOptions;
 use super::super::{SampleTrace, SimError};
-use super::{RigInitial, RigSetup, ZeroPhaseLowpass, run_rig};
+use super::{FiltersStart, RigInitial, RigSetup, ZeroPhaseLowpass, run_rig};
 use crate::element::Element;
 use crate::signal::lowpass::zero_phase_lowpass;
 
@@ -20,6 +20,11 @@ pub struct ReplayOptions {
     pub prefilter: Option<ZeroPhaseLowpass>,
     pub initial: RigInitial,
     pub solver: SolverOptions,
+    /// Cutoff [Hz] of a first-order low-pass on every output channel (None: none), integrated
+    /// with the mechanics as the simulator's sensor low-pass, each filter starting on its
+    /// channel's first value (the record's past, which would have set it, is not known). The
+    /// input is the base motion the element sees.
+    pub sensor_lowpass_hz: Option<f64>,
 }
 
 impl Default for ReplayOptions {
@@ -29,6 +34,7 @@ impl Default for ReplayOptions {
             prefilter: None,
             initial: RigInitial::default(),
             solver: SolverOptions::default(),
+            sensor_lowpass_hz: None,
         }
     }
 }
@@ -74,7 +80,8 @@ pub fn simulate_on_sampled_base(
         mass_kg,
         base_meas: signal,
         delay_s: 0.0,
-        lowpass_hz: None,
+        lowpass_hz: opts.sensor_lowpass_hz,
+        filters_start: FiltersStart::OnFirstValues,
         samples: n,
         sample_rate_hz,
         init: opts.initial,

@@ -23,6 +23,7 @@
 //! as they are (a sandwich covariance over their correlation length), since the noise on the
 //! measured input makes them coloured.
 
+mod channel_effect;
 mod drive_channel;
 
 /// Names of the element parameters a Bouc-Wen state adds, after the terms' and the moving
@@ -31,6 +32,7 @@ pub const HYSTERESIS_PARAMETERS: [&str; 3] =
     ["alpha", "yield_m", crate::signal::bouc_wen::SHARE_NAME];
 mod report;
 
+pub use channel_effect::RigChannelEffect;
 pub use drive_channel::records_drive;
 
 use std::ops::Range;
@@ -113,6 +115,13 @@ pub struct RecordsOutputError<'a> {
     records: Vec<&'a Record>,
     /// Each record's input: the measured force, or the low-passed base displacement.
     inputs: Vec<Vec<f64>>,
+    /// Each rig record's base velocity, band-limited as its input (empty for a force drive).
+    input_rates: Vec<Vec<f64>>,
+    /// The highest top excitation frequency of the records [Hz].
+    top_frequency_hz: f64,
+    /// A transformation of the rig's channels fitted beside the element
+    /// ([`Self::with_channel_effect`]).
+    channel_effect: Option<RigChannelEffect>,
     /// Each record's compared channels with their noise std.
     compared: Vec<Vec<(Channel, f64)>>,
     /// Residual rows of each record.
@@ -143,6 +152,7 @@ impl<'a> RecordsOutputError<'a> {
     ) -> Result<Self, IdentifyError> {
         let mut parts = Vec::new();
         let mut noise_bands = Vec::new();
+        let mut top_frequency_hz: f64 = 0.0;
         for r in records {
             let state = MeasuredState::of(r).map_err(|e| step_error(r.step, e.to_string()))?;
             let x = &state.displacement_m;
@@ -158,6 +168,7 @@ impl<'a> RecordsOutputError<'a> {
                 starting_state(x, fs, state.top_frequency_hz),
             ));
             noise_bands.push((Channel::RelativeDisplacementM, x.len(), fs, cutoff));
+            top_frequency_hz = top_frequency_hz.max(state.top_frequency_hz);
         }
         let mut problem = Self::new(
             model,
@@ -166,6 +177,7 @@ impl<'a> RecordsOutputError<'a> {
             parts,
         )?;
         problem.noise_unmeasured = unmeasured_noise(&noise_bands);
+        problem.top_frequency_hz = top_frequency_hz;
         Ok(problem)
     }
 
@@ -174,6 +186,7 @@ impl<'a> RecordsOutputError<'a> {
     pub fn rig(model: &Model, mass_kg: f64, records: &[&'a Record]) -> Result<Self, IdentifyError> {
         let mut parts = Vec::new();
         let mut noise_bands = Vec::new();
+        let (mut input_rates, mut highest_top_hz) = (Vec::new(), 0f64);
         for r in records {
             let channel = |c: Channel| {
                 r.channel(c).ok_or_else(|| {
@@ -207,9 +220,13 @@ impl<'a> RecordsOutputError<'a> {
             ));
             noise_bands.push((Channel::MassAccelerationMps2, acc.len(), fs, cutoff));
             noise_bands.push((Channel::RelativeDisplacementM, rel.len(), fs, cutoff));
+            input_rates.push(band_limited_derivative(base, fs, cutoff, 1));
+            highest_top_hz = highest_top_hz.max(top);
         }
         let mut problem = Self::new(model, SampledDrive::Base { mass_kg }, records, parts)?;
         problem.noise_unmeasured = unmeasured_noise(&noise_bands);
+        problem.input_rates = input_rates;
+        problem.top_frequency_hz = highest_top_hz;
         Ok(problem)
     }
 
@@ -245,6 +262,9 @@ impl<'a> RecordsOutputError<'a> {
             drive,
             records: records.to_vec(),
             inputs,
+            input_rates: Vec::new(),
+            top_frequency_hz: 0.0,
+            channel_effect: None,
             compared,
             record_rows,
             blocks,
@@ -295,6 +315,7 @@ impl<'a> RecordsOutputError<'a> {
         self.model.terms.len()
             + usize::from(self.fitted_mass())
             + HYSTERESIS_PARAMETERS.len() * usize::from(self.hysteresis.is_some())
+            + usize::from(self.channel_effect.is_some())
     }
 
     /// Index of the first hysteresis parameter (alpha; the yield and r follow).
@@ -371,6 +392,10 @@ impl<'a> RecordsOutputError<'a> {
                 vec![resp.displacement_m]
             }
             SampledDrive::Base { mass_kg } => {
+                let value = self
+                    .channel_effect
+                    .map(|_| element[self.channel_effect_index()]);
+                let input = self.effective_input(k, value)?;
                 let options = ReplayOptions {
                     initial: RigInitial {
                         relative_displacement_m: initial[0],
@@ -378,10 +403,11 @@ impl<'a> RecordsOutputError<'a> {
                         first_internal_state: z0,
                     },
                     solver: self.solver,
+                    sensor_lowpass_hz: self.sensor_lowpass_hz(value),
                     ..ReplayOptions::default()
                 };
-                let resp = simulate_on_sampled_base(&el, mass_kg, &self.inputs[k], fs, &options)
-                    .map_err(failed)?;
+                let resp =
+                    simulate_on_sampled_base(&el, mass_kg, &input, fs, &options).map_err(failed)?;
                 vec![resp.mass_acceleration_mps2, resp.relative_displacement_m]
             }
         };
@@ -551,7 +577,11 @@ impl Problem for RecordsOutputError<'_> {
         p.iter()
             .enumerate()
             .map(|(j, v)| {
-                if j < pe {
+                if self.channel_effect.is_some() && j == self.channel_effect_index() {
+                    // A time: the excitation's shortest period over 2 pi where it is smaller.
+                    v.abs()
+                        .max(1.0 / (std::f64::consts::TAU * self.top_frequency_hz))
+                } else if j < pe {
                     if v.abs() > 0.0 { v.abs() } else { 1.0 }
                 } else {
                     let ns = self.state_len();
