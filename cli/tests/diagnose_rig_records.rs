@@ -154,7 +154,8 @@ fn a_channel_filter_is_named_by_simulation() {
         .unwrap()[1]
         .as_f64()
         .unwrap();
-    // 4.15 Hz measured, with the refit's misfit at 1.3 noise std: short of the noise, so the
+    // 4.13 Hz at 40 dB (3.999 Hz at 70 dB): the noisy measured base is the input, its noise
+    // amplified by the undo (x + tau x') before the friction's stick-slip sees it, so the
     // cutoff is a few percent off, several of its standard deviations.
     let cutoff_hz = 1.0 / (std::f64::consts::TAU * tau);
     assert!(

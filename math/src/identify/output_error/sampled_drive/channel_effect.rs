@@ -23,6 +23,11 @@ use crate::signal::delay::delayed;
 /// the filter's phase there runs from 45 degrees down to 4.
 const LOWPASS_START_MULTIPLES: [f64; 5] = [1.0, 2.0, 4.0, 8.0, 16.0];
 
+/// Time constants of the slowest starting low-pass over which a filter started on its
+/// channel's first value is left to settle ([`RecordsOutputError::filter_transient_samples`]):
+/// its start's error falls to e^-5, under 1 %.
+const LOWPASS_TRANSIENT_TIME_CONSTANTS: f64 = 5.0;
+
 /// Starting delays, in fractions of the records' top excitation period: the phase there runs
 /// from -45 to +45 degrees.
 const DELAY_START_PERIODS: [f64; 9] = [
@@ -133,6 +138,23 @@ impl RecordsOutputError<'_> {
             }
             _ => None,
         }
+    }
+
+    /// The first samples of record `k` left out of the fit (their residual rows zero) with a
+    /// low-pass: the filters' state at a record's start is the filtered past, which the record
+    /// does not hold, and a filter started on its channel's first value differs from it for a
+    /// few time constants (on a record cut from a run, or one whose drive starts with a jump
+    /// of acceleration, as the simulator's random records do).
+    /// [`LOWPASS_TRANSIENT_TIME_CONSTANTS`] time constants of the grid's slowest filter (its
+    /// cutoff at the top excitation frequency).
+    pub(super) fn filter_transient_samples(&self, k: usize) -> usize {
+        if self.channel_effect != Some(RigChannelEffect::LowpassEveryChannel) {
+            return 0;
+        }
+        let slowest_s = 1.0 / (TAU * LOWPASS_START_MULTIPLES[0] * self.top_frequency_hz);
+        let r = self.records[k];
+        ((LOWPASS_TRANSIENT_TIME_CONSTANTS * slowest_s * r.sample_rate_hz).ceil() as usize)
+            .min(r.len() / 2)
     }
 
     /// Fits the element, the channel effect's parameter and every record's initial state from

@@ -539,9 +539,12 @@ impl Problem for RecordsOutputError<'_> {
             let Ok(simulated) = self.simulate(k, &p[..np], &p[j..j + ns]) else {
                 return Ok(vec![FAILED_TRIAL_RESIDUAL; n + priors]);
             };
+            let transient = self.filter_transient_samples(k);
             for ((c, sigma), sim) in self.compared[k].iter().zip(&simulated) {
                 let measured = r.channel(*c).unwrap_or(&[]);
-                out.extend(measured.iter().zip(sim).map(|(m, s)| (m - s) / sigma));
+                out.extend(measured.iter().zip(sim).enumerate().map(|(i, (m, s))| {
+                    if i < transient { 0.0 } else { (m - s) / sigma }
+                }));
             }
         }
         if priors > 0 {
