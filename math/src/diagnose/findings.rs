@@ -183,6 +183,22 @@ pub fn pair_explains(gap_before: f64, floor: f64, single_after: f64, pair: &Pair
         && single_after - pair.gap_after_percent > least_significant_drop(gap_before, floor)
 }
 
+/// Whether the pair is named over the single candidate whose `single_verdict` left
+/// `single_after`: the pair explains the gap ([`pair_explains`]) and either the single does not,
+/// or the pair leaves at most half of the single's excess over the floor (the second effect
+/// explains what the first leaves, as the first explains the gap).
+pub fn pair_named(
+    single_verdict: Verdict,
+    gap_before: f64,
+    floor: f64,
+    single_after: f64,
+    pair: &PairEvidence,
+) -> bool {
+    pair_explains(gap_before, floor, single_after, pair)
+        && (single_verdict != Verdict::Explained
+            || pair.gap_after_percent - floor <= 0.5 * (single_after - floor))
+}
+
 /// The top-ranked candidate as the verdict sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct TopCandidate {
@@ -257,11 +273,13 @@ impl Findings {
     /// most half of the single's excess over the floor (the second effect explains what the
     /// first leaves, as the first explains the gap); otherwise unchanged.
     pub fn explained_by_pair(mut self, pair: &PairEvidence) -> Findings {
-        let floor = self.floor_percent;
-        if !pair_explains(self.gap_before_percent, floor, self.gap_after_percent, pair)
-            || (self.verdict == Verdict::Explained
-                && pair.gap_after_percent - floor > 0.5 * (self.gap_after_percent - floor))
-        {
+        if !pair_named(
+            self.verdict,
+            self.gap_before_percent,
+            self.floor_percent,
+            self.gap_after_percent,
+            pair,
+        ) {
             return self;
         }
         self.verdict = Verdict::Explained;

@@ -2,6 +2,7 @@
 //! candidate each refitted by output error on the fitted records and simulated on the held-out
 //! ones. The gap is the baseline's held-out NMSE of the simulated channel, the candidate's is
 //! what it leaves, and the rule is [`findings::verdict`], the one every other evidence uses.
+//! A pair refitted together is named by the rule of the pairs ([`findings::pair_named`]).
 //!
 //! The floor is the held-out NMSE of a refitted model whose simulation fits the fitted records
 //! within their noise (its output-error misfit at most [`FORM_MISFIT_VARIANCE`] noise
@@ -21,7 +22,7 @@
 use serde::Serialize;
 
 use super::effects::Effect;
-use super::findings::{self, Verdict, percent_text};
+use super::findings::{self, PairEvidence, Verdict, percent_text};
 use crate::identify::FORM_MISFIT_VARIANCE;
 
 /// A refitted model as the verdict sees it.
@@ -29,6 +30,8 @@ use crate::identify::FORM_MISFIT_VARIANCE;
 pub struct SimulatedModel<'a> {
     /// The effect added to the baseline (None: the baseline).
     pub effect: Option<Effect>,
+    /// A second effect fitted together with `effect` (a pair).
+    pub second_effect: Option<Effect>,
     /// Held-out NMSE of the simulated channel per held-out record [%].
     pub heldout_nmse_percent: &'a [f64],
     /// The fit's output-error misfit in noise std (None: the noise was not measured).
@@ -64,8 +67,12 @@ pub enum FloorSource {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SimulatedGap {
     pub verdict: Verdict,
-    /// The candidate refitted beside the baseline, if any.
+    /// The candidate refitted beside the baseline, if any (the pair's first when a pair is
+    /// named).
     pub effect: Option<Effect>,
+    /// The pair's second effect, when two effects refitted together explain the gap where one
+    /// alone does not, or leave at most half of what it leaves ([`findings::pair_named`]).
+    pub second_effect: Option<Effect>,
     /// The baseline's mean held-out NMSE [%].
     pub gap_before_percent: f64,
     /// The candidate's mean held-out NMSE [%] (the baseline's where there is no candidate).
@@ -81,12 +88,17 @@ pub struct SimulatedGap {
 }
 
 impl SimulatedGap {
-    /// The verdict on the baseline and the candidate refitted beside it. The candidate's score
+    /// The verdict on the baseline and the candidate refitted beside it, and a pair (the
+    /// candidate with a second effect, refitted together) where there is one. A model's score
     /// is its held-out NMSE: its extra parameters are paid for by the held-out records.
-    pub fn judge(baseline: SimulatedModel, candidate: Option<SimulatedModel>) -> SimulatedGap {
+    pub fn judge(
+        baseline: SimulatedModel,
+        candidate: Option<SimulatedModel>,
+        pair: Option<SimulatedModel>,
+    ) -> SimulatedGap {
         let before = mean(baseline.heldout_nmse_percent);
         let after = candidate.map(|c| mean(c.heldout_nmse_percent));
-        let models = [Some(baseline), candidate];
+        let models = [Some(baseline), candidate, pair];
         let smallest = |f: Option<f64>, n: f64| Some(f.map_or(n, |f: f64| f.min(n)));
         let within = models
             .iter()
@@ -106,15 +118,48 @@ impl SimulatedGap {
         };
         let significant =
             after.is_some_and(|a| findings::significant(before, floor_percent, a, a, before));
-        SimulatedGap {
+        let single = SimulatedGap {
             verdict: findings::verdict(before, floor_percent, after.map(|a| (a, significant))),
             effect: candidate.and_then(|c| c.effect),
+            second_effect: None,
             gap_before_percent: before,
             gap_after_percent: after.unwrap_or(before),
             floor_percent,
             floor_from,
             baseline_misfit_noise_std: baseline.misfit_noise_std,
             significant,
+        };
+        let (Some(a), Some(pair)) = (after, pair) else {
+            return single;
+        };
+        let (Some(first), Some(second)) = (pair.effect, pair.second_effect) else {
+            return single;
+        };
+        let pair_after = mean(pair.heldout_nmse_percent);
+        let evidence = PairEvidence {
+            effects: [first, second],
+            gap_after_percent: pair_after,
+            score_percent: pair_after,
+            significant: findings::significant(
+                before,
+                floor_percent,
+                pair_after,
+                pair_after,
+                before,
+            ),
+            single_score_percent: a,
+        };
+        if findings::pair_named(single.verdict, before, floor_percent, a, &evidence) {
+            SimulatedGap {
+                verdict: Verdict::Explained,
+                effect: Some(first),
+                second_effect: Some(second),
+                gap_after_percent: pair_after,
+                significant: evidence.significant,
+                ..single
+            }
+        } else {
+            single
         }
     }
 
@@ -140,9 +185,14 @@ impl SimulatedGap {
             _ => String::new(),
         };
         match (self.verdict, self.effect) {
-            (Verdict::Explained, Some(e)) => {
-                format!("explained by {}: {before} -> {after} ({floor})", e.name())
-            }
+            (Verdict::Explained, Some(e)) => match self.second_effect {
+                Some(second) => format!(
+                    "explained by {} together with {}: {before} -> {after} ({floor})",
+                    e.name(),
+                    second.name()
+                ),
+                None => format!("explained by {}: {before} -> {after} ({floor})", e.name()),
+            },
             (Verdict::ExplainedInPart, Some(e)) => format!(
                 "explained in part by {}: {before} -> {after}, {} left above the floor ({floor})",
                 e.name(),
@@ -177,6 +227,7 @@ mod tests {
     fn model(effect: Option<Effect>, nmse: &[f64], misfit: f64) -> SimulatedModel<'_> {
         SimulatedModel {
             effect,
+            second_effect: None,
             heldout_nmse_percent: nmse,
             misfit_noise_std: Some(misfit),
         }
@@ -187,6 +238,7 @@ mod tests {
         let g = SimulatedGap::judge(
             model(None, &[1.5, 1.54], 8.8),
             Some(model(Some(Effect::Hysteresis), &[0.056, 0.058], 0.84)),
+            None,
         );
         assert_eq!(g.verdict, Verdict::Explained);
         assert!((g.floor_percent - 0.057).abs() < 1e-12);
@@ -203,6 +255,7 @@ mod tests {
         let g = SimulatedGap::judge(
             model(None, &[0.4], 1.1),
             Some(model(Some(Effect::Hysteresis), &[0.39], 1.05)),
+            None,
         );
         assert_eq!(g.verdict, Verdict::Adequate);
         assert!(!g.significant);
@@ -214,8 +267,9 @@ mod tests {
         // Floor 0: leaving 80 % of the gap is a significant shrink but under the in-part
         // share of a quarter; leaving 60 % is in part; leaving 40 % explains.
         let base = model(None, &[5.0], 9.0);
-        let left =
-            |nmse| SimulatedGap::judge(base, Some(model(Some(Effect::Hysteresis), nmse, 4.0)));
+        let left = |nmse| {
+            SimulatedGap::judge(base, Some(model(Some(Effect::Hysteresis), nmse, 4.0)), None)
+        };
         let g = left(&[4.0]);
         assert_eq!(g.verdict, Verdict::Unexplained);
         assert!(g.significant);
@@ -229,7 +283,7 @@ mod tests {
         );
         assert_eq!(left(&[3.0]).verdict, Verdict::ExplainedInPart);
         assert_eq!(left(&[2.0]).verdict, Verdict::Explained);
-        let g = SimulatedGap::judge(base, None);
+        let g = SimulatedGap::judge(base, None, None);
         assert_eq!(g.verdict, Verdict::Unexplained);
         assert!(
             g.headline().contains("no candidate refitted"),
@@ -237,7 +291,7 @@ mod tests {
             g.headline()
         );
         // A gap under 1 % is adequate by the rule, and says that it is there.
-        let g = SimulatedGap::judge(model(None, &[0.9], 4.0), None);
+        let g = SimulatedGap::judge(model(None, &[0.9], 4.0), None, None);
         assert_eq!(g.verdict, Verdict::Adequate);
         assert!(
             g.headline()
@@ -250,10 +304,45 @@ mod tests {
             misfit_noise_std: None,
             ..model(None, &[0.5], 0.0)
         };
-        let g = SimulatedGap::judge(unmeasured, None);
+        let g = SimulatedGap::judge(unmeasured, None, None);
         assert_eq!(
             (g.floor_from, g.floor_percent),
             (FloorSource::Unmeasured, 0.0)
+        );
+    }
+
+    #[test]
+    fn a_pair_is_named_where_it_leaves_at_most_half_of_what_the_single_leaves() {
+        // Gap 4.2 %, floor 0.04 % (the pair fits within the noise): the single leaves 1.0 %
+        // (explained alone), the pair 0.04 %: under half of the single's excess, so the pair.
+        let base = model(None, &[4.2], 11.0);
+        let single = model(Some(Effect::CoulombFriction), &[1.0], 4.0);
+        let pair = SimulatedModel {
+            second_effect: Some(Effect::SensorLowpass),
+            ..model(Some(Effect::CoulombFriction), &[0.04], 1.2)
+        };
+        let g = SimulatedGap::judge(base, Some(single), Some(pair));
+        assert_eq!(g.verdict, Verdict::Explained);
+        assert_eq!(
+            (g.effect, g.second_effect),
+            (Some(Effect::CoulombFriction), Some(Effect::SensorLowpass))
+        );
+        assert!(
+            g.headline().starts_with(
+                "explained by coulomb_friction together with sensor_lowpass: 4.20 % -> 0.04 %"
+            ),
+            "{}",
+            g.headline()
+        );
+        // A pair that leaves more than half of the single's excess adds no name.
+        let weak = SimulatedModel {
+            second_effect: Some(Effect::SensorLowpass),
+            ..model(Some(Effect::CoulombFriction), &[0.8], 3.5)
+        };
+        let g = SimulatedGap::judge(base, Some(single), Some(weak));
+        assert_eq!(
+            (g.effect, g.second_effect),
+            (Some(Effect::CoulombFriction), None)
         );
     }
 }

@@ -81,6 +81,7 @@ impl SimulatedRecords {
         Some(SimulatedGap::judge(
             base.simulated(),
             closest_candidate(&refits[1..]).map(Refit::simulated),
+            closest_of(refits.iter().filter(|r| r.second_effect.is_some())).map(Refit::simulated),
         ))
     }
 }
@@ -89,11 +90,20 @@ impl SimulatedRecords {
 /// noise std; the first where a misfit could not be compared with noise): chosen on the
 /// fitted records, so that the held-out records judge it without having chosen it.
 fn closest_candidate(candidates: &[Refit]) -> Option<&Refit> {
-    let with_effect = || candidates.iter().filter(|r| r.effect.is_some());
-    if with_effect().any(|r| r.misfit_noise_std.is_none()) {
-        return with_effect().next();
+    closest_of(
+        candidates
+            .iter()
+            .filter(|r| r.effect.is_some() && r.second_effect.is_none()),
+    )
+}
+
+/// Of `refits`, the one whose simulation misses the fitted records least (the first where a
+/// misfit could not be compared with noise).
+fn closest_of<'a>(refits: impl Iterator<Item = &'a Refit> + Clone) -> Option<&'a Refit> {
+    if refits.clone().any(|r| r.misfit_noise_std.is_none()) {
+        return refits.clone().next();
     }
-    with_effect().min_by(|a, b| {
+    refits.min_by(|a, b| {
         a.misfit_noise_std
             .partial_cmp(&b.misfit_noise_std)
             .unwrap_or(std::cmp::Ordering::Equal)
@@ -106,6 +116,8 @@ pub(super) struct Refit {
     pub model: String,
     /// The effect added to the baseline (None: the baseline itself).
     pub effect: Option<Effect>,
+    /// A second effect added together with `effect` (a pair).
+    pub second_effect: Option<Effect>,
     /// (name, value, std).
     pub parameters: Vec<(String, f64, f64)>,
     /// Held-out NMSE of the simulated channel (the rig's mass acceleration, eq. 27; a
@@ -126,6 +138,7 @@ impl Refit {
         Refit {
             model,
             effect: None,
+            second_effect: None,
             parameters: id
                 .parameters
                 .iter()
@@ -141,6 +154,7 @@ impl Refit {
     fn simulated(&self) -> SimulatedModel<'_> {
         SimulatedModel {
             effect: self.effect,
+            second_effect: self.second_effect,
             heldout_nmse_percent: &self.heldout_nmse_percent,
             misfit_noise_std: self.misfit_noise_std,
         }
@@ -211,8 +225,14 @@ pub(super) fn refit(
             }
             Err(e) => eprintln!("warning: {name} not refitted by output error: {e:#}"),
         };
-    if let Some((effect, model)) = named {
-        add(effect, &model.name, &|| Ok(refit_one(sim, &model)?.0));
+    // The element candidate's own fit, the start of a pair with a channel effect.
+    let element_fit = std::cell::RefCell::new(None);
+    if let Some((effect, model)) = &named {
+        add(*effect, &model.name, &|| {
+            let (r, id) = refit_one(sim, model)?;
+            *element_fit.borrow_mut() = Some(id);
+            Ok(r)
+        });
     }
     if let Some((effect, fit)) = hysteresis {
         let name = format!("{} + {}", baseline.name, effect.name());
@@ -232,8 +252,45 @@ pub(super) fn refit(
                 refit_channel_effect(sim, mass_kg, baseline, &base_id, channel, &name)
             });
         }
+        // Where the closest single candidate still misses the records beyond their noise and it
+        // is the element candidate or a channel effect, the element candidate is refitted
+        // together with each channel effect (the closer single of each pair named first).
+        let element_fit = element_fit.into_inner();
+        let first = pair_first(&out[1..]);
+        if let (Some((element, model)), Some(element_id), Some(first)) =
+            (&named, &element_fit, first)
+            && (first == *element || is_channel_effect(first))
+        {
+            for (effect, channel) in CHANNEL_EFFECTS {
+                let name = format!("{} + {}", model.name, effect.name());
+                let run = || refit_channel_effect(sim, mass_kg, model, element_id, channel, &name);
+                match with_progress(&name, &run) {
+                    Ok(mut r) => {
+                        let pair = if first == effect {
+                            [effect, *element]
+                        } else {
+                            [*element, effect]
+                        };
+                        r.effect = Some(pair[0]);
+                        r.second_effect = Some(pair[1]);
+                        out.push(r);
+                    }
+                    Err(e) => eprintln!("warning: {name} not refitted by output error: {e:#}"),
+                }
+            }
+        }
     }
     Ok(out)
+}
+
+/// The closest single candidate ([`closest_candidate`]) where its simulation still misses the
+/// fitted records beyond their noise: the first of the pairs to refit.
+fn pair_first(candidates: &[Refit]) -> Option<Effect> {
+    let closest = closest_candidate(candidates)?;
+    let beyond_noise = closest
+        .misfit_noise_std
+        .is_some_and(|m| m * m > FORM_MISFIT_VARIANCE);
+    beyond_noise.then_some(closest.effect).flatten()
 }
 
 fn is_channel_effect(effect: Effect) -> bool {
