@@ -62,6 +62,28 @@ fn diagnose_random_records(
     (o, v, html)
 }
 
+/// The value of parameter `name` of the output-error refit of `model` in `refits` (the JSON's
+/// `output_error_refits`).
+fn refit_parameter(refits: &[serde_json::Value], model: &str, name: &str) -> f64 {
+    let refit = refits.iter().find(|r| r["model"] == model).unwrap();
+    let parameters = refit["parameters"].as_array().unwrap();
+    parameters.iter().find(|p| p[0] == name).unwrap()[1]
+        .as_f64()
+        .unwrap()
+}
+
+/// `diagnose_random_records` of three records of 65 s (two fitted, one held out) with the
+/// rig's channel `effects` planted: the JSON.
+fn diagnose_half_records_with(model: &str, effects: RigEffects) -> serde_json::Value {
+    let (_, v, _) = diagnose_random_records(model, 3, |spec| {
+        spec.samples_per_record /= 2;
+        if let RunSystem::Rig { effects: e, .. } = &mut spec.system {
+            *e = effects;
+        }
+    });
+    v
+}
+
 #[test]
 fn a_rigs_random_records_are_diagnosed_on_their_samples() {
     let (o, v, html) = diagnose_random_records("linear", 4, |_| ());
@@ -96,14 +118,7 @@ fn a_rigs_random_records_are_diagnosed_on_their_samples() {
         ],
         "{v}"
     );
-    let fd = refits[1]["parameters"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|p| p[0] == "fd")
-        .unwrap()[1]
-        .as_f64()
-        .unwrap();
+    let fd = refit_parameter(refits, "linear + coulomb_friction", "fd");
     assert!((fd / 12.3 - 1.0).abs() < 0.01, "fd {fd}");
     let nmse = |r: &serde_json::Value| r["heldout_nmse_percent"][0].as_f64().unwrap();
     assert!(nmse(&refits[1]) < 0.1 * nmse(&refits[0]), "{refits:?}");
@@ -126,15 +141,13 @@ fn a_rigs_random_records_are_diagnosed_on_their_samples() {
 /// best-ranked element candidate, and the low-pass is named with its cutoff.
 #[test]
 fn a_channel_filter_is_named_by_simulation() {
-    let (_, v, _) = diagnose_random_records("coulomb", 3, |spec| {
-        spec.samples_per_record /= 2;
-        if let RunSystem::Rig { effects, .. } = &mut spec.system {
-            *effects = RigEffects {
-                sensor_lowpass_hz: Some(4.0),
-                ..RigEffects::default()
-            };
-        }
-    });
+    let v = diagnose_half_records_with(
+        "coulomb",
+        RigEffects {
+            sensor_lowpass_hz: Some(4.0),
+            ..RigEffects::default()
+        },
+    );
     let by_sim = &v["simulation_verdict"];
     let refits = v["output_error_refits"].as_array().unwrap();
     println!("along the motion {}; by simulation {by_sim}", v["verdict"]);
@@ -143,18 +156,7 @@ fn a_channel_filter_is_named_by_simulation() {
     assert!(misfit > 2f64.sqrt(), "{refits:?}");
     assert_eq!(by_sim["verdict"], "explained", "{by_sim}");
     assert_eq!(by_sim["effect"], "sensor_lowpass", "{by_sim}");
-    let lowpass = refits
-        .iter()
-        .find(|r| r["model"] == "coulomb + sensor_lowpass")
-        .unwrap();
-    let tau = lowpass["parameters"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|p| p[0] == "sensor_time_constant_s")
-        .unwrap()[1]
-        .as_f64()
-        .unwrap();
+    let tau = refit_parameter(refits, "coulomb + sensor_lowpass", "sensor_time_constant_s");
     // 4.13 Hz at 40 dB (3.999 Hz at 70 dB): the noisy measured base is the input, its noise
     // amplified by the undo (x + tau x') before the friction's stick-slip sees it, so the
     // cutoff is a few percent off, several of its standard deviations.
@@ -170,33 +172,20 @@ fn a_channel_filter_is_named_by_simulation() {
 /// refitted.
 #[test]
 fn an_exciter_delay_is_named_by_simulation() {
-    let (_, v, _) = diagnose_random_records("coulomb", 3, |spec| {
-        spec.samples_per_record /= 2;
-        if let RunSystem::Rig { effects, .. } = &mut spec.system {
-            *effects = RigEffects {
-                exciter_delay_s: 0.010,
-                ..RigEffects::default()
-            };
-        }
-    });
+    let v = diagnose_half_records_with(
+        "coulomb",
+        RigEffects {
+            exciter_delay_s: 0.010,
+            ..RigEffects::default()
+        },
+    );
     let by_sim = &v["simulation_verdict"];
     let refits = v["output_error_refits"].as_array().unwrap();
     println!("along the motion {}; by simulation {by_sim}", v["verdict"]);
     println!("output-error refits: {}", v["output_error_refits"]);
     assert_eq!(by_sim["verdict"], "explained", "{by_sim}");
     assert_eq!(by_sim["effect"], "exciter_delay", "{by_sim}");
-    let delayed = refits
-        .iter()
-        .find(|r| r["model"] == "coulomb + exciter_delay")
-        .unwrap();
-    let delay_s = delayed["parameters"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|p| p[0] == "exciter_delay_s")
-        .unwrap()[1]
-        .as_f64()
-        .unwrap();
+    let delay_s = refit_parameter(refits, "coulomb + exciter_delay", "exciter_delay_s");
     assert!((delay_s / 0.010 - 1.0).abs() < 0.05, "delay {delay_s} s");
 }
 
@@ -205,15 +194,13 @@ fn an_exciter_delay_is_named_by_simulation() {
 /// their noise; refitted together they are named together.
 #[test]
 fn a_friction_seen_through_a_channel_filter_is_named_as_a_pair() {
-    let (_, v, _) = diagnose_random_records("linear", 3, |spec| {
-        spec.samples_per_record /= 2;
-        if let RunSystem::Rig { effects, .. } = &mut spec.system {
-            *effects = RigEffects {
-                sensor_lowpass_hz: Some(4.0),
-                ..RigEffects::default()
-            };
-        }
-    });
+    let v = diagnose_half_records_with(
+        "linear",
+        RigEffects {
+            sensor_lowpass_hz: Some(4.0),
+            ..RigEffects::default()
+        },
+    );
     let by_sim = &v["simulation_verdict"];
     println!(
         "along the motion {} {}; by simulation {by_sim}",
