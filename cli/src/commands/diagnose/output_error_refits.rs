@@ -166,8 +166,9 @@ impl Refit {
 /// and simulated on its held-out records (a hysteresis from the fit along the motion, its
 /// exponent held: `identify --model NAME+hysteresis`'s refinement). An effect with another
 /// internal state (a series spring, a drift) is not refitted. On the rig, where the baseline's
-/// simulation misses the records beyond their noise, the channel effects ([`CHANNEL_EFFECTS`])
-/// are refitted too, one parameter beside the baseline's element.
+/// simulation misses the records beyond their noise and no element candidate's fits them
+/// within it, the channel effects ([`CHANNEL_EFFECTS`]) are refitted too, one parameter beside
+/// the baseline's element.
 pub(super) fn refit(
     sim: &SimulatedRecords,
     baseline: &Model,
@@ -212,23 +213,24 @@ pub(super) fn refit(
     // left out with a warning; the baseline's failure ends the diagnosis.
     let mut out = vec![base];
     let best_ranked = f.findings.top_effect.is_none();
-    let mut add =
-        |effect: Effect, name: &str, run: &dyn Fn() -> anyhow::Result<Refit>| match with_progress(
-            name, run,
-        ) {
-            Ok(mut r) => {
-                r.effect = Some(effect);
-                if best_ranked && !is_channel_effect(effect) {
-                    r.notes.insert(0, BEST_RANKED_NOTE.into());
-                }
-                out.push(r);
+    let add = |out: &mut Vec<Refit>,
+               effect: Effect,
+               name: &str,
+               run: &dyn Fn() -> anyhow::Result<Refit>| match with_progress(name, run)
+    {
+        Ok(mut r) => {
+            r.effect = Some(effect);
+            if best_ranked && !is_channel_effect(effect) {
+                r.notes.insert(0, BEST_RANKED_NOTE.into());
             }
-            Err(e) => eprintln!("warning: {name} not refitted by output error: {e:#}"),
-        };
+            out.push(r);
+        }
+        Err(e) => eprintln!("warning: {name} not refitted by output error: {e:#}"),
+    };
     // The element candidate's own fit, the start of a pair with a channel effect.
     let element_fit = std::cell::RefCell::new(None);
     if let Some((effect, model)) = &named {
-        add(*effect, &model.name, &|| {
+        add(&mut out, *effect, &model.name, &|| {
             let (r, id) = refit_one(sim, model)?;
             *element_fit.borrow_mut() = Some(id);
             Ok(r)
@@ -236,19 +238,25 @@ pub(super) fn refit(
     }
     if let Some((effect, fit)) = hysteresis {
         let name = format!("{} + {}", baseline.name, effect.name());
-        add(effect, &name, &|| {
+        add(&mut out, effect, &name, &|| {
             refit_hysteresis(sim, baseline, fit, &name)
         });
     }
     // The rig's channel effects have no candidate along the measured motion (its channels are
     // taken as they are there): where the baseline's simulation misses the records beyond
-    // their noise, each is refitted by simulation beside the element candidates.
+    // their noise and no element candidate fits them within it (one that does leaves nothing
+    // for another effect to remove), each is refitted by simulation.
+    let element_within_noise = out[1..].iter().any(|r| {
+        r.misfit_noise_std
+            .is_some_and(|m| m * m <= FORM_MISFIT_VARIANCE)
+    });
     if let Simulation::Rig { mass_kg } = sim.simulation
         && form_wrong
+        && !element_within_noise
     {
         for (effect, channel) in CHANNEL_EFFECTS {
             let name = format!("{} + {}", baseline.name, effect.name());
-            add(effect, &name, &|| {
+            add(&mut out, effect, &name, &|| {
                 refit_channel_effect(sim, mass_kg, baseline, &base_id, channel, &name)
             });
         }
