@@ -174,20 +174,9 @@ pub(super) fn refit(
     baseline: &Model,
     f: &PhasorFindings,
 ) -> anyhow::Result<Vec<Refit>> {
-    let with_progress = |name: &str, run: &dyn Fn() -> anyhow::Result<Refit>| {
-        let pb = super::super::progress_spinner();
-        pb.set_message(format!("refitting {name} by output error"));
-        let refit = run();
-        pb.finish_and_clear();
-        refit
-    };
-    let (base, base_id) = {
-        let pb = super::super::progress_spinner();
-        pb.set_message(format!("refitting {} by output error", baseline.name));
-        let refit = refit_one(sim, baseline);
-        pb.finish_and_clear();
-        refit?
-    };
+    let with_progress =
+        |name: &str, run: &dyn Fn() -> anyhow::Result<Refit>| refitting_with_spinner(name, run);
+    let (base, base_id) = refitting_with_spinner(&baseline.name, || refit_one(sim, baseline))?;
     // Along the measured motion the differentiated noise can hide what the simulation shows:
     // where the baseline's simulation misses the records beyond their noise and no effect was
     // named, the best-ranked candidate is refitted too.
@@ -289,6 +278,15 @@ pub(super) fn refit(
         }
     }
     Ok(out)
+}
+
+/// `run` (the refit of `name`) under a spinner that says so.
+fn refitting_with_spinner<T>(name: &str, run: impl FnOnce() -> T) -> T {
+    let pb = super::super::progress_spinner();
+    pb.set_message(format!("refitting {name} by output error"));
+    let out = run();
+    pb.finish_and_clear();
+    out
 }
 
 /// The closest single candidate ([`closest_candidate`]) where its simulation still misses the
