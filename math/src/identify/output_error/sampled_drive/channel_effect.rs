@@ -95,6 +95,12 @@ impl RecordsOutputError<'_> {
         })
     }
 
+    /// The excitation's shortest period over 2 pi [s]: the time constant of a low-pass whose
+    /// cutoff is the records' top frequency, the scale of the channel effect's parameter.
+    pub(super) fn shortest_time_s(&self) -> f64 {
+        1.0 / (TAU * self.top_frequency_hz)
+    }
+
     /// Index of the channel effect's parameter (after the element's others).
     pub(super) fn channel_effect_index(&self) -> usize {
         self.hysteresis_index()
@@ -151,7 +157,7 @@ impl RecordsOutputError<'_> {
         if self.channel_effect != Some(RigChannelEffect::LowpassEveryChannel) {
             return 0;
         }
-        let slowest_s = 1.0 / (TAU * LOWPASS_START_MULTIPLES[0] * self.top_frequency_hz);
+        let slowest_s = self.shortest_time_s() / LOWPASS_START_MULTIPLES[0];
         let r = self.records[k];
         ((LOWPASS_TRANSIENT_TIME_CONSTANTS * slowest_s * r.sample_rate_hz).ceil() as usize)
             .min(r.len() / 2)

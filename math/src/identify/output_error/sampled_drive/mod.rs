@@ -117,7 +117,8 @@ pub struct RecordsOutputError<'a> {
     inputs: Vec<Vec<f64>>,
     /// Each rig record's base velocity, band-limited as its input (empty for a force drive).
     input_rates: Vec<Vec<f64>>,
-    /// The highest top excitation frequency of the records [Hz].
+    /// The highest top excitation frequency of a rig's records [Hz] (0 for a force drive: only
+    /// a rig's channel effect uses it).
     top_frequency_hz: f64,
     /// A transformation of the rig's channels fitted beside the element
     /// ([`Self::with_channel_effect`]).
@@ -152,7 +153,6 @@ impl<'a> RecordsOutputError<'a> {
     ) -> Result<Self, IdentifyError> {
         let mut parts = Vec::new();
         let mut noise_bands = Vec::new();
-        let mut top_frequency_hz: f64 = 0.0;
         for r in records {
             let state = MeasuredState::of(r).map_err(|e| step_error(r.step, e.to_string()))?;
             let x = &state.displacement_m;
@@ -168,7 +168,6 @@ impl<'a> RecordsOutputError<'a> {
                 starting_state(x, fs, state.top_frequency_hz),
             ));
             noise_bands.push((Channel::RelativeDisplacementM, x.len(), fs, cutoff));
-            top_frequency_hz = top_frequency_hz.max(state.top_frequency_hz);
         }
         let mut problem = Self::new(
             model,
@@ -177,7 +176,6 @@ impl<'a> RecordsOutputError<'a> {
             parts,
         )?;
         problem.noise_unmeasured = unmeasured_noise(&noise_bands);
-        problem.top_frequency_hz = top_frequency_hz;
         Ok(problem)
     }
 
@@ -582,8 +580,7 @@ impl Problem for RecordsOutputError<'_> {
             .map(|(j, v)| {
                 if self.channel_effect.is_some() && j == self.channel_effect_index() {
                     // A time: the excitation's shortest period over 2 pi where it is smaller.
-                    v.abs()
-                        .max(1.0 / (std::f64::consts::TAU * self.top_frequency_hz))
+                    v.abs().max(self.shortest_time_s())
                 } else if j < pe {
                     if v.abs() > 0.0 { v.abs() } else { 1.0 }
                 } else {
