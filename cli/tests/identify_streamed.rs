@@ -42,3 +42,53 @@ fn a_streamed_bag_identifies_as_the_whole_bag_bit_for_bit() {
         assert_eq!(streamed, whole, "{}", bag.display());
     }
 }
+
+/// The same for CSV exports: read record by record, each sine step analysed as it is read,
+/// stdout and stderr as those of the export read whole (`--plot`).
+#[test]
+fn a_streamed_export_identifies_as_the_whole_export_bit_for_bit() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let three_dof = root.join("launch_configs/three_dof.params.yaml");
+    let three_dof = three_dof.to_str().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let plots = dir.path().join("plots");
+    let plots = plots.to_str().unwrap();
+    for (system, extra) in [
+        ("rig", vec!["--model", "coulomb", "--mass-kg", "36"]),
+        (
+            "three-dof",
+            vec!["--model", "coulomb-cubic", "--params", three_dof],
+        ),
+        ("damper-dyno", vec!["--model", "damper"]),
+    ] {
+        let csv = dir.path().join(format!("{system}.csv"));
+        let csv = csv.to_str().unwrap();
+        let o = forcemap(&[
+            "simulate", "--system", system, "--snr-db", "40", "--csv", csv,
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let mut args = vec!["identify", csv, "--json"];
+        args.extend_from_slice(&extra);
+        let streamed = forcemap(&args);
+        args.extend_from_slice(&["--plot", plots]);
+        let whole = forcemap(&args);
+        assert!(
+            streamed.status.success(),
+            "{}",
+            String::from_utf8_lossy(&streamed.stderr)
+        );
+        assert!(!streamed.stdout.is_empty());
+        assert_eq!(streamed.stdout, whole.stdout, "{system}");
+        // The plots' lines aside.
+        let whole_stderr: String = String::from_utf8_lossy(&whole.stderr)
+            .lines()
+            .filter(|l| !l.starts_with("wrote "))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        assert_eq!(
+            String::from_utf8_lossy(&streamed.stderr),
+            whole_stderr,
+            "{system}"
+        );
+    }
+}

@@ -8,7 +8,7 @@ use forcemap_math::record::Record;
 
 use crate::bag::BagReader;
 use crate::channel_map::MapFile;
-use crate::csv_export::{CsvImport, read_csv};
+use crate::csv_export::{CsvImport, read_csv, read_csv_reduced};
 use crate::foreign_bag::read_foreign_bag;
 use crate::rig_bag::{RigBag, RigBagReader, read_rig_bag};
 use crate::table_map::RecordMaking;
@@ -152,23 +152,40 @@ fn of_import(path: &Path, csv: CsvImport) -> Loaded {
     }
 }
 
-/// [`load`] of a rig bag with each step handed to `keep(kind, record)` as soon as it is
-/// complete ([`RigBagReader::records_reduced`]): what `keep` returns is kept in the records.
-/// The kind is that of the first step. For an analysis that streams a long bag.
-pub fn load_bag_reduced(
+/// Whether [`load_reduced`] streams `path`: a bag, or a file that is a CSV export.
+pub fn streams(path: &Path) -> bool {
+    is_bag(path) || (path.is_file() && FileFormat::of(path) == FileFormat::Csv)
+}
+
+/// [`load`] of a rig bag or a CSV export ([`streams`]) with each record handed to
+/// `keep(kind, record)` as soon as it is read ([`RigBagReader::records_reduced`],
+/// [`read_csv_reduced`]): what `keep` returns is kept in the records. The kind is that of the
+/// first record. For an analysis that streams a long recording: memory follows what `keep`
+/// keeps, not the file.
+pub fn load_reduced(
     path: &Path,
     mut keep: impl FnMut(SetupKind, Record) -> Option<Record>,
 ) -> anyhow::Result<Loaded> {
     let source = path.display().to_string();
     let mut kind: Option<anyhow::Result<SetupKind>> = None;
-    let bag = RigBagReader::open(path)?.records_reduced(|r| {
-        match kind.get_or_insert_with(|| kind_of(std::slice::from_ref(&r), &source)) {
+    let mut keep_of_kind =
+        |r: Record| match kind.get_or_insert_with(|| kind_of(std::slice::from_ref(&r), &source)) {
             Ok(k) => keep(*k, r),
             Err(_) => Some(r),
-        }
-    })?;
-    let kind = kind.unwrap_or_else(|| kind_of(&bag.records, &source))?;
-    of_bag_of_kind(path, bag, kind)
+        };
+    if is_bag(path) {
+        let bag = RigBagReader::open(path)?.records_reduced(&mut keep_of_kind)?;
+        let kind = kind.unwrap_or_else(|| kind_of(&bag.records, &source))?;
+        return of_bag_of_kind(path, bag, kind);
+    }
+    if !streams(path) {
+        anyhow::bail!("{source}: only a bag or a CSV export is read record by record");
+    }
+    let csv = read_csv_reduced(path, &mut keep_of_kind)?;
+    if let Some(Err(e)) = kind {
+        return Err(e);
+    }
+    Ok(of_import(path, csv))
 }
 
 fn of_bag(path: &Path, bag: RigBag) -> anyhow::Result<Loaded> {

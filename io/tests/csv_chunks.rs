@@ -2,7 +2,9 @@
 //! (`read_csv_from` over the file's bytes): the same records bit for bit, the same warnings and
 //! notices, the same error naming the same line, at any chunk size. The exports: simulated rig
 //! runs in the lab dialects, with a last line cut short, a quoted cell (read by the `csv`
-//! crate with the rest of the file), blank lines, and faults late in the file.
+//! crate with the rest of the file), blank lines, and faults late in the file. Read record by
+//! record (`read_csv_reduced`), the records handed over are the same, in order, and the import
+//! holds those kept.
 #![allow(
     clippy::unwrap_used,
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
@@ -10,8 +12,11 @@
 
 use std::path::Path;
 
-use forcemap_io::csv_export::{read_csv, read_csv_from, read_csv_in_chunks, write_csv};
+use forcemap_io::csv_export::{
+    read_csv, read_csv_from, read_csv_in_chunks, read_csv_reduced, write_csv,
+};
 use forcemap_math::recipe::SetupKind;
+use forcemap_math::record::Excitation;
 use forcemap_math::sim::RunSpec;
 
 /// The paper's rig run (sine steps and band-random records) as an export's text.
@@ -45,6 +50,25 @@ fn same_in_chunks(dir: &Path, name: &str, bytes: &[u8]) -> String {
             whole,
             "{name}: chunks of {chunk} bytes"
         );
+    }
+    // Record by record, the sine steps handed over and dropped.
+    let mut seen = Vec::new();
+    let reduced = read_csv_reduced(&path, |r| {
+        seen.push(r.clone());
+        (!matches!(r.excitation, Excitation::Sine { .. })).then_some(r)
+    });
+    match reduced {
+        Ok(mut import) => {
+            let kept: Vec<_> = seen
+                .iter()
+                .filter(|r| !matches!(r.excitation, Excitation::Sine { .. }))
+                .cloned()
+                .collect();
+            assert_eq!(import.records, kept, "{name}: the records kept");
+            import.records = seen;
+            assert_eq!(outcome(Ok(import)), whole, "{name}: record by record");
+        }
+        Err(e) => assert_eq!(format!("error: {e}"), whole, "{name}: record by record"),
     }
     whole
 }

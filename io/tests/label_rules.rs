@@ -7,9 +7,9 @@
     reason = "test helpers outside #[test] fns: a panic is how a test reports failure"
 )]
 
+use forcemap_io::steps::label_check::check_labels;
 use forcemap_io::steps::unlabelled::{
-    DEFAULT_FREQUENCY_TOLERANCE, StepWithFrequency, check_labels, frequencies_from_data,
-    frequency_from_data,
+    DEFAULT_FREQUENCY_TOLERANCE, StepWithFrequency, frequencies_from_data, frequency_from_data,
 };
 use forcemap_math::record::{Channel, Excitation, Record};
 use forcemap_math::segment::SegmentOptions;
@@ -226,6 +226,72 @@ fn steps_too_short_for_the_segmentation_are_not_checked() {
     assert!(
         w.iter()
             .all(|l| !l.contains("step 0") && !l.contains("step 1 ")),
+        "{w:#?}"
+    );
+}
+
+/// The records of `pieces` (drive frequency, seconds) joined into one step labelled `label`.
+fn step_of_pieces(step_no: usize, start_s: f64, label: f64, pieces: &[(f64, f64)]) -> Record {
+    let mut t = start_s;
+    let mut joined = step(step_no, start_s, 0.0, label, Some(label), 0);
+    for (k, (f, seconds)) in pieces.iter().enumerate() {
+        let piece = step(
+            step_no,
+            t,
+            *seconds,
+            *f,
+            Some(label),
+            100 + 10 * step_no as u64 + k as u64,
+        );
+        for ((_, x), (_, y)) in joined.channels.iter_mut().zip(piece.channels) {
+            x.extend(y);
+        }
+        t += seconds;
+    }
+    joined
+}
+
+/// A slow step (0.1 Hz, 120 s) before five fast ones (5-9 Hz, 6 s each): each pair of steps is
+/// segmented with windows of its own lowest frequency, so the fast steps are checked (with
+/// windows of the run's lowest frequency, 40 s, none of them was). The drive goes to step 3's
+/// 7 Hz a second before step 3's labelled start; the last step's drive goes to 10 Hz for its
+/// middle 2 s. Each change is one line, whichever pair of steps sees it.
+#[test]
+fn each_pair_of_steps_is_checked_with_windows_of_its_own_frequencies() {
+    let mut steps: Vec<StepWithFrequency> = Vec::new();
+    let mut t = 0.0;
+    let plan: [(f64, Vec<(f64, f64)>); 6] = [
+        (0.1, vec![(0.1, 120.0)]),
+        (5.0, vec![(5.0, 6.0)]),
+        (6.0, vec![(6.0, 5.0), (7.0, 1.0)]),
+        (7.0, vec![(7.0, 6.0)]),
+        (8.0, vec![(8.0, 6.0)]),
+        (9.0, vec![(9.0, 2.0), (10.0, 2.0), (9.0, 2.0)]),
+    ];
+    for (k, (label, pieces)) in plan.iter().enumerate() {
+        let r = step_of_pieces(k, t, *label, pieces);
+        t += r.len() as f64 / FS;
+        steps.push((r, Some(*label)));
+    }
+    let w = check_labels(
+        &steps,
+        Channel::RelativeDisplacementM,
+        &SegmentOptions::default(),
+    );
+    assert_eq!(w.len(), 3, "{w:#?}");
+    assert!(
+        w[0].starts_with("relative_displacement_m changes at 131.000 s")
+            && w[0].ends_with("(to sine) inside labelled step 2"),
+        "{w:#?}"
+    );
+    assert!(
+        w[1].starts_with("step 3 is labelled to start at 132.000 s")
+            && w[1].ends_with("does not change there"),
+        "{w:#?}"
+    );
+    assert!(
+        w[2].starts_with("relative_displacement_m changes at 146.000 s")
+            && w[2].ends_with("inside labelled step 5 (and once more)"),
         "{w:#?}"
     );
 }

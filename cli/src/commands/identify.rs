@@ -92,18 +92,18 @@ struct Read {
 }
 
 /// Reads `files`, each sine step at the frequency its driven channel shows
-/// ([`frequency_from_data`]). A rig's or drive-point bag identified by fd or fd-multi,
-/// converged and without plots, is streamed: each sine step is analysed into its phasors as
-/// soon as it is complete and dropped, so that memory does not grow with the bag (the other
-/// records are kept, for validation); the analyses are returned with it.
+/// ([`frequency_from_data`]). A rig's or drive-point bag or CSV export identified by fd or
+/// fd-multi, converged and without plots, is streamed: each sine step is analysed into its
+/// phasors as soon as it is read and dropped, so that memory does not grow with the file (the
+/// other records are kept, for validation); the analyses are returned with it.
 fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow::Result<Read> {
     check_frequency_tolerance(args.frequency_tolerance)?;
-    let single_bag = match files {
-        [f] => forcemap_io::input::is_bag(f).then_some(f),
+    let single = match files {
+        [f] => forcemap_io::input::streams(f).then_some(f),
         _ => None,
     };
-    let bag = single_bag.filter(|_| args.channels.is_none());
-    let streams = bag.is_some()
+    let file = single.filter(|_| args.channels.is_none());
+    let streams = file.is_some()
         && args.plot.is_none()
         && matches!(method(args)?, Method::Fd | Method::FdMulti)
         && Tracking::from_factor(args.forgetting_per_step)? == Tracking::Converged
@@ -126,8 +126,8 @@ fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow::Result<Rea
     let mut frequency_warnings = Vec::new();
     // An element test's outputs need its sine steps' samples: kept whole.
     let mut element = false;
-    let bag = bag.expect("streams only a single bag");
-    let import = forcemap_io::input::load_bag_reduced(bag, |kind, mut r| {
+    let file = file.expect("streams only a single file");
+    let import = forcemap_io::input::load_reduced(file, |kind, mut r| {
         element = kind == SetupKind::Element;
         frequency_warnings.extend(frequency_from_data(
             &mut r,

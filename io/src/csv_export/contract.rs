@@ -51,6 +51,7 @@ pub struct CsvImport {
 }
 
 /// Where a header puts the contract's columns.
+#[derive(Clone)]
 pub(super) struct Layout {
     pub profile: SetupKind,
     pub time_col: usize,

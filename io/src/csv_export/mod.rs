@@ -52,7 +52,7 @@
 //! `multisine` (the multisine label columns), `sweep` (the sweep label columns), `read`, `rows`
 //! (the rows split in place), `row_cells` (a row's cells parsed), `row_parts` (a chunk's rows
 //! parsed over the cores), `row_steps` (rows into step records), `stream` (a file read chunk by chunk),
-//! `label_runs` (the label check over records of several rates), `write`, `error`.
+//! `import` (records labelled, checked and handed over as they are read), `write`, `error`.
 //!
 //! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
 //! [`SetupKind::DrivePoint`]: forcemap_math::recipe::SetupKind::DrivePoint
@@ -61,7 +61,7 @@
 mod contract;
 pub mod dialect;
 mod error;
-mod label_runs;
+mod import;
 pub mod multisine;
 mod read;
 mod row_cells;
@@ -78,7 +78,7 @@ pub use contract::{
 };
 pub use error::CsvError;
 pub use multisine::{MULTISINE_BASE_COLUMN, MULTISINE_LINES_COLUMN};
-pub use read::{read_csv, read_csv_from};
+pub use read::{read_csv, read_csv_from, read_csv_reduced};
 #[doc(hidden)]
 pub use stream::read_csv_in_chunks;
 pub use sweep::{SWEEP_END_COLUMN, SWEEP_LAW_COLUMN, SWEEP_START_COLUMN};

@@ -2,33 +2,42 @@
 //! grouped into records (`row_steps`: the rules of cells, lines and columns, then the step
 //! assembler of [`crate::steps`], whose rules a step's samples share with bag and live samples,
 //! their timing among them: each record its own sample rate, a pause or lost rows ending a
-//! record, jittered times read as uniform), then what only an export needs: the labels checked
-//! against the drive, and the excitation amplitude estimated from the data since the export
-//! carries none.
+//! record, jittered times read as uniform), then what only an export needs (`import`): the
+//! labels checked against the drive, and the excitation amplitude estimated from the data since
+//! the export carries none.
 
 use std::io;
 use std::path::Path;
 
-use super::contract::{CsvImport, Layout, TIME_COLUMN};
+use super::contract::{CsvImport, Layout};
 use super::dialect;
 use super::error::{CsvError, csv_error};
-use super::label_runs::label_warnings;
-use super::multisine::MultisineLabel;
+use super::import::{Import, Keep};
 use super::row_parts::PartRule;
-use super::row_steps::{ReadStep, RowSteps};
-use super::stream::{CHUNK_BYTES, read_csv_in_chunks};
-use super::sweep::SweepLabel;
-use crate::steps::timing::JitterSummary;
-use crate::steps::unlabelled::{StepWithFrequency, split_parts};
-use crate::steps::{estimated_excitation, rms_about_mean, sine_amplitude_from_rms};
-use forcemap_math::phasor::SweepLaw;
-use forcemap_math::record::{Excitation, Record};
-use forcemap_math::segment::SegmentOptions;
+use super::row_steps::RowSteps;
+use super::stream::{CHUNK_BYTES, read_csv_in_chunks, read_in_chunks};
+use forcemap_math::record::Record;
 
 /// Reads a test-bench CSV export (see the module documentation for the contract), chunk by
 /// chunk: the file's bytes in memory are a chunk, not the file.
 pub fn read_csv(path: impl AsRef<Path>) -> Result<CsvImport, CsvError> {
     read_csv_in_chunks(path.as_ref(), CHUNK_BYTES)
+}
+
+/// [`read_csv`] with each record handed to `keep` as soon as it is read (a labelled export's;
+/// an unlabelled export's once the whole run is read and cut into steps): the import's records
+/// are those `keep` returns. For an analysis that streams a long export: what it does not keep,
+/// the reading does not hold.
+pub fn read_csv_reduced(
+    path: impl AsRef<Path>,
+    mut keep: impl FnMut(Record) -> Option<Record>,
+) -> Result<CsvImport, CsvError> {
+    read_in_chunks(
+        path.as_ref(),
+        CHUNK_BYTES,
+        PartRule::of_machine(),
+        &mut keep,
+    )
 }
 
 /// Reads the CSV contract from any reader; `path` is used in error messages only.
@@ -41,11 +50,17 @@ pub fn read_csv_from<R: io::Read>(mut reader: R, path: &Path) -> Result<CsvImpor
             action: "cannot read",
             source,
         })?;
-    read_bytes(&bytes, path, PartRule::of_machine())
+    read_bytes(&bytes, path, PartRule::of_machine(), &mut Some)
 }
 
-/// [`read_csv_from`] of a file's `bytes`, its rows split over the cores by `rule`.
-pub(super) fn read_bytes(bytes: &[u8], path: &Path, rule: PartRule) -> Result<CsvImport, CsvError> {
+/// [`read_csv_from`] of a file's `bytes`, its rows split over the cores by `rule`, each record
+/// handed to `keep`.
+pub(super) fn read_bytes(
+    bytes: &[u8],
+    path: &Path,
+    rule: PartRule,
+    keep: Keep,
+) -> Result<CsvImport, CsvError> {
     let p = || path.to_path_buf();
     // The dialect is detected from the first lines and undone here (see `dialect`).
     let prepared = dialect::prepare(bytes, path)?;
@@ -73,92 +88,7 @@ pub(super) fn read_bytes(bytes: &[u8], path: &Path, rule: PartRule) -> Result<Cs
         true,
     )?;
     let (steps, unlabelled_times) = read.finish()?;
-    import_of(path, layout, steps, &unlabelled_times, prepared.notices)
-}
-
-/// The import of the records read (`steps`; `unlabelled_times`: the rows' times of an export
-/// without labels), after the file's `notices`: the labels checked against the drive, and the
-/// excitation estimated from the data.
-pub(super) fn import_of(
-    path: &Path,
-    layout: Layout,
-    steps: Vec<ReadStep>,
-    unlabelled_times: &[f64],
-    mut notices: Vec<String>,
-) -> Result<CsvImport, CsvError> {
-    let p = || path.to_path_buf();
-    let labelled = layout.step_col.is_some();
-    // What the timing rule did: each break and rows left out, and one notice of the jitter.
-    let mut jitter = JitterSummary::default();
-    for s in &steps {
-        jitter.add(s.assembled.timing.jitter.as_ref());
-        notices.extend(s.notices.iter().cloned());
-    }
-    if let Some(n) = jitter.notice() {
-        notices.push(format!("{}: column '{TIME_COLUMN}': {n}", path.display()));
-    }
-    let driven = layout.profile.driven_channel();
-    let multisines: Vec<Option<MultisineLabel>> =
-        steps.iter().map(|s| s.multisine.clone()).collect();
-    let sweeps: Vec<Option<SweepLabel>> = steps.iter().map(|s| s.sweep).collect();
-    let first_samples: Vec<usize> = steps.iter().map(|s| s.assembled.first_sample).collect();
-    let labels: Vec<usize> = steps.iter().map(|s| s.assembled.label).collect();
-    let mut found: Vec<StepWithFrequency> = steps
-        .into_iter()
-        .map(|s| (s.assembled.record, s.frequency))
-        .collect();
-    let options = SegmentOptions::default();
-    let warnings = if labelled {
-        // The segmenter knows sines and the rest: a multisine or sweep label is not checked by
-        // it.
-        let checked = |k: usize| multisines[k].is_none() && sweeps[k].is_none();
-        label_warnings(&found, &labels, checked, driven, &options)
-    } else {
-        // Every row is of one step; a pause or lost rows cut it in parts, each cut into steps
-        // where its drive changes, the records numbered in order.
-        let parts: Vec<(&Record, &[f64])> = found
-            .iter()
-            .zip(first_samples)
-            .map(|((run, _), first)| (run, &unlabelled_times[first..first + run.len()]))
-            .collect();
-        found = split_parts(&parts, driven, &options).map_err(|e| CsvError::Unlabelled {
-            path: p(),
-            first_s: unlabelled_times.first().copied().unwrap_or(0.0),
-            last_s: unlabelled_times.last().copied().unwrap_or(0.0),
-            message: e.to_string(),
-        })?;
-        Vec::new()
-    };
-    let records = found
-        .into_iter()
-        .enumerate()
-        .map(|(k, (mut record, frequency))| {
-            let level = rms_about_mean(record.channel(driven).expect("a required channel"));
-            record.excitation = match (multisines.get(k).cloned().flatten(), sweeps.get(k)) {
-                (Some(m), _) => Excitation::Multisine {
-                    base_frequency_hz: m.base_frequency_hz,
-                    lines: m.lines,
-                    rms: level,
-                },
-                (None, Some(Some(s))) => Excitation::Sweep {
-                    law: SweepLaw {
-                        kind: s.kind,
-                        amplitude: sine_amplitude_from_rms(level),
-                        start_frequency_hz: s.start_frequency_hz,
-                        end_frequency_hz: s.end_frequency_hz,
-                        duration_s: record.len() as f64 / record.sample_rate_hz,
-                    },
-                },
-                _ => estimated_excitation(frequency, level),
-            };
-            record
-        })
-        .collect();
-    Ok(CsvImport {
-        records,
-        ignored_columns: layout.ignored_columns,
-        kind: layout.profile,
-        warnings,
-        notices,
-    })
+    let mut import = Import::new(layout, keep);
+    import.records_read(steps);
+    import.finish(path, &unlabelled_times, prepared.notices)
 }

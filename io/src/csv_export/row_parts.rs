@@ -225,15 +225,15 @@ mod tests {
     fn same_in_parts(dir: &Path, name: &str, bytes: &[u8]) -> String {
         let path = dir.join(name);
         std::fs::write(&path, bytes).unwrap();
-        let one = outcome(read_bytes(bytes, &path, ONE));
+        let one = outcome(read_bytes(bytes, &path, ONE, &mut Some));
         assert_eq!(
-            outcome(read_bytes(bytes, &path, SPLIT)),
+            outcome(read_bytes(bytes, &path, SPLIT, &mut Some)),
             one,
             "{name}: whole"
         );
         for chunk in [65_537, 400_003] {
             assert_eq!(
-                outcome(read_in_chunks(&path, chunk, SPLIT)),
+                outcome(read_in_chunks(&path, chunk, SPLIT, &mut Some)),
                 one,
                 "{name}: chunks of {chunk} bytes"
             );

@@ -28,7 +28,9 @@ pub(super) struct RowSteps<'a> {
     /// The next row is the units row (skipped).
     skip_units_row: bool,
     assembler: StepAssembler,
+    /// Records completed and not yet taken ([`RowSteps::take_steps`]), and whether any was.
     steps: Vec<ReadStep>,
+    any_step: bool,
     current: Option<StepRows>,
     prev_time: Option<(f64, u64)>,
     /// The values' buffers, reused from row to row.
@@ -66,6 +68,7 @@ impl<'a> RowSteps<'a> {
             skip_units_row,
             assembler: StepAssembler::with_rules(StepRules::WRITTEN),
             steps: Vec::new(),
+            any_step: false,
             current: None,
             prev_time: None,
             values: Vec::with_capacity(layout.channel_cols.len()),
@@ -136,7 +139,13 @@ impl<'a> RowSteps<'a> {
         })
     }
 
-    /// The records of the rows read (the last step completed), with the rows' times of an
+    /// The records completed since the last call, in file order.
+    pub fn take_steps(&mut self) -> Vec<ReadStep> {
+        self.any_step |= !self.steps.is_empty();
+        std::mem::take(&mut self.steps)
+    }
+
+    /// The records not yet taken (the last step completed), with the rows' times of an
     /// unlabelled export.
     pub fn finish(mut self) -> Result<(Vec<ReadStep>, Vec<f64>), CsvError> {
         let path = self.path;
@@ -152,7 +161,7 @@ impl<'a> RowSteps<'a> {
                 });
             }
         }
-        if self.steps.is_empty() {
+        if self.steps.is_empty() && !self.any_step {
             return Err(CsvError::HeaderOnly {
                 path: path.to_path_buf(),
             });

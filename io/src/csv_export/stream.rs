@@ -13,7 +13,8 @@ use memchr::{memchr_iter, memrchr};
 use super::contract::{CsvImport, Layout};
 use super::dialect::{self, HEAD_LINES, Head, LinesFromEnd, is_blank};
 use super::error::{CsvError, csv_error};
-use super::read::{import_of, read_bytes};
+use super::import::{Import, Keep};
+use super::read::read_bytes;
 use super::row_parts::PartRule;
 use super::row_steps::RowSteps;
 
@@ -29,14 +30,16 @@ const BYTE_ORDER_MARK: &[u8] = b"\xEF\xBB\xBF";
 /// Reads the export at `path` in chunks of about `chunk_bytes`. A file whose head (the lines
 /// the dialect is detected from) is the whole file is read whole.
 pub fn read_csv_in_chunks(path: &Path, chunk_bytes: usize) -> Result<CsvImport, CsvError> {
-    read_in_chunks(path, chunk_bytes, PartRule::of_machine())
+    read_in_chunks(path, chunk_bytes, PartRule::of_machine(), &mut Some)
 }
 
-/// [`read_csv_in_chunks`], each chunk's rows split over the cores by `rule`.
+/// [`read_csv_in_chunks`], each chunk's rows split over the cores by `rule`, each record handed
+/// to `keep` as the chunk that completes it is read.
 pub(super) fn read_in_chunks(
     path: &Path,
     chunk_bytes: usize,
     rule: PartRule,
+    keep: Keep,
 ) -> Result<CsvImport, CsvError> {
     let chunk_bytes = chunk_bytes.max(1);
     let io_error = |action: &'static str| {
@@ -59,7 +62,7 @@ pub(super) fn read_in_chunks(
         let from = buf.len();
         if fill(&mut file, &mut buf, short(from)).map_err(io_error("cannot read"))? == 0 {
             // The whole file is its head.
-            return read_bytes(&buf, path, rule);
+            return read_bytes(&buf, path, rule, keep);
         }
         lines += memchr_iter(b'\n', &buf[from..]).count();
     }
@@ -113,6 +116,7 @@ pub(super) fn read_in_chunks(
     drop(rdr);
 
     let mut read = RowSteps::new(path, &layout, head.dialect.units.is_some(), rule);
+    let mut import = Import::new(layout.clone(), keep);
     // Line feeds of the data before the cut, for the notice's line.
     let mut line_feeds = 0;
     loop {
@@ -144,6 +148,7 @@ pub(super) fn read_in_chunks(
             if cut.is_some() {
                 line_feeds += memchr_iter(b'\n', &buf[..pos]).count();
             }
+            import.records_read(read.take_steps());
             buf.drain(..pos);
             pos = 0;
         }
@@ -163,14 +168,15 @@ pub(super) fn read_in_chunks(
         }
         read_to += n as u64;
     }
-    // The file's bytes go before the label check's peak.
+    // The file's bytes go before an unlabelled export's segmentation.
     drop(buf);
     let (steps, unlabelled_times) = read.finish()?;
+    import.records_read(steps);
     let mut notices = head.notices.clone();
     if let Some((_, why)) = &cut {
         notices.push(dialect::cut_notice(path, line_feeds + 1, why));
     }
-    import_of(path, layout, steps, &unlabelled_times, notices)
+    import.finish(path, &unlabelled_times, notices)
 }
 
 /// Appends up to `want` bytes of `file` to `buf`; returns how many (0 at the file's end).

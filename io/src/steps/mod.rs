@@ -16,6 +16,7 @@
 
 mod complete;
 use complete::complete;
+pub mod label_check;
 pub mod timing;
 pub mod unlabelled;
 
