@@ -1,5 +1,6 @@
 //! `forcemap bench identify FILE`: how long `identify` takes on a rig CSV export, stage by stage
-//! (reading the file, phasors, fit, validation by simulation), medians over repeats, its throughput
+//! (reading the file, phasors, fit, validation by simulation; a file `identify` streams has its
+//! sine steps analysed in the reading), medians over repeats, its throughput
 //! (MB/s and rows/s of the whole identification) and the peak memory of the process; with
 //! `--python`, a peer on the same file as a ratio: the time polars (or, without it, numpy)
 //! needs to load the file (benches/load_peer.py), or the numpy script a user would write to load
@@ -15,7 +16,6 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use anyhow::{Context as _, bail};
-use forcemap_math::identify;
 use forcemap_math::model::IdentifiedModel;
 use forcemap_math::pipeline;
 use forcemap_math::recipe::Setup;
@@ -97,33 +97,36 @@ fn median(mut v: Vec<f64>) -> f64 {
 type Theta = Vec<(String, f64)>;
 
 /// One identification as `forcemap identify` does it, timed by stage; returns the stages' wall
-/// and CPU seconds, theta and the samples read.
-fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Theta, usize)> {
+/// and CPU seconds, theta, the samples read and whether the sine steps were analysed as they
+/// were read.
+fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Theta, usize, bool)> {
     let a = &args.identify;
     let path = the_file(args)?;
     let file = path.display().to_string();
     let t0 = Clocks::start();
-    let import = forcemap_io::input::load(path)?;
+    // As `forcemap identify` reads: a file it streams has its sine steps analysed as they are
+    // read, in the reading stage.
+    let read = super::identify::load(a, &[path.to_path_buf()])?;
     let (csv_s, csv_cpu_s) = t0.elapsed();
-    let rows = import
-        .records
-        .iter()
-        .map(forcemap_math::record::Record::len)
-        .sum();
+    let (import, rows, streamed) = (read.import, read.samples_read, read.streamed.is_some());
     let recipe = super::identify::recipe(a, import.kind, &import.parameters, &file)?;
     let setup = recipe.setup.setup()?;
     let model = recipe.model.build()?;
     let t1 = Clocks::start();
-    let (analyses, _) = pipeline::analyse_sine_steps(&import.records, &recipe.phasor)
-        .with_context(|| format!("{file}: harmonic analysis"))?;
+    let (analyses, notes) = match read.streamed {
+        Some(streamed) => streamed,
+        None => pipeline::analyse_sine_steps(&import.records, &recipe.phasor).map_err(Into::into),
+    }
+    .with_context(|| format!("{file}: harmonic analysis"))?;
     let (phasors_s, phasors_cpu_s) = t1.elapsed();
     let t2 = Clocks::start();
-    let id = identify::identify(
+    let (id, _) = pipeline::identify_analysed(
         &model,
         &setup,
         recipe.method,
         &import.records,
-        &analyses,
+        analyses,
+        notes,
         &recipe.fd_options(),
     )
     .with_context(|| format!("{file}: identifying model '{}'", model.name))?;
@@ -155,6 +158,7 @@ fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Th
         },
         theta,
         rows,
+        streamed,
     ))
 }
 
@@ -284,12 +288,14 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
     let mut cpu_runs = Vec::with_capacity(args.repeats);
     let mut theta = Vec::new();
     let mut rows = 0;
+    let mut streamed = false;
     for _ in 0..args.repeats {
-        let (stages, cpu, th, n) = identify_once(args)?;
+        let (stages, cpu, th, n, s) = identify_once(args)?;
         runs.push(stages);
         cpu_runs.push(cpu);
         theta = th;
         rows = n;
+        streamed = s;
     }
     // Read before any peer runs: the peak of the identifications (the children's is apart).
     let peak_bytes = own_peak_bytes();
@@ -327,6 +333,9 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
             ms(format!("{key}_s")),
             ms(format!("{key}_cpu_s"))
         );
+    }
+    if streamed {
+        println!("  (the sine steps analysed as they were read: their phasors are in the reading)");
     }
     println!("  theta        {}", ours["theta"]);
     let num = |v: &serde_json::Value, key: &str| v[key].as_f64().unwrap_or(f64::NAN);

@@ -6,11 +6,12 @@ use anyhow::{Context, anyhow};
 use forcemap_math::diagnose::findings::NO_PREDICTION_PERCENT;
 use forcemap_math::identify::{Identification, Method, TrackPoint, records_drive};
 use forcemap_math::model::{HYSTERESIS_SUFFIX, IdentifiedModel, Model, ModelOptions};
+use forcemap_math::parallel;
 use forcemap_math::phasor::{HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
 use forcemap_math::recipe::Setup;
 use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind, SetupSpec, Tracking};
-use forcemap_math::record::Excitation;
+use forcemap_math::record::{Excitation, Record};
 use forcemap_math::sim::ElementDrive;
 use serde_json::json;
 
@@ -80,15 +81,18 @@ fn phasor_options(args: &IdentifyArgs) -> PhasorOptions {
     }
 }
 
-/// The sine steps of a bag analysed as they are read (`Err`: the first analysis that failed).
-type Streamed = Result<(Vec<HarmonicAnalysis>, Vec<String>), pipeline::PipelineError>;
+/// The sine steps of a bag or export analysed as they are read (`Err`: the first analysis that
+/// failed).
+pub(super) type Streamed = Result<(Vec<HarmonicAnalysis>, Vec<String>), pipeline::PipelineError>;
 
 /// What `load` read: the data, the sine steps analysed as they were read (a streamed bag), and
 /// the warnings of the labels the data corrected ([`frequency_from_data`]).
-struct Read {
-    import: forcemap_io::input::Loaded,
-    streamed: Option<Streamed>,
-    frequency_warnings: Vec<String>,
+pub(super) struct Read {
+    pub import: forcemap_io::input::Loaded,
+    pub streamed: Option<Streamed>,
+    pub frequency_warnings: Vec<String>,
+    /// Samples of every record read, the analysed ones too.
+    pub samples_read: usize,
 }
 
 /// Reads `files`, each sine step at the frequency its driven channel shows
@@ -96,7 +100,7 @@ struct Read {
 /// fd-multi, converged and without plots, is streamed: each sine step is analysed into its
 /// phasors as soon as it is read and dropped, so that memory does not grow with the file (the
 /// other records are kept, for validation); the analyses are returned with it.
-fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow::Result<Read> {
+pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow::Result<Read> {
     check_frequency_tolerance(args.frequency_tolerance)?;
     let single = match files {
         [f] => forcemap_io::input::streams(f).then_some(f),
@@ -115,48 +119,93 @@ fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow::Result<Rea
             import.kind.driven_channel(),
             args.frequency_tolerance,
         );
+        let samples_read = import.records.iter().map(Record::len).sum();
         return Ok(Read {
             import,
             streamed: None,
             frequency_warnings,
+            samples_read,
         });
     }
-    let phasor = phasor_options(args);
-    let mut streamed: Streamed = Ok((Vec::new(), Vec::new()));
+    let mut sines = SineBatches::new(phasor_options(args));
     let mut frequency_warnings = Vec::new();
     // An element test's outputs need its sine steps' samples: kept whole.
     let mut element = false;
     let file = file.expect("streams only a single file");
+    let mut samples_read = 0;
     let import = forcemap_io::input::load_reduced(file, |kind, mut r| {
+        samples_read += r.len();
         element = kind == SetupKind::Element;
         frequency_warnings.extend(frequency_from_data(
             &mut r,
             kind.driven_channel(),
             args.frequency_tolerance,
         ));
-        let Ok((analyses, notes)) = &mut streamed else {
-            return Some(r);
-        };
         if element || !matches!(r.excitation, Excitation::Sine { .. }) {
             return Some(r);
         }
-        match pipeline::analyse_sine_step(&r, &phasor) {
-            Ok((an, note)) => {
-                analyses.push(an);
-                notes.extend(note);
-                None
-            }
-            Err(e) => {
-                streamed = Err(e.into());
-                Some(r)
-            }
-        }
+        sines.push(r);
+        None
     })?;
     Ok(Read {
         import,
-        streamed: (!element).then_some(streamed),
+        streamed: (!element).then(|| sines.finish()),
         frequency_warnings,
+        samples_read,
     })
+}
+
+/// Sine steps analysed as they are read, in batches of about [`SineBatches::SAMPLES_PER_CORE`]
+/// samples a core, each batch's steps on the machine's cores (the analyses in the steps' order).
+struct SineBatches {
+    phasor: PhasorOptions,
+    pending: Vec<Record>,
+    samples: usize,
+    analysed: Streamed,
+}
+
+impl SineBatches {
+    /// Samples a batch holds per core: four parts of the least a part holds, so that the cores
+    /// share a batch evenly.
+    const SAMPLES_PER_CORE: usize = 4 * parallel::PART_MIN_SAMPLES;
+
+    fn new(phasor: PhasorOptions) -> SineBatches {
+        SineBatches {
+            phasor,
+            pending: Vec::new(),
+            samples: 0,
+            analysed: Ok((Vec::new(), Vec::new())),
+        }
+    }
+
+    fn push(&mut self, r: Record) {
+        self.samples += r.len();
+        self.pending.push(r);
+        if self.samples >= Self::SAMPLES_PER_CORE * parallel::threads() {
+            self.analyse();
+        }
+    }
+
+    /// The pending steps analysed (none after the first that failed).
+    fn analyse(&mut self) {
+        let batch = std::mem::take(&mut self.pending);
+        self.samples = 0;
+        let Ok((analyses, notes)) = &mut self.analysed else {
+            return;
+        };
+        match pipeline::analyse_sine_steps(&batch, &self.phasor) {
+            Ok((a, n)) => {
+                analyses.extend(a);
+                notes.extend(n);
+            }
+            Err(e) => self.analysed = Err(e.into()),
+        }
+    }
+
+    fn finish(mut self) -> Streamed {
+        self.analyse();
+        self.analysed
+    }
 }
 
 /// The records of a held-out file (`--validate` of identify and diagnose): a CSV export or a
@@ -167,7 +216,7 @@ pub fn held_out_records(
     channels: Option<&std::path::Path>,
     kind: SetupKind,
     frequency_tolerance: f64,
-) -> anyhow::Result<Vec<forcemap_math::record::Record>> {
+) -> anyhow::Result<Vec<Record>> {
     let mut held = forcemap_io::input::load_mapped(path, channels)?;
     if held.kind != kind {
         anyhow::bail!(
@@ -348,6 +397,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         import,
         mut streamed,
         frequency_warnings,
+        ..
     } = load(args, &files)?;
     if !import.ignored_columns.is_empty() {
         eprintln!(

@@ -54,18 +54,24 @@ impl<'k> Import<'k> {
 
     /// The records read since the last call, in file order.
     pub fn records_read(&mut self, steps: Vec<ReadStep>) {
-        for s in steps {
+        for s in &steps {
             self.jitter.add(s.assembled.timing.jitter.as_ref());
             self.step_notices.extend(s.notices.iter().cloned());
-            let Some(check) = &mut self.check else {
-                self.unlabelled.push(s);
-                continue;
-            };
-            // The segmenter knows sines and the rest: a multisine or sweep label is not
-            // checked by it.
-            if s.multisine.is_none() && s.sweep.is_none() {
-                check.push(&s.assembled.record, s.assembled.label, s.frequency);
-            }
+        }
+        let Some(check) = &mut self.check else {
+            self.unlabelled.extend(steps);
+            return;
+        };
+        // The segmenter knows sines and the rest: a multisine or sweep label is not checked by
+        // it.
+        check.push_all(
+            steps
+                .iter()
+                .filter(|s| s.multisine.is_none() && s.sweep.is_none())
+                .map(|s| (&s.assembled.record, s.assembled.label, s.frequency)),
+        );
+        let driven = self.layout.profile.driven_channel();
+        for s in steps {
             let ReadStep {
                 frequency,
                 multisine,
@@ -73,7 +79,6 @@ impl<'k> Import<'k> {
                 assembled,
                 ..
             } = s;
-            let driven = self.layout.profile.driven_channel();
             let record = with_excitation(assembled.record, frequency, multisine, sweep, driven);
             self.records.extend((self.keep)(record));
         }

@@ -13,13 +13,18 @@
 //!   first step of a run wholly in its first pair, the last wholly in its last);
 //! - a step's kind, in the pair that ends with it (the first step of a run: its first pair).
 //!
+//! The pairs handed over together ([`LabelCheck::push_all`], a chunk of a file's records) are
+//! segmented on the machine's cores, their findings read in order.
+//!
 //! A run of one step is segmented alone. Only what the segmentation can see is checked: a
 //! change inside a random record is no disagreement, and a step shorter than three of its
 //! pair's windows (1.5 windows at a hop of a quarter: about six periods of the pair's lowest
 //! frequency), or a boundary next to one, is not checked. At most one line per record and kind.
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
+use forcemap_math::parallel;
 use forcemap_math::record::{Channel, Record};
 use forcemap_math::segment::{
     DetectedKind, DetectedStep, MIN_SERIES_SAMPLES, SegmentOptions, Segmentation, detect_steps,
@@ -63,16 +68,57 @@ struct Change {
     line: String,
 }
 
+/// What the check does next, in order: the segmentations are independent and run together,
+/// their findings are read in this order.
+enum Job {
+    /// Two consecutive steps of one rate; the first is its run's first.
+    Pair(Arc<Step>, Arc<Step>, bool),
+    /// A run's only step.
+    Alone(Arc<Step>),
+    /// The run ends: its last step's late changes are reported.
+    EndRun,
+}
+
+impl Job {
+    /// The drive this job segments (none for the end of a run), and its first step.
+    fn drive(&self) -> Option<(Vec<f64>, &Step)> {
+        match self {
+            Job::Pair(a, b, _) => {
+                let mut drive = Vec::with_capacity(a.drive.len() + b.drive.len());
+                drive.extend_from_slice(&a.drive);
+                drive.extend_from_slice(&b.drive);
+                Some((drive, a))
+            }
+            Job::Alone(a) => Some((a.drive.clone(), a)),
+            Job::EndRun => None,
+        }
+    }
+
+    fn samples(&self) -> usize {
+        match self {
+            Job::Pair(a, b, _) => a.drive.len() + b.drive.len(),
+            Job::Alone(a) => a.drive.len(),
+            Job::EndRun => 0,
+        }
+    }
+}
+
+/// A job's segmentation: `None` where there is nothing to segment or check, the error's line
+/// where it cannot be had.
+type Segmented = Option<Result<Segmentation, String>>;
+
 /// The label check of steps handed over one record at a time ([`LabelCheck::push`]), in the
 /// order of the file; the lines at the end ([`LabelCheck::finish`]).
 pub struct LabelCheck {
     driven: Channel,
     options: SegmentOptions,
     /// The step before the one being read (complete), and the one being read.
-    previous: Option<Step>,
+    previous: Option<Arc<Step>>,
     current: Option<Step>,
-    /// The run (steps of one rate in a row) has had a pair checked.
+    /// The run (steps of one rate in a row) has a pair.
     paired: bool,
+    /// Segmentations to run.
+    jobs: Vec<Job>,
     /// Changes in the second half of the last pair's later step.
     pending: Vec<Change>,
     found: BTreeMap<(usize, LabelFinding), (String, usize)>,
@@ -90,6 +136,7 @@ impl LabelCheck {
             previous: None,
             current: None,
             paired: false,
+            jobs: Vec::new(),
             pending: Vec::new(),
             found: BTreeMap::new(),
             not_checked: None,
@@ -103,6 +150,24 @@ impl LabelCheck {
     /// sample rate starts another run (the segmenter takes one rate), as does one without the
     /// driven channel, which is not checked.
     pub fn push(&mut self, record: &Record, label: usize, frequency: Option<f64>) {
+        self.take(record, label, frequency);
+        self.run_jobs();
+    }
+
+    /// [`LabelCheck::push`] of each of `records` (record, label, frequency), the steps they
+    /// complete segmented on the machine's cores.
+    pub fn push_all<'r>(
+        &mut self,
+        records: impl IntoIterator<Item = (&'r Record, usize, Option<f64>)>,
+    ) {
+        for (record, label, frequency) in records {
+            self.take(record, label, frequency);
+        }
+        self.run_jobs();
+    }
+
+    /// The record taken in: the jobs of the steps it completes queued.
+    fn take(&mut self, record: &Record, label: usize, frequency: Option<f64>) {
         let Some(drive) = record.channel(self.driven) else {
             self.step_complete();
             self.end_run();
@@ -137,6 +202,7 @@ impl LabelCheck {
     pub fn finish(mut self) -> Vec<String> {
         self.step_complete();
         self.end_run();
+        self.run_jobs();
         let mut lines: Vec<String> = self
             .not_checked
             .take()
@@ -156,9 +222,10 @@ impl LabelCheck {
         let Some(cur) = self.current.take() else {
             return;
         };
+        let cur = Arc::new(cur);
         if let Some(prev) = self.previous.take() {
             let first_of_run = !self.paired;
-            self.check_pair(&prev, &cur, first_of_run);
+            self.jobs.push(Job::Pair(prev, cur.clone(), first_of_run));
             self.paired = true;
         }
         self.previous = Some(cur);
@@ -168,40 +235,52 @@ impl LabelCheck {
     /// step's late changes reported.
     fn end_run(&mut self) {
         if let Some(last) = self.previous.take() {
-            if self.paired {
-                for c in std::mem::take(&mut self.pending) {
-                    self.note(c.index, LabelFinding::Change, c.line);
-                }
-            } else {
-                self.check_alone(&last);
-            }
+            self.jobs.push(match self.paired {
+                true => Job::EndRun,
+                false => Job::Alone(last),
+            });
         }
         self.paired = false;
-        self.pending.clear();
     }
 
-    fn note(&mut self, index: usize, what: LabelFinding, line: String) {
-        self.found
-            .entry((index, what))
-            .and_modify(|(_, more)| *more += 1)
-            .or_insert((line, 0));
-    }
-
-    /// The segmentation of `drive` (a step or a pair), `None` where it cannot be had (noted).
-    fn segment(&mut self, drive: &[f64], first: &Step) -> Option<Segmentation> {
-        // Too short for a window of any step: nothing to check.
-        if drive.len() < MIN_SERIES_SAMPLES {
-            return None;
+    /// The queued jobs' segmentations (on the cores where they are many), their findings read
+    /// in order.
+    fn run_jobs(&mut self) {
+        let jobs = std::mem::take(&mut self.jobs);
+        if jobs.is_empty() {
+            return;
         }
-        match detect_steps(
-            drive,
-            first.sample_rate_hz,
-            first.start_time_s,
-            &self.options,
-        ) {
+        let samples = jobs.iter().map(Job::samples).sum();
+        let min_part = parallel::min_part_of(samples, jobs.len());
+        let (driven, options) = (self.driven, &self.options);
+        let segmented: Vec<Segmented> = parallel::in_parts(&jobs, min_part, |part| {
+            part.iter().map(|j| segment(j, driven, options)).collect()
+        });
+        for (job, seg) in jobs.iter().zip(segmented) {
+            match job {
+                Job::Pair(a, b, a_first) => match self.segmentation(seg) {
+                    Some(seg) => self.check_pair(&seg, a, b, *a_first),
+                    None => self.pending.clear(),
+                },
+                Job::Alone(a) => {
+                    if let Some(seg) = self.segmentation(seg) {
+                        self.check_alone(&seg, a);
+                    }
+                }
+                Job::EndRun => {
+                    for c in std::mem::take(&mut self.pending) {
+                        self.note(c.index, LabelFinding::Change, c.line);
+                    }
+                }
+            }
+        }
+    }
+
+    /// A job's segmentation, its failure noted.
+    fn segmentation(&mut self, seg: Segmented) -> Option<Segmentation> {
+        match seg? {
             Ok(seg) => Some(seg),
-            Err(e) => {
-                let line = format!("labels not checked against {}: {e}", self.driven.name());
+            Err(line) => {
                 match &mut self.not_checked {
                     Some((_, more)) => *more += 1,
                     None => self.not_checked = Some((line, 0)),
@@ -211,19 +290,20 @@ impl LabelCheck {
         }
     }
 
-    /// Steps `a` and `b` (consecutive, one rate) segmented together; `a_first`: `a` is its
-    /// run's first step.
-    fn check_pair(&mut self, a: &Step, b: &Step, a_first: bool) {
+    fn note(&mut self, index: usize, what: LabelFinding, line: String) {
+        self.found
+            .entry((index, what))
+            .and_modify(|(_, more)| *more += 1)
+            .or_insert((line, 0));
+    }
+
+    /// Steps `a` and `b` (consecutive, one rate) read against their segmentation `seg`;
+    /// `a_first`: `a` is its run's first step.
+    fn check_pair(&mut self, seg: &Segmentation, a: &Step, b: &Step, a_first: bool) {
         // What the pair before found late in `a` is superseded by this pair, where it lies
         // nearer the middle.
         self.pending.clear();
-        let mut drive = Vec::with_capacity(a.drive.len() + b.drive.len());
-        drive.extend_from_slice(&a.drive);
-        drive.extend_from_slice(&b.drive);
-        let Some(seg) = self.segment(&drive, a) else {
-            return;
-        };
-        let view = View::new(&seg, a);
+        let view = View::new(seg, a);
         let boundary = a.drive.len();
         let (check_a, check_b) = (view.checkable(a.drive.len()), view.checkable(b.drive.len()));
         if check_a && check_b {
@@ -271,19 +351,16 @@ impl LabelCheck {
             }
         }
         if a_first && check_a {
-            self.check_kind(&seg, a, 0);
+            self.check_kind(seg, a, 0);
         }
         if check_b {
-            self.check_kind(&seg, b, boundary);
+            self.check_kind(seg, b, boundary);
         }
     }
 
-    /// A run's only step segmented alone.
-    fn check_alone(&mut self, a: &Step) {
-        let Some(seg) = self.segment(&a.drive, a) else {
-            return;
-        };
-        let view = View::new(&seg, a);
+    /// A run's only step read against its segmentation alone.
+    fn check_alone(&mut self, seg: &Segmentation, a: &Step) {
+        let view = View::new(seg, a);
         if !view.checkable(a.drive.len()) {
             return;
         }
@@ -293,7 +370,7 @@ impl LabelCheck {
                 self.note(a.index, LabelFinding::Change, line);
             }
         }
-        self.check_kind(&seg, a, 0);
+        self.check_kind(seg, a, 0);
     }
 
     /// The kind of step `a`, whose drive starts at sample `from` of the segmented series,
@@ -366,6 +443,19 @@ impl View {
             inside.step
         )
     }
+}
+
+/// The segmentation of a job's drive ([`Segmented`]).
+fn segment(job: &Job, driven: Channel, options: &SegmentOptions) -> Segmented {
+    let (drive, first) = job.drive()?;
+    // Too short for a window of any step: nothing to check.
+    if drive.len() < MIN_SERIES_SAMPLES {
+        return None;
+    }
+    Some(
+        detect_steps(&drive, first.sample_rate_hz, first.start_time_s, options)
+            .map_err(|e| format!("labels not checked against {}: {e}", driven.name())),
+    )
 }
 
 fn with_count(line: String, more: usize) -> String {
