@@ -19,6 +19,7 @@ mod broadband;
 mod element;
 mod estimator_choice;
 mod hysteresis_records;
+mod sine_stream;
 pub use broadband::{
     SWEEP_TRANSIENT_WINDOWS, analyse_sweep_records, identify_element_sample_records,
     identify_random_records, multisine_too_short, sample_records,
@@ -31,6 +32,7 @@ pub use estimator_choice::{CHOICE_MARGIN, MIN_CROSS_VALIDATION_STEPS, choose_est
 pub use hysteresis_records::{
     HysteresisRefit, refine_hysteresis_on_records, validate_forced_hysteresis,
 };
+pub use sine_stream::{Analysed, SineStepStream};
 
 #[derive(Debug, Error)]
 pub enum PipelineError {

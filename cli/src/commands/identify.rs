@@ -6,8 +6,7 @@ use anyhow::{Context, anyhow};
 use forcemap_math::diagnose::findings::NO_PREDICTION_PERCENT;
 use forcemap_math::identify::{Identification, Method, TrackPoint, records_drive};
 use forcemap_math::model::{HYSTERESIS_SUFFIX, IdentifiedModel, Model, ModelOptions};
-use forcemap_math::parallel;
-use forcemap_math::phasor::{HarmonicAnalysis, IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
+use forcemap_math::phasor::{IDENTIFICATION_MAX_HARMONIC, PhasorOptions};
 use forcemap_math::pipeline::{self, Validation};
 use forcemap_math::recipe::Setup;
 use forcemap_math::recipe::{ModelSpec, Recipe, SetupKind, SetupSpec, Tracking};
@@ -83,7 +82,7 @@ fn phasor_options(args: &IdentifyArgs) -> PhasorOptions {
 
 /// The sine steps of a bag or export analysed as they are read (`Err`: the first analysis that
 /// failed).
-pub(super) type Streamed = Result<(Vec<HarmonicAnalysis>, Vec<String>), pipeline::PipelineError>;
+pub(super) type Streamed = pipeline::Analysed;
 
 /// What `load` read: the data, the sine steps analysed as they were read (a streamed bag), and
 /// the warnings of the labels the data corrected ([`frequency_from_data`]).
@@ -127,7 +126,7 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
             samples_read,
         });
     }
-    let mut sines = SineBatches::new(phasor_options(args));
+    let mut sines = pipeline::SineStepStream::new(phasor_options(args));
     let mut frequency_warnings = Vec::new();
     // An element test's outputs need its sine steps' samples: kept whole.
     let mut element = false;
@@ -153,59 +152,6 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
         frequency_warnings,
         samples_read,
     })
-}
-
-/// Sine steps analysed as they are read, in batches of about [`SineBatches::SAMPLES_PER_CORE`]
-/// samples a core, each batch's steps on the machine's cores (the analyses in the steps' order).
-struct SineBatches {
-    phasor: PhasorOptions,
-    pending: Vec<Record>,
-    samples: usize,
-    analysed: Streamed,
-}
-
-impl SineBatches {
-    /// Samples a batch holds per core: four parts of the least a part holds, so that the cores
-    /// share a batch evenly.
-    const SAMPLES_PER_CORE: usize = 4 * parallel::PART_MIN_SAMPLES;
-
-    fn new(phasor: PhasorOptions) -> SineBatches {
-        SineBatches {
-            phasor,
-            pending: Vec::new(),
-            samples: 0,
-            analysed: Ok((Vec::new(), Vec::new())),
-        }
-    }
-
-    fn push(&mut self, r: Record) {
-        self.samples += r.len();
-        self.pending.push(r);
-        if self.samples >= Self::SAMPLES_PER_CORE * parallel::threads() {
-            self.analyse();
-        }
-    }
-
-    /// The pending steps analysed (none after the first that failed).
-    fn analyse(&mut self) {
-        let batch = std::mem::take(&mut self.pending);
-        self.samples = 0;
-        let Ok((analyses, notes)) = &mut self.analysed else {
-            return;
-        };
-        match pipeline::analyse_sine_steps(&batch, &self.phasor) {
-            Ok((a, n)) => {
-                analyses.extend(a);
-                notes.extend(n);
-            }
-            Err(e) => self.analysed = Err(e.into()),
-        }
-    }
-
-    fn finish(mut self) -> Streamed {
-        self.analyse();
-        self.analysed
-    }
 }
 
 /// The records of a held-out file (`--validate` of identify and diagnose): a CSV export or a
