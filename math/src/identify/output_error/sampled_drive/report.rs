@@ -19,9 +19,11 @@ impl RecordsOutputError<'_> {
         cov: &DMatrix<f64>,
     ) -> Identification {
         let np = self.p_element();
-        // Over the compared samples, a hysteresis state's priors left out.
+        // Over the compared samples, a hysteresis state's priors left out (and a low-pass's
+        // left-out start, whose rows are zeros).
         let data = &fit.residual[..self.data_rows()];
-        let rms = (data.iter().map(|r| r * r).sum::<f64>() / data.len().max(1) as f64).sqrt();
+        let compared = self.compared_rows();
+        let rms = (data.iter().map(|r| r * r).sum::<f64>() / compared.max(1) as f64).sqrt();
         let parameters: Vec<Parameter> = (0..np)
             .map(|i| Parameter {
                 name: start.parameters[i].name.clone(),
@@ -43,7 +45,7 @@ impl RecordsOutputError<'_> {
         let simulated = format!(
             "output error: the mass simulated under the measured {input} of {} record(s), each from its fitted initial state; {} samples",
             self.records.len(),
-            data.len()
+            compared
         );
         if !self.noise_unmeasured.is_empty() {
             let names: Vec<&str> = self.noise_unmeasured.iter().map(|c| c.name()).collect();
@@ -69,7 +71,7 @@ impl RecordsOutputError<'_> {
             parameters,
             covariance,
             condition_number: (sv.max() / sv.min()).sqrt(),
-            equations: data.len(),
+            equations: compared,
             r: start.r.clone(),
             residual_rms: rms,
             steps_used: self.records.iter().map(|r| r.step).collect(),
@@ -79,22 +81,35 @@ impl RecordsOutputError<'_> {
         }
     }
 
+    /// Residual rows the fit compares: the data rows less a low-pass's left-out start of each
+    /// record's channels ([`RecordsOutputError::filter_transient_samples`]).
+    fn compared_rows(&self) -> usize {
+        let left_out: usize = (0..self.records.len())
+            .map(|k| self.filter_transient_samples(k) * self.compared[k].len())
+            .sum();
+        self.data_rows() - left_out
+    }
+
     /// The RMS of `residual` (rows divided by each channel's noise std) in each compared
     /// channel's own unit: "relative_displacement_m 4.553e-4".
     fn misfit_in_units(&self, residual: &[f64]) -> String {
         let mut per: Vec<(Channel, f64, usize)> = Vec::new();
-        let blocks = self.compared.iter().flatten().zip(&self.blocks);
-        for ((c, sigma), rows) in blocks {
-            let sum: f64 = residual[rows.clone()]
-                .iter()
-                .map(|r| (r * sigma).powi(2))
-                .sum();
-            match per.iter_mut().find(|(d, ..)| d == c) {
-                Some((_, s, n)) => {
-                    *s += sum;
-                    *n += rows.len();
+        let mut blocks = self.blocks.iter();
+        for (k, channels) in self.compared.iter().enumerate() {
+            let left_out = self.filter_transient_samples(k);
+            for ((c, sigma), rows) in channels.iter().zip(blocks.by_ref()) {
+                let sum: f64 = residual[rows.clone()]
+                    .iter()
+                    .map(|r| (r * sigma).powi(2))
+                    .sum();
+                let n = rows.len() - left_out;
+                match per.iter_mut().find(|(d, ..)| d == c) {
+                    Some((_, s, m)) => {
+                        *s += sum;
+                        *m += n;
+                    }
+                    None => per.push((*c, sum, n)),
                 }
-                None => per.push((*c, sum, rows.len())),
             }
         }
         per.iter()
