@@ -138,18 +138,35 @@ pub fn load(path: &Path) -> anyhow::Result<Loaded> {
 
 /// The records of a file read into the CSV contract, its warnings and notices printed.
 fn of_import(path: &Path, csv: CsvImport) -> Loaded {
-    for w in crate::messages::grouped(&csv.warnings) {
-        eprintln!("warning: {}: {w}", path.display());
+    let (loaded, said) = import_said(path, csv);
+    print_said(&said);
+    loaded
+}
+
+/// What a reading says on stderr, one line each (`warning: ...`, `notice: ...`), for a caller
+/// that prints it when its own progress line is gone.
+pub type Said = Vec<String>;
+
+fn print_said(said: &Said) {
+    for line in said {
+        eprintln!("{line}");
     }
-    for notice in &csv.notices {
-        eprintln!("notice: {notice}");
-    }
-    Loaded {
+}
+
+/// The records of a file read into the CSV contract, and its warnings and notices.
+fn import_said(path: &Path, csv: CsvImport) -> (Loaded, Said) {
+    let mut said: Said = crate::messages::grouped(&csv.warnings)
+        .iter()
+        .map(|w| format!("warning: {}: {w}", path.display()))
+        .collect();
+    said.extend(csv.notices.iter().map(|n| format!("notice: {n}")));
+    let loaded = Loaded {
         records: csv.records,
         kind: csv.kind,
         parameters: BTreeMap::new(),
         ignored_columns: csv.ignored_columns,
-    }
+    };
+    (loaded, said)
 }
 
 /// Whether [`load_reduced`] streams `path`: a bag, or a file that is a CSV export.
@@ -161,11 +178,11 @@ pub fn streams(path: &Path) -> bool {
 /// `keep(kind, record)` as soon as it is read ([`RigBagReader::records_reduced`],
 /// [`read_csv_reduced`]): what `keep` returns is kept in the records. The kind is that of the
 /// first record. For an analysis that streams a long recording: memory follows what `keep`
-/// keeps, not the file.
+/// keeps, not the file. What [`load`] prints is returned, for the caller to print.
 pub fn load_reduced(
     path: &Path,
     mut keep: impl FnMut(SetupKind, Record) -> Option<Record>,
-) -> anyhow::Result<Loaded> {
+) -> anyhow::Result<(Loaded, Said)> {
     let source = path.display().to_string();
     let mut kind: Option<anyhow::Result<SetupKind>> = None;
     let mut keep_of_kind =
@@ -176,7 +193,7 @@ pub fn load_reduced(
     if is_bag(path) {
         let bag = RigBagReader::open(path)?.records_reduced(&mut keep_of_kind)?;
         let kind = kind.unwrap_or_else(|| kind_of(&bag.records, &source))?;
-        return of_bag_of_kind(path, bag, kind);
+        return Ok(bag_said(path, bag, kind));
     }
     if !streams(path) {
         anyhow::bail!("{source}: only a bag or a CSV export is read record by record");
@@ -185,7 +202,7 @@ pub fn load_reduced(
     if let Some(Err(e)) = kind {
         return Err(e);
     }
-    Ok(of_import(path, csv))
+    Ok(import_said(path, csv))
 }
 
 fn of_bag(path: &Path, bag: RigBag) -> anyhow::Result<Loaded> {
@@ -194,21 +211,32 @@ fn of_bag(path: &Path, bag: RigBag) -> anyhow::Result<Loaded> {
 }
 
 fn of_bag_of_kind(path: &Path, bag: RigBag, kind: SetupKind) -> anyhow::Result<Loaded> {
-    if let Some(why) = &bag.left_out {
-        eprintln!("notice: {}: {why}", path.display());
-    }
-    for w in crate::messages::grouped(&bag.warnings) {
-        eprintln!("warning: {}: {w}", path.display());
-    }
-    for n in &bag.notices {
-        eprintln!("notice: {}: {n}", path.display());
-    }
-    Ok(Loaded {
+    let (loaded, said) = bag_said(path, bag, kind);
+    print_said(&said);
+    Ok(loaded)
+}
+
+/// The records of a bag of setup `kind`, and what its reading says.
+fn bag_said(path: &Path, bag: RigBag, kind: SetupKind) -> (Loaded, Said) {
+    let at = path.display();
+    let mut said: Said = bag
+        .left_out
+        .iter()
+        .map(|why| format!("notice: {at}: {why}"))
+        .collect();
+    said.extend(
+        crate::messages::grouped(&bag.warnings)
+            .iter()
+            .map(|w| format!("warning: {at}: {w}")),
+    );
+    said.extend(bag.notices.iter().map(|n| format!("notice: {at}: {n}")));
+    let loaded = Loaded {
         records: bag.records,
         kind,
         parameters: bag.parameters,
         ignored_columns: vec![],
-    })
+    };
+    (loaded, said)
 }
 
 /// As [`load`]; with a channel map (`channels`), `path` is read through it: a bag recorded

@@ -132,8 +132,18 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
     let mut element = false;
     let file = file.expect("streams only a single file");
     let mut samples_read = 0;
-    let import = forcemap_io::input::load_reduced(file, |kind, mut r| {
+    // Progress as the records arrive (drawn from this thread only, so that nothing else
+    // writes to stderr while it shows).
+    let pb = indicatif::ProgressBar::new_spinner();
+    let mut records_read = 0;
+    let loaded = forcemap_io::input::load_reduced(file, |kind, mut r| {
         samples_read += r.len();
+        records_read += 1;
+        pb.set_message(format!(
+            "{}: {records_read} records read ({:.1} M samples)",
+            file.display(),
+            samples_read as f64 * 1e-6
+        ));
         element = kind == SetupKind::Element;
         frequency_warnings.extend(frequency_from_data(
             &mut r,
@@ -145,7 +155,12 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
         }
         sines.push(r);
         None
-    })?;
+    });
+    pb.finish_and_clear();
+    let (import, said) = loaded?;
+    for line in said {
+        eprintln!("{line}");
+    }
     Ok(Read {
         import,
         streamed: (!element).then(|| sines.finish()),
