@@ -147,7 +147,8 @@ fn of_import(path: &Path, csv: CsvImport) -> Loaded {
 /// that prints it when its own progress line is gone.
 pub type Said = Vec<String>;
 
-fn print_said(said: &Said) {
+/// Prints what a reading says, one line each, on stderr.
+pub fn print_said(said: &Said) {
     for line in said {
         eprintln!("{line}");
     }

@@ -158,9 +158,7 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
     });
     pb.finish_and_clear();
     let (import, said) = loaded?;
-    for line in said {
-        eprintln!("{line}");
-    }
+    forcemap_io::input::print_said(&said);
     Ok(Read {
         import,
         streamed: (!element).then(|| sines.finish()),

@@ -134,9 +134,8 @@ impl<'k> Import<'k> {
         })?;
         drop(parts);
         drop(steps);
-        for (mut record, frequency) in found {
-            let level = rms_about_mean(record.channel(driven).expect("a required channel"));
-            record.excitation = estimated_excitation(frequency, level);
+        for (record, frequency) in found {
+            let record = with_excitation(record, frequency, None, None, driven);
             self.records.extend((self.keep)(record));
         }
         Ok(())

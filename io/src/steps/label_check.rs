@@ -21,6 +21,7 @@
 //! pair's windows (1.5 windows at a hop of a quarter: about six periods of the pair's lowest
 //! frequency), or a boundary next to one, is not checked. At most one line per record and kind.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -81,15 +82,10 @@ enum Job {
 
 impl Job {
     /// The drive this job segments (none for the end of a run), and its first step.
-    fn drive(&self) -> Option<(Vec<f64>, &Step)> {
+    fn drive(&self) -> Option<(Cow<'_, [f64]>, &Step)> {
         match self {
-            Job::Pair(a, b, _) => {
-                let mut drive = Vec::with_capacity(a.drive.len() + b.drive.len());
-                drive.extend_from_slice(&a.drive);
-                drive.extend_from_slice(&b.drive);
-                Some((drive, a))
-            }
-            Job::Alone(a) => Some((a.drive.clone(), a)),
+            Job::Pair(a, b, _) => Some(([&a.drive[..], &b.drive[..]].concat().into(), a)),
+            Job::Alone(a) => Some((Cow::Borrowed(&a.drive[..]), a)),
             Job::EndRun => None,
         }
     }
@@ -107,7 +103,7 @@ impl Job {
 /// where it cannot be had.
 type Segmented = Option<Result<Segmentation, String>>;
 
-/// The label check of steps handed over one record at a time ([`LabelCheck::push`]), in the
+/// The label check of records handed over as they are read ([`LabelCheck::push_all`]), in the
 /// order of the file; the lines at the end ([`LabelCheck::finish`]).
 pub struct LabelCheck {
     driven: Channel,
@@ -144,18 +140,12 @@ impl LabelCheck {
         }
     }
 
-    /// The next record of the file, of labelled step `label` (`frequency`: its labelled sine
-    /// frequency, `None` for random). A record of the same label as the one before continues
-    /// its step (a step its timing cut in parts is one step to the drive); a record at another
-    /// sample rate starts another run (the segmenter takes one rate), as does one without the
-    /// driven channel, which is not checked.
-    pub fn push(&mut self, record: &Record, label: usize, frequency: Option<f64>) {
-        self.take(record, label, frequency);
-        self.run_jobs();
-    }
-
-    /// [`LabelCheck::push`] of each of `records` (record, label, frequency), the steps they
-    /// complete segmented on the machine's cores.
+    /// The next `records` of the file, in order, each (record, its labelled step, its labelled
+    /// sine frequency or `None` for random); the steps they complete are segmented on the
+    /// machine's cores. A record of the same label as the one before continues its step (a
+    /// step its timing cut in parts is one step to the drive); a record at another sample rate
+    /// starts another run (the segmenter takes one rate), as does one without the driven
+    /// channel, which is not checked.
     pub fn push_all<'r>(
         &mut self,
         records: impl IntoIterator<Item = (&'r Record, usize, Option<f64>)>,
@@ -474,8 +464,6 @@ pub fn check_labels(
     options: &SegmentOptions,
 ) -> Vec<String> {
     let mut check = LabelCheck::new(driven, options);
-    for (r, frequency) in steps {
-        check.push(r, r.step, *frequency);
-    }
+    check.push_all(steps.iter().map(|(r, frequency)| (r, r.step, *frequency)));
     check.finish()
 }

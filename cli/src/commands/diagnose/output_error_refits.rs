@@ -174,8 +174,6 @@ pub(super) fn refit(
     baseline: &Model,
     f: &PhasorFindings,
 ) -> anyhow::Result<Vec<Refit>> {
-    let with_progress =
-        |name: &str, run: &dyn Fn() -> anyhow::Result<Refit>| refitting_with_spinner(name, run);
     let (base, base_id) = refitting_with_spinner(&baseline.name, || refit_one(sim, baseline))?;
     // Along the measured motion the differentiated noise can hide what the simulation shows:
     // where the baseline's simulation misses the records beyond their noise and no effect was
@@ -202,20 +200,20 @@ pub(super) fn refit(
     // left out with a warning; the baseline's failure ends the diagnosis.
     let mut out = vec![base];
     let best_ranked = f.findings.top_effect.is_none();
-    let add = |out: &mut Vec<Refit>,
-               effect: Effect,
-               name: &str,
-               run: &dyn Fn() -> anyhow::Result<Refit>| match with_progress(name, run)
-    {
-        Ok(mut r) => {
-            r.effect = Some(effect);
-            if best_ranked && !is_channel_effect(effect) {
-                r.notes.insert(0, BEST_RANKED_NOTE.into());
+    let add =
+        |out: &mut Vec<Refit>,
+         effect: Effect,
+         name: &str,
+         run: &dyn Fn() -> anyhow::Result<Refit>| match refitting_with_spinner(name, run) {
+            Ok(mut r) => {
+                r.effect = Some(effect);
+                if best_ranked && !is_channel_effect(effect) {
+                    r.notes.insert(0, BEST_RANKED_NOTE.into());
+                }
+                out.push(r);
             }
-            out.push(r);
-        }
-        Err(e) => eprintln!("warning: {name} not refitted by output error: {e:#}"),
-    };
+            Err(e) => eprintln!("warning: {name} not refitted by output error: {e:#}"),
+        };
     // The element candidate's own fit, the start of a pair with a channel effect.
     let element_fit = std::cell::RefCell::new(None);
     if let Some((effect, model)) = &named {
@@ -261,7 +259,7 @@ pub(super) fn refit(
             for (effect, channel) in CHANNEL_EFFECTS {
                 let name = format!("{} + {}", model.name, effect.name());
                 let run = || refit_channel_effect(sim, mass_kg, model, element_id, channel, &name);
-                match with_progress(&name, &run) {
+                match refitting_with_spinner(&name, run) {
                     Ok(mut r) => {
                         let pair = if first == effect {
                             [effect, *element]
