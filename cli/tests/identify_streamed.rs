@@ -2,11 +2,14 @@
 //! complete, its samples dropped) when it identifies by fd or fd-multi, converged and without
 //! plots; with `--plot` it reads the bag whole. Both give the same output bit for bit on the
 //! committed bags (the element test is read whole either way: its outputs need the samples).
+//! The same for CSV exports, and for MDF4 and TDMS files of a run written by asammdf and
+//! npTDMS (`$FORCEMAP_PYTHON`).
 #![allow(clippy::unwrap_used, reason = "tests")]
 
 mod common;
 
 use std::path::Path;
+use std::process::Output;
 
 use common::forcemap;
 
@@ -43,6 +46,32 @@ fn a_streamed_bag_identifies_as_the_whole_bag_bit_for_bit() {
     }
 }
 
+/// `args` streamed, and read whole (with `--plot` into `plots`): the same stdout, the same stderr
+/// but for the plots' lines.
+fn assert_streamed_as_whole(args: &[&str], plots: &str, what: &str) {
+    let streamed = forcemap(args);
+    let mut whole_args = args.to_vec();
+    whole_args.extend_from_slice(&["--plot", plots]);
+    let whole: Output = forcemap(&whole_args);
+    assert!(
+        streamed.status.success(),
+        "{what}: {}",
+        String::from_utf8_lossy(&streamed.stderr)
+    );
+    assert!(!streamed.stdout.is_empty());
+    assert_eq!(streamed.stdout, whole.stdout, "{what}");
+    let whole_stderr: String = String::from_utf8_lossy(&whole.stderr)
+        .lines()
+        .filter(|l| !l.starts_with("wrote "))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert_eq!(
+        String::from_utf8_lossy(&streamed.stderr),
+        whole_stderr,
+        "{what}"
+    );
+}
+
 /// The same for CSV exports: read record by record, each sine step analysed as it is read,
 /// stdout and stderr as those of the export read whole (`--plot`).
 #[test]
@@ -69,26 +98,53 @@ fn a_streamed_export_identifies_as_the_whole_export_bit_for_bit() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let mut args = vec!["identify", csv, "--json"];
         args.extend_from_slice(&extra);
-        let streamed = forcemap(&args);
-        args.extend_from_slice(&["--plot", plots]);
-        let whole = forcemap(&args);
+        assert_streamed_as_whole(&args, plots, system);
+    }
+}
+
+/// The same for MDF4 and TDMS files of the rig's run (io/tests/python/measurement_files.py:
+/// asammdf's `time` master; npTDMS with a time channel over several segments, and with
+/// waveform timing): their rows read block by block, each sine step analysed as it is read.
+#[test]
+fn streamed_mdf4_and_tdms_files_identify_as_read_whole_bit_for_bit() {
+    let Ok(python) = std::env::var("FORCEMAP_PYTHON") else {
         assert!(
-            streamed.status.success(),
-            "{}",
-            String::from_utf8_lossy(&streamed.stderr)
+            std::env::var_os("CI").is_none(),
+            "CI is set but FORCEMAP_PYTHON is not: the asammdf and npTDMS writers did not run"
         );
-        assert!(!streamed.stdout.is_empty());
-        assert_eq!(streamed.stdout, whole.stdout, "{system}");
-        // The plots' lines aside.
-        let whole_stderr: String = String::from_utf8_lossy(&whole.stderr)
-            .lines()
-            .filter(|l| !l.starts_with("wrote "))
-            .map(|l| format!("{l}\n"))
-            .collect();
-        assert_eq!(
-            String::from_utf8_lossy(&streamed.stderr),
-            whole_stderr,
-            "{system}"
-        );
+        println!("skipped: set FORCEMAP_PYTHON to a Python with asammdf and npTDMS");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let plots = dir.path().join("plots");
+    let plots = plots.to_str().unwrap();
+    let csv = dir.path().join("rig.csv");
+    let o = forcemap(&["simulate", "--snr-db", "40", "--csv", csv.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let script =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../io/tests/python/measurement_files.py");
+    let o = std::process::Command::new(python)
+        .arg(&script)
+        .arg(&csv)
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "measurement_files.py failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    for file in ["run.mf4", "run.tdms", "run_wf.tdms"] {
+        let path = dir.path().join(file);
+        let args = [
+            "identify",
+            path.to_str().unwrap(),
+            "--json",
+            "--model",
+            "coulomb",
+            "--mass-kg",
+            "36",
+        ];
+        assert_streamed_as_whole(&args, plots, file);
     }
 }

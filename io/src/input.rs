@@ -170,14 +170,21 @@ fn import_said(path: &Path, csv: CsvImport) -> (Loaded, Said) {
     (loaded, said)
 }
 
-/// Whether [`load_reduced`] streams `path`: a bag, or a file that is a CSV export.
+/// Whether [`load_reduced`] streams `path`: a bag, or a file that is a CSV export, an MDF4 or a
+/// TDMS file.
 pub fn streams(path: &Path) -> bool {
-    is_bag(path) || (path.is_file() && FileFormat::of(path) == FileFormat::Csv)
+    is_bag(path)
+        || (path.is_file()
+            && matches!(
+                FileFormat::of(path),
+                FileFormat::Csv | FileFormat::Mdf | FileFormat::Tdms
+            ))
 }
 
-/// [`load`] of a rig bag or a CSV export ([`streams`]) with each record handed to
-/// `keep(kind, record)` as soon as it is read ([`RigBagReader::records_reduced`],
-/// [`read_csv_reduced`]): what `keep` returns is kept in the records. The kind is that of the
+/// [`load`] of a rig bag, a CSV export, an MDF4 or a TDMS file ([`streams`]) with each record
+/// handed to `keep(kind, record)` as soon as it is read ([`RigBagReader::records_reduced`],
+/// [`read_csv_reduced`], [`crate::tabular::read_by_contract_names_reduced`]): what `keep`
+/// returns is kept in the records. The kind is that of the
 /// first record. For an analysis that streams a long recording: memory follows what `keep`
 /// keeps, not the file. What [`load`] prints is returned, for the caller to print.
 pub fn load_reduced(
@@ -197,9 +204,16 @@ pub fn load_reduced(
         return Ok(bag_said(path, bag, kind));
     }
     if !streams(path) {
-        anyhow::bail!("{source}: only a bag or a CSV export is read record by record");
+        anyhow::bail!(
+            "{source}: only a bag, a CSV export, an MDF4 or a TDMS file is read record by record"
+        );
     }
-    let csv = read_csv_reduced(path, &mut keep_of_kind)?;
+    let csv = match FileFormat::of(path) {
+        FileFormat::Mdf | FileFormat::Tdms => {
+            crate::tabular::read_by_contract_names_reduced(path, &mut keep_of_kind)?
+        }
+        _ => read_csv_reduced(path, &mut keep_of_kind)?,
+    };
     if let Some(Err(e)) = kind {
         return Err(e);
     }

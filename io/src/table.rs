@@ -2,19 +2,25 @@
 //! into records by the CSV contract's reader: the rows go through the same parsing, checks and
 //! step assembly as a CSV export's, so that the same run gives the same records from either.
 //!
-//! The table is handed over as CSV text in memory, each number in shortest round-trip form
-//! (the form [`write_csv`](crate::csv_export::write_csv) writes), so no value changes on the
-//! way. What the reader says of a row (errors, warnings, notices) names the row's line in the
-//! file where the file has lines (text), else its sample: `line k + 2` of the CSV text is
-//! sample `k` (the header is line 1).
+//! The table's rows go to the contract's reader as numbers
+//! ([`read_number_rows`]), each read as the cell an export would write for it. What the reader
+//! says of a row (errors, warnings, notices) names the row's line in the file where the file
+//! has lines (text), else its sample: the reader's `line k + 2` is sample `k` (the header is
+//! line 1).
 
 use std::path::{Path, PathBuf};
 
 use forcemap_math::record::Channel;
 
+use forcemap_math::record::Record;
+
 use crate::csv_export::{
-    CsvImport, FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN, fmt_f64, read_csv_from,
+    CsvImport, FREQUENCY_COLUMN, NumberRowsError, STEP_COLUMN, TIME_COLUMN, read_number_rows,
 };
+
+/// Rows handed to the CSV contract's reader at a time: about as many as a CSV export's chunk
+/// holds, so that the label check has a block's pairs of steps to spread over the cores.
+const ROWS_A_BLOCK: usize = 1 << 17;
 
 /// The contract column a channel of a measurement file stands for, by its name: a forcemap
 /// channel name (`force_n`, `base_displacement_m`, ...), `time_s`, `step` or `frequency_hz`.
@@ -151,6 +157,7 @@ impl SampleTable {
         path: &Path,
         format: &'static str,
         places: RowPlaces,
+        keep: impl FnMut(Record) -> Option<Record>,
     ) -> Result<CsvImport, TableError> {
         let Some((first, first_values)) = self.columns.first() else {
             return Err(TableError::Format {
@@ -173,36 +180,28 @@ impl SampleTable {
                 ),
             });
         }
-        let mut text = String::new();
         let names: Vec<&str> = self.columns.iter().map(|(n, _)| *n).collect();
-        text.push_str(&names.join(","));
-        text.push('\n');
-        for k in 0..n {
-            for (i, (name, values)) in self.columns.iter().enumerate() {
-                if i > 0 {
-                    text.push(',');
-                }
-                // The step index as an integer, as an export writes it.
-                if *name == STEP_COLUMN && values[k].fract() == 0.0 && values[k].abs() < 1e15 {
-                    text.push_str(&format!("{}", values[k] as i64));
-                } else {
-                    text.push_str(&fmt_f64(values[k]));
-                }
+        let mut next = 0;
+        let fill = |block: &mut Vec<f64>| -> Result<usize, TableError> {
+            let rows = (n - next).min(ROWS_A_BLOCK);
+            for k in next..next + rows {
+                block.extend(self.columns.iter().map(|(_, v)| v[k]));
             }
-            text.push('\n');
-        }
-        match read_csv_from(text.as_bytes(), path) {
-            Ok(mut import) => {
-                for m in import.warnings.iter_mut().chain(import.notices.iter_mut()) {
-                    *m = places.rename(m);
-                }
-                Ok(import)
-            }
-            Err(e) => Err(TableError::Rows {
+            next += rows;
+            Ok(rows)
+        };
+        let rename = |e: NumberRowsError<TableError>| match e {
+            NumberRowsError::Rows(e) => TableError::Rows {
                 format,
                 message: places.rename(&e.to_string()),
-            }),
+            },
+            NumberRowsError::Source(e) => e,
+        };
+        let mut import = read_number_rows(path, &names, keep, fill).map_err(rename)?;
+        for m in import.warnings.iter_mut().chain(import.notices.iter_mut()) {
+            *m = places.rename(m);
         }
+        Ok(import)
     }
 }
 
@@ -224,7 +223,7 @@ mod tests {
         t.push("time_s", vec![0.0, 1.0, 2.0], p, "TDMS").unwrap();
         t.push("force_n", vec![0.0, 1.0], p, "TDMS").unwrap();
         let e = t
-            .into_import(p, "TDMS", RowPlaces::Samples)
+            .into_import(p, "TDMS", RowPlaces::Samples, Some)
             .unwrap_err()
             .to_string();
         assert!(

@@ -52,7 +52,8 @@
 //! `multisine` (the multisine label columns), `sweep` (the sweep label columns), `read`, `rows`
 //! (the rows split in place), `row_cells` (a row's cells parsed), `row_parts` (a chunk's rows
 //! parsed over the cores), `row_steps` (rows into step records), `stream` (a file read chunk by chunk),
-//! `import` (records labelled, checked and handed over as they are read), `write`, `error`.
+//! `import` (records labelled, checked and handed over as they are read), `number_rows` (rows
+//! of numbers, a measurement file's channels, read by the same rules), `write`, `error`.
 //!
 //! [`SetupKind::BaseExcited`]: forcemap_math::recipe::SetupKind::BaseExcited
 //! [`SetupKind::DrivePoint`]: forcemap_math::recipe::SetupKind::DrivePoint
@@ -63,6 +64,7 @@ pub mod dialect;
 mod error;
 mod import;
 pub mod multisine;
+mod number_rows;
 mod read;
 mod row_cells;
 mod row_parts;
@@ -78,9 +80,9 @@ pub use contract::{
 };
 pub use error::CsvError;
 pub use multisine::{MULTISINE_BASE_COLUMN, MULTISINE_LINES_COLUMN};
+pub use number_rows::{NumberRowsError, read_number_rows};
 pub use read::{read_csv, read_csv_from, read_csv_reduced};
 #[doc(hidden)]
 pub use stream::read_csv_in_chunks;
 pub use sweep::{SWEEP_END_COLUMN, SWEEP_LAW_COLUMN, SWEEP_START_COLUMN};
-pub(crate) use write::fmt_f64;
 pub use write::write_csv;

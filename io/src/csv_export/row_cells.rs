@@ -47,22 +47,7 @@ pub(super) fn parse_head(path: &Path, layout: &Layout, rows: &Rows) -> Result<Ro
         Some(col) => parse_step(path, line, cell(col))?,
         None => 0,
     };
-    let freq_text = layout.freq_col.map_or(&b""[..], cell);
-    let freq = if freq_text.is_empty() {
-        None
-    } else {
-        let f = parse_number(path, line, FREQUENCY_COLUMN, freq_text)?;
-        if f < 0.0 {
-            return Err(CsvError::InvalidValue {
-                path: path.to_path_buf(),
-                line,
-                column: FREQUENCY_COLUMN.to_string(),
-                cell: String::from_utf8_lossy(freq_text).into_owned(),
-                reason: "a frequency must not be negative",
-            });
-        }
-        (f != 0.0).then_some(f)
-    };
+    let freq = parse_frequency(path, line, layout.freq_col.map_or(&b""[..], cell))?;
     let multisine = match layout.multisine_cols {
         Some((base_col, lines_col)) => multisine::parse_row(
             path,
@@ -97,6 +82,28 @@ pub(super) fn parse_head(path: &Path, layout: &Layout, rows: &Rows) -> Result<Ro
     })
 }
 
+/// A sine step's frequency: `None` (random excitation) for an empty cell or 0.
+pub(super) fn parse_frequency(
+    path: &Path,
+    line: u64,
+    cell: &[u8],
+) -> Result<Option<f64>, CsvError> {
+    if cell.is_empty() {
+        return Ok(None);
+    }
+    let f = parse_number(path, line, FREQUENCY_COLUMN, cell)?;
+    if f < 0.0 {
+        return Err(CsvError::InvalidValue {
+            path: path.to_path_buf(),
+            line,
+            column: FREQUENCY_COLUMN.to_string(),
+            cell: String::from_utf8_lossy(cell).into_owned(),
+            reason: "a frequency must not be negative",
+        });
+    }
+    Ok((f != 0.0).then_some(f))
+}
+
 /// The channel values of the current row of `rows` (on `line`), in the layout's order,
 /// appended to `values`.
 pub(super) fn parse_values(
@@ -117,7 +124,12 @@ pub(super) fn text(cell: &[u8]) -> &str {
     std::str::from_utf8(cell).unwrap_or_default()
 }
 
-fn parse_number(path: &Path, line: u64, column: &str, cell: &[u8]) -> Result<f64, CsvError> {
+pub(super) fn parse_number(
+    path: &Path,
+    line: u64,
+    column: &str,
+    cell: &[u8],
+) -> Result<f64, CsvError> {
     if cell.is_empty() {
         return Err(CsvError::EmptyCell {
             path: path.to_path_buf(),
@@ -160,7 +172,7 @@ fn parse_number(path: &Path, line: u64, column: &str, cell: &[u8]) -> Result<f64
 }
 
 /// A step index: a non-negative integer (an integral float such as `3.0` is accepted).
-fn parse_step(path: &Path, line: u64, cell: &[u8]) -> Result<usize, CsvError> {
+pub(super) fn parse_step(path: &Path, line: u64, cell: &[u8]) -> Result<usize, CsvError> {
     if let Ok(s) = text(cell).parse::<usize>() {
         return Ok(s);
     }
@@ -179,7 +191,7 @@ fn parse_step(path: &Path, line: u64, cell: &[u8]) -> Result<usize, CsvError> {
 }
 
 /// The decimal resolution a number was written with: `0.000100` -> 1e-6, `1.5e-3` -> 1e-4.
-fn decimal_resolution(text: &[u8]) -> f64 {
+pub(super) fn decimal_resolution(text: &[u8]) -> f64 {
     let (mantissa, exponent) = match text.iter().position(|&b| b == b'e' || b == b'E') {
         Some(i) => (
             &text[..i],

@@ -184,7 +184,7 @@ impl<'a> RowSteps<'a> {
     /// A row whose time and labels are `head`, checked against the rows before and added to its
     /// step; `values` appends its channel values (or refuses them), which is done after the
     /// checks so that a row's errors come in the order of one reader's.
-    fn assemble(
+    pub(super) fn assemble(
         &mut self,
         head: RowHead,
         values: impl FnOnce(&mut Vec<f64>) -> Result<(), CsvError>,

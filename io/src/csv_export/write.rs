@@ -278,12 +278,20 @@ fn validate_for_write(
 /// Shortest round-trip formatting; exponent form for very large or small magnitudes to keep
 /// cells short. Both forms parse back to the identical f64.
 pub(crate) fn fmt_f64(v: f64) -> String {
+    let mut s = String::new();
+    write_f64(&mut s, v);
+    s
+}
+
+/// [`fmt_f64`] appended to `out`.
+pub(crate) fn write_f64(out: &mut String, v: f64) {
+    use std::fmt::Write;
     let a = v.abs();
-    if a == 0.0 || (1e-5..1e16).contains(&a) {
-        format!("{v}")
+    let _ = if a == 0.0 || (1e-5..1e16).contains(&a) {
+        write!(out, "{v}")
     } else {
-        format!("{v:e}")
-    }
+        write!(out, "{v:e}")
+    };
 }
 
 /// A temporary file next to the target, removed on drop unless persisted.

@@ -15,6 +15,8 @@ pub mod text;
 
 use std::path::Path;
 
+use forcemap_math::record::Record;
+
 use crate::csv_export::CsvImport;
 use crate::input::FileFormat;
 use crate::table::TableError;
@@ -140,13 +142,23 @@ pub fn open(path: &Path, map: Option<&TableMap>) -> Result<Box<dyn ColumnFile>, 
 /// The records of the file at `path`, its columns picked by `map`.
 pub fn read_mapped(path: &Path, map: &TableMap) -> Result<CsvImport, TableError> {
     let mut file = open(path, Some(map))?;
-    resolve::read_through(file.as_mut(), path, map)
+    resolve::read_through(file.as_mut(), path, map, Some)
 }
 
 /// The records of an MDF4 or TDMS file whose channels are named as forcemap names them (no
 /// map): the map of those names ([`default_map`]).
 pub fn read_by_contract_names(path: &Path) -> Result<CsvImport, TableError> {
+    read_by_contract_names_reduced(path, Some)
+}
+
+/// [`read_by_contract_names`] with each record handed to `keep` as it is read
+/// ([`read_csv_reduced`](crate::csv_export::read_csv_reduced)): the import's records are those
+/// `keep` returns.
+pub fn read_by_contract_names_reduced(
+    path: &Path,
+    keep: impl FnMut(Record) -> Option<Record>,
+) -> Result<CsvImport, TableError> {
     let mut file = open(path, None)?;
     let map = default_map(file.as_ref(), path)?;
-    resolve::read_through(file.as_mut(), path, &map)
+    resolve::read_through(file.as_mut(), path, &map, keep)
 }

@@ -6,6 +6,8 @@ use std::path::Path;
 use super::datetime::{Instant, parse_instant, seconds_since_first};
 use super::{ColumnFile, ColumnInfo, RawValues, TimeBase};
 use crate::channel_map::{FREQUENCY_LABEL, STEP_LABEL, TIME_LABEL};
+use forcemap_math::record::Record;
+
 use crate::csv_export::{CsvImport, FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN};
 use crate::table::{RowPlaces, SampleTable, TableError};
 use crate::table_map::{ColumnRef, ColumnSource, NamedRows, RecordMaking, TableMap, TimeSource};
@@ -494,6 +496,7 @@ pub fn read_through(
     file: &mut dyn ColumnFile,
     path: &Path,
     map: &TableMap,
+    keep: impl FnMut(Record) -> Option<Record>,
 ) -> Result<CsvImport, TableError> {
     let Picks {
         plans,
@@ -577,7 +580,7 @@ pub fn read_through(
         Some(lines) => RowPlaces::Lines(lines),
         None => RowPlaces::Samples,
     };
-    let mut import = table.into_import(path, file.format(), places)?;
+    let mut import = table.into_import(path, file.format(), places, keep)?;
     if map.records.by_map() {
         // The step label is the map's, not the file's: checking it against the drive says
         // nothing (a sine test read as one record is not mislabelled).

@@ -47,7 +47,7 @@ pub fn read_tdms(path: &Path) -> Result<CsvImport, TableError> {
 pub fn read_tdms_bytes(bytes: &[u8], path: &Path) -> Result<CsvImport, TableError> {
     let mut file = TdmsColumns::from_bytes(bytes, path)?;
     let map = crate::tabular::default_map(&file, path)?;
-    crate::tabular::read_through(&mut file, path, &map)
+    crate::tabular::read_through(&mut file, path, &map, Some)
 }
 
 /// A TDMS file as a file of columns: every channel of every group with data, its unit from
