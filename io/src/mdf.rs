@@ -15,7 +15,7 @@ use mdf4_rs::MDF;
 
 use crate::csv_export::CsvImport;
 use crate::table::TableError;
-use crate::tabular::{ColumnFile, ColumnInfo, RawValues, TimeBase};
+use crate::tabular::{ColumnBlocks, ColumnFile, ColumnInfo, RawValues, TimeBase};
 
 const FORMAT: &str = "MDF4";
 /// `cn_type` of a master and a virtual master channel, `cn_sync_type` of time.
@@ -123,30 +123,92 @@ impl ColumnFile for MdfColumns {
     }
 
     fn read(&mut self, picks: &[(usize, bool)]) -> Result<Vec<RawValues>, TableError> {
-        let path = self.path.clone();
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            let groups = self.mdf.channel_groups();
-            picks
-                .iter()
-                .map(|&(k, _)| {
-                    let (g, c) = self.at[k];
-                    let channels = groups[g].channels();
-                    let values = channels[c].values().map_err(|e| TableError::Format {
-                        path: path.clone(),
-                        format: FORMAT,
-                        message: format!("{}: {e}", self.columns[k].label()),
-                    })?;
-                    Ok(RawValues::Numbers(
-                        values
-                            .into_iter()
-                            .map(|v| v.and_then(|v| v.as_f64()).unwrap_or(f64::NAN))
-                            .collect(),
-                    ))
-                })
-                .collect()
-        }))
-        .map_err(|_| malformed(&path))?
+        let ColumnBlocks { blocks, .. } = self.read_blocks(picks)?;
+        let mut values: Vec<Vec<f64>> = vec![Vec::new(); picks.len()];
+        for block in blocks {
+            for (v, b) in values.iter_mut().zip(block?) {
+                if let RawValues::Numbers(b) = b {
+                    v.extend(b);
+                }
+            }
+        }
+        Ok(values.into_iter().map(RawValues::Numbers).collect())
     }
+
+    /// Each picked channel's values decoded and converted a block at a time (the file is in
+    /// memory, as mdf4-rs reads it; its decoded values are not).
+    fn read_blocks(&mut self, picks: &[(usize, bool)]) -> Result<ColumnBlocks<'_>, TableError> {
+        let path = self.path.clone();
+        let (mdf, at, columns) = (&self.mdf, &self.at, &self.columns);
+        let (lengths, mut values) = catch(&path, || {
+            let groups = mdf.channel_groups();
+            let mut lengths = Vec::new();
+            let mut values = Vec::new();
+            for &(k, _) in picks {
+                let (g, c) = at[k];
+                let channel = &groups[g].channels()[c];
+                let error = |e: mdf4_rs::Error| TableError::Format {
+                    path: path.clone(),
+                    format: FORMAT,
+                    message: format!("{}: {e}", columns[k].label()),
+                };
+                lengths.push(records_of(mdf, g, c).map_err(error)?);
+                values.push((channel.iter_values().map_err(error)?, columns[k].label()));
+            }
+            Ok((lengths, values))
+        })?;
+        let blocks = std::iter::from_fn(move || {
+            let block = catch(&path, || {
+                let mut block = Vec::with_capacity(values.len());
+                for (it, label) in &mut values {
+                    let mut v = Vec::with_capacity(BLOCK_VALUES);
+                    for value in it.by_ref().take(BLOCK_VALUES) {
+                        let value = value.map_err(|e| TableError::Format {
+                            path: path.clone(),
+                            format: FORMAT,
+                            message: format!("{label}: {e}"),
+                        })?;
+                        v.push(value.and_then(|v| v.as_f64()).unwrap_or(f64::NAN));
+                    }
+                    block.push(v);
+                }
+                Ok(block)
+            });
+            match block {
+                Ok(b) if b.first().is_none_or(Vec::is_empty) => None,
+                Ok(b) => Some(Ok(b.into_iter().map(RawValues::Numbers).collect())),
+                Err(e) => Some(Err(e)),
+            }
+        });
+        Ok(ColumnBlocks {
+            lengths,
+            blocks: Box::new(blocks),
+        })
+    }
+}
+
+/// Values of each picked channel decoded at a time.
+const BLOCK_VALUES: usize = 1 << 17;
+
+/// `f` with a panic in mdf4-rs reported as a malformed file.
+fn catch<T>(
+    path: &std::path::Path,
+    f: impl FnOnce() -> Result<T, TableError>,
+) -> Result<T, TableError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|_| malformed(path))?
+}
+
+/// The records of channel `c` of the `g`-th channel group (counted over the data groups), as
+/// the crate reads them for its values.
+fn records_of(mdf: &MDF, g: usize, c: usize) -> Result<usize, mdf4_rs::Error> {
+    let raw = mdf.raw();
+    let (dg, cg) = raw
+        .data_groups
+        .iter()
+        .flat_map(|dg| dg.channel_groups.iter().map(move |cg| (dg, cg)))
+        .nth(g)
+        .expect("the channel group of a column");
+    Ok(cg.raw_channels[c].records(dg, cg, &raw.mmap)?.count())
 }
 
 fn u64_at(bytes: &[u8], at: usize) -> Option<u64> {

@@ -1,8 +1,9 @@
-//! Channels read from a measurement file (MDF4, TDMS) as one table of named columns, turned
-//! into records by the CSV contract's reader: the rows go through the same parsing, checks and
-//! step assembly as a CSV export's, so that the same run gives the same records from either.
+//! Channels read from a measurement file (MDF4, TDMS, a file of columns through a map) as one
+//! table of named columns, turned into records by the CSV contract's reader: the rows go
+//! through the same checks and step assembly as a CSV export's, so that the same run gives the
+//! same records from either.
 //!
-//! The table's rows go to the contract's reader as numbers
+//! The table's rows go to the contract's reader as numbers, a block at a time
 //! ([`read_number_rows`]), each read as the cell an export would write for it. What the reader
 //! says of a row (errors, warnings, notices) names the row's line in the file where the file
 //! has lines (text), else its sample: the reader's `line k + 2` is sample `k` (the header is
@@ -10,17 +11,11 @@
 
 use std::path::{Path, PathBuf};
 
-use forcemap_math::record::Channel;
-
-use forcemap_math::record::Record;
+use forcemap_math::record::{Channel, Record};
 
 use crate::csv_export::{
     CsvImport, FREQUENCY_COLUMN, NumberRowsError, STEP_COLUMN, TIME_COLUMN, read_number_rows,
 };
-
-/// Rows handed to the CSV contract's reader at a time: about as many as a CSV export's chunk
-/// holds, so that the label check has a block's pairs of steps to spread over the cores.
-const ROWS_A_BLOCK: usize = 1 << 17;
 
 /// The contract column a channel of a measurement file stands for, by its name: a forcemap
 /// channel name (`force_n`, `base_displacement_m`, ...), `time_s`, `step` or `frequency_hz`.
@@ -31,12 +26,6 @@ pub fn contract_column(name: &str) -> Option<&'static str> {
         .into_iter()
         .find(|c| *c == name)
         .or_else(|| Channel::from_name(name).map(Channel::name))
-}
-
-/// Named columns of equal length, in the order they were found.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct SampleTable {
-    pub columns: Vec<(&'static str, Vec<f64>)>,
 }
 
 /// Errors of reading a measurement file into records.
@@ -130,79 +119,59 @@ impl RowPlaces<'_> {
     }
 }
 
-impl SampleTable {
-    /// Adds a column; a second column of the same contract name is an error naming both.
-    pub fn push(
-        &mut self,
-        name: &'static str,
-        values: Vec<f64>,
-        path: &Path,
-        format: &'static str,
-    ) -> Result<(), TableError> {
-        if self.columns.iter().any(|(n, _)| *n == name) {
-            return Err(TableError::Format {
-                path: path.to_path_buf(),
-                format,
-                message: format!("channel '{name}' appears more than once"),
-            });
-        }
-        self.columns.push((name, values));
-        Ok(())
+/// Checks the columns a table hands to the CSV contract's reader, by name and number of
+/// samples, before any is read: at least one, all as long as the first.
+pub fn check_columns(
+    names: &[&str],
+    lengths: &[usize],
+    path: &Path,
+    format: &'static str,
+) -> Result<(), TableError> {
+    let (Some(first), Some(&n)) = (names.first(), lengths.first()) else {
+        return Err(TableError::Format {
+            path: path.to_path_buf(),
+            format,
+            message: "no channel with a forcemap name (time_s, step, frequency_hz, \
+                      force_n, base_displacement_m, ...)"
+                .to_string(),
+        });
+    };
+    if let Some((name, len)) = names.iter().zip(lengths).find(|(_, l)| **l != n) {
+        return Err(TableError::Format {
+            path: path.to_path_buf(),
+            format,
+            message: format!(
+                "channel '{name}' has {len} samples but '{first}' has {n}; the channels must \
+                 share one time base"
+            ),
+        });
     }
+    Ok(())
+}
 
-    /// The records of the table, through the CSV contract's reader, what it says of rows named
-    /// by `places`. Every column must have as many samples as the first.
-    pub fn into_import(
-        self,
-        path: &Path,
-        format: &'static str,
-        places: RowPlaces,
-        keep: impl FnMut(Record) -> Option<Record>,
-    ) -> Result<CsvImport, TableError> {
-        let Some((first, first_values)) = self.columns.first() else {
-            return Err(TableError::Format {
-                path: path.to_path_buf(),
-                format,
-                message: "no channel with a forcemap name (time_s, step, frequency_hz, \
-                          force_n, base_displacement_m, ...)"
-                    .to_string(),
-            });
-        };
-        let n = first_values.len();
-        if let Some((name, values)) = self.columns.iter().find(|(_, v)| v.len() != n) {
-            return Err(TableError::Format {
-                path: path.to_path_buf(),
-                format,
-                message: format!(
-                    "channel '{name}' has {} samples but '{first}' has {n}; the channels must \
-                     share one time base",
-                    values.len()
-                ),
-            });
-        }
-        let names: Vec<&str> = self.columns.iter().map(|(n, _)| *n).collect();
-        let mut next = 0;
-        let fill = |block: &mut Vec<f64>| -> Result<usize, TableError> {
-            let rows = (n - next).min(ROWS_A_BLOCK);
-            for k in next..next + rows {
-                block.extend(self.columns.iter().map(|(_, v)| v[k]));
-            }
-            next += rows;
-            Ok(rows)
-        };
-        let rename = |e: NumberRowsError<TableError>| match e {
-            NumberRowsError::Rows(e) => TableError::Rows {
-                format,
-                message: places.rename(&e.to_string()),
-            },
-            NumberRowsError::Source(e) => e,
-        };
-        let mut import = read_number_rows(path, &names, keep, fill).map_err(rename)?;
-        for m in import.warnings.iter_mut().chain(import.notices.iter_mut()) {
-            *m = places.rename(m);
-        }
-        Ok(import)
+/// The records of a table's rows (the columns `names`, which `fill` appends a block of rows at
+/// a time: [`read_number_rows`]), each handed to `keep` as it is read; what the reader says
+/// of a row names it by `places`.
+pub fn read_table_rows(
+    path: &Path,
+    format: &'static str,
+    places: RowPlaces,
+    names: &[&str],
+    keep: impl FnMut(Record) -> Option<Record>,
+    fill: impl FnMut(&mut Vec<f64>) -> Result<usize, TableError>,
+) -> Result<CsvImport, TableError> {
+    let rename = |e: NumberRowsError<TableError>| match e {
+        NumberRowsError::Rows(e) => TableError::Rows {
+            format,
+            message: places.rename(&e.to_string()),
+        },
+        NumberRowsError::Source(e) => e,
+    };
+    let mut import = read_number_rows(path, names, keep, fill).map_err(rename)?;
+    for m in import.warnings.iter_mut().chain(import.notices.iter_mut()) {
+        *m = places.rename(m);
     }
+    Ok(import)
 }
 
 #[cfg(test)]
@@ -219,17 +188,15 @@ mod tests {
     #[test]
     fn unequal_columns_are_refused_by_name() {
         let p = Path::new("x.tdms");
-        let mut t = SampleTable::default();
-        t.push("time_s", vec![0.0, 1.0, 2.0], p, "TDMS").unwrap();
-        t.push("force_n", vec![0.0, 1.0], p, "TDMS").unwrap();
-        let e = t
-            .into_import(p, "TDMS", RowPlaces::Samples, Some)
+        let e = check_columns(&["time_s", "force_n"], &[3, 2], p, "TDMS")
             .unwrap_err()
             .to_string();
         assert!(
             e.contains("'force_n' has 2 samples but 'time_s' has 3"),
             "{e}"
         );
+        let e = check_columns(&[], &[], p, "TDMS").unwrap_err().to_string();
+        assert!(e.contains("no channel with a forcemap name"), "{e}");
     }
 
     #[test]

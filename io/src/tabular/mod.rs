@@ -10,6 +10,7 @@ pub mod datetime;
 mod default_map;
 pub mod json;
 pub mod mat;
+mod read;
 mod resolve;
 pub mod text;
 
@@ -23,7 +24,8 @@ use crate::table::TableError;
 use crate::table_map::TableMap;
 
 pub use default_map::default_map;
-pub use resolve::{Picks, pick, read_through};
+pub use read::read_through;
+pub use resolve::{Picks, pick};
 
 /// One column of a file, as its format describes it.
 #[derive(Debug, Clone, PartialEq)]
@@ -77,6 +79,15 @@ pub enum RawValues {
     Text(Vec<String>),
 }
 
+/// The values of columns picked from a file, a block of rows at a time.
+pub struct ColumnBlocks<'f> {
+    /// How many values each pick has in the whole file.
+    pub lengths: Vec<usize>,
+    /// Each block: every pick's values of the same rows (when the picks have as many values
+    /// each), numbers; a format read whole gives one block, which may hold text.
+    pub blocks: Box<dyn Iterator<Item = Result<Vec<RawValues>, TableError>> + 'f>,
+}
+
 /// A file of columns: what it holds, and the values of the columns picked from it.
 pub trait ColumnFile {
     fn format(&self) -> &'static str;
@@ -85,6 +96,22 @@ pub trait ColumnFile {
     /// with `true` may come back as text (a time column of date-times), the others must be
     /// numbers.
     fn read(&mut self, picks: &[(usize, bool)]) -> Result<Vec<RawValues>, TableError>;
+    /// [`read`](Self::read) a block of rows at a time, so that a long file is not held whole;
+    /// a format that reads its columns whole gives them as one block.
+    fn read_blocks(&mut self, picks: &[(usize, bool)]) -> Result<ColumnBlocks<'_>, TableError> {
+        let values = self.read(picks)?;
+        let lengths = values
+            .iter()
+            .map(|v| match v {
+                RawValues::Numbers(v) => v.len(),
+                RawValues::Text(v) => v.len(),
+            })
+            .collect();
+        Ok(ColumnBlocks {
+            lengths,
+            blocks: Box::new(std::iter::once(Ok(values))),
+        })
+    }
     /// The file's line of each row, where the format has lines (text).
     fn row_lines(&self) -> Option<&[u64]> {
         None
@@ -142,7 +169,7 @@ pub fn open(path: &Path, map: Option<&TableMap>) -> Result<Box<dyn ColumnFile>, 
 /// The records of the file at `path`, its columns picked by `map`.
 pub fn read_mapped(path: &Path, map: &TableMap) -> Result<CsvImport, TableError> {
     let mut file = open(path, Some(map))?;
-    resolve::read_through(file.as_mut(), path, map, Some)
+    read::read_through(file.as_mut(), path, map, Some)
 }
 
 /// The records of an MDF4 or TDMS file whose channels are named as forcemap names them (no
@@ -160,5 +187,5 @@ pub fn read_by_contract_names_reduced(
 ) -> Result<CsvImport, TableError> {
     let mut file = open(path, None)?;
     let map = default_map(file.as_ref(), path)?;
-    resolve::read_through(file.as_mut(), path, &map, keep)
+    read::read_through(file.as_mut(), path, &map, keep)
 }

@@ -1,16 +1,15 @@
 //! The one rule for every file of columns: which column each map entry names, the factor its
-//! unit needs, where time comes from, and the CSV contract's rows they make.
+//! unit needs and where time comes from (the rows they make: [`super::read`]).
 
 use std::path::Path;
 
 use super::datetime::{Instant, parse_instant, seconds_since_first};
-use super::{ColumnFile, ColumnInfo, RawValues, TimeBase};
+use super::{ColumnFile, ColumnInfo, TimeBase};
 use crate::channel_map::{FREQUENCY_LABEL, STEP_LABEL, TIME_LABEL};
-use forcemap_math::record::Record;
 
-use crate::csv_export::{CsvImport, FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN};
-use crate::table::{RowPlaces, SampleTable, TableError};
-use crate::table_map::{ColumnRef, ColumnSource, NamedRows, RecordMaking, TableMap, TimeSource};
+use crate::csv_export::{FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN};
+use crate::table::TableError;
+use crate::table_map::{ColumnRef, ColumnSource, TableMap, TimeSource};
 use crate::units::{Quantity, parse_unit, unit_in_name};
 
 /// Column names that are a file's time when the map names none (case does not matter).
@@ -192,45 +191,42 @@ fn factor(
 }
 
 /// Times of a column of date-times, in seconds since the first; `lines` names the bad cell.
-fn date_times(
-    file: &dyn ColumnFile,
+pub(super) fn date_times(
+    (file_format, row_lines): (&'static str, Option<&[u64]>),
     path: &Path,
     info: &ColumnInfo,
     cells: &[String],
     format: Option<&str>,
 ) -> Result<Vec<f64>, TableError> {
+    let error = |message| TableError::Format {
+        path: path.to_path_buf(),
+        format: file_format,
+        message,
+    };
     let mut instants: Vec<Instant> = Vec::with_capacity(cells.len());
     for (k, cell) in cells.iter().enumerate() {
-        let at = || match file.row_lines().and_then(|l| l.get(k)) {
+        let at = || match row_lines.and_then(|l| l.get(k)) {
             Some(line) => format!("line {line}"),
             None => format!("sample {k}"),
         };
         let i = parse_instant(cell, format).ok_or_else(|| {
-            format_error(
-                file,
-                path,
-                format!(
-                    "{}, {} (time_s): '{cell}' is neither a number nor a date-time ({})",
-                    at(),
-                    info.label(),
-                    format.map_or("ISO 8601 such as 2024-03-01T12:00:00.125".into(), |f| {
-                        format!("the map's format '{f}'")
-                    })
-                ),
-            )
+            error(format!(
+                "{}, {} (time_s): '{cell}' is neither a number nor a date-time ({})",
+                at(),
+                info.label(),
+                format.map_or("ISO 8601 such as 2024-03-01T12:00:00.125".into(), |f| {
+                    format!("the map's format '{f}'")
+                })
+            ))
         })?;
         if let Some(first) = instants.first()
             && first.zoned != i.zoned
         {
-            return Err(format_error(
-                file,
-                path,
-                format!(
-                    "{}, {} (time_s): '{cell}' mixes date-times with and without a zone",
-                    at(),
-                    info.label()
-                ),
-            ));
+            return Err(error(format!(
+                "{}, {} (time_s): '{cell}' mixes date-times with and without a zone",
+                at(),
+                info.label()
+            )));
         }
         instants.push(i);
     }
@@ -238,13 +234,13 @@ fn date_times(
 }
 
 /// What each entry reads, before reading: the column, whether it may be text, its factor.
-struct Plan {
-    name: &'static str,
-    column: usize,
-    text_ok: bool,
-    factor: f64,
-    offset: f64,
-    how: String,
+pub(super) struct Plan {
+    pub name: &'static str,
+    pub column: usize,
+    pub text_ok: bool,
+    pub factor: f64,
+    pub offset: f64,
+    pub how: String,
 }
 
 /// The file's own time when the map names none: a column named as time, an MDF4 master
@@ -326,10 +322,10 @@ enum FileTime {
 /// What a map reads from a file: each entry's column and factor, and where time comes from
 /// when no column gives it.
 pub struct Picks {
-    plans: Vec<Plan>,
-    time_rate: Option<f64>,
-    waveform: Option<(f64, f64)>,
-    time_format: Option<String>,
+    pub(super) plans: Vec<Plan>,
+    pub(super) time_rate: Option<f64>,
+    pub(super) waveform: Option<(f64, f64)>,
+    pub(super) time_format: Option<String>,
 }
 
 impl Picks {
@@ -462,140 +458,4 @@ pub fn pick(file: &dyn ColumnFile, path: &Path, map: &TableMap) -> Result<Picks,
         waveform,
         time_format,
     })
-}
-
-/// The samples (0-based) the map's named records keep, each with its record's index; an error
-/// names the record whose rows the file does not have.
-fn rows_of_records(
-    file: &dyn ColumnFile,
-    path: &Path,
-    map_file: &str,
-    records: &[NamedRows],
-    samples: usize,
-) -> Result<Vec<(usize, usize)>, TableError> {
-    let mut kept = Vec::new();
-    for (index, r) in records.iter().enumerate() {
-        if r.last_row > samples {
-            return Err(format_error(
-                file,
-                path,
-                format!(
-                    "record '{}' of the map {map_file} ends at row {}, but the file has {samples} \
-                     rows",
-                    r.name, r.last_row
-                ),
-            ));
-        }
-        kept.extend((r.first_row - 1..r.last_row).map(|k| (k, index)));
-    }
-    Ok(kept)
-}
-
-/// Reads the picked columns of `file` into the CSV contract's rows and through its reader.
-pub fn read_through(
-    file: &mut dyn ColumnFile,
-    path: &Path,
-    map: &TableMap,
-    keep: impl FnMut(Record) -> Option<Record>,
-) -> Result<CsvImport, TableError> {
-    let Picks {
-        plans,
-        time_rate,
-        waveform,
-        time_format,
-    } = pick(&*file, path, map)?;
-    let columns = file.columns();
-    let described: Vec<String> = plans
-        .iter()
-        .map(|p| {
-            let mut s = format!("{} <- {}", p.name, columns[p.column].label());
-            if !p.how.is_empty() {
-                s.push_str(&format!(" ({})", p.how));
-            }
-            s
-        })
-        .collect();
-
-    let reads: Vec<(usize, bool)> = plans.iter().map(|p| (p.column, p.text_ok)).collect();
-    let values = file.read(&reads)?;
-    let mut table = SampleTable::default();
-    let mut n = 0;
-    for (plan, raw) in plans.iter().zip(values) {
-        let v: Vec<f64> = match raw {
-            RawValues::Numbers(v) => v
-                .into_iter()
-                .map(|x| x * plan.factor + plan.offset)
-                .collect(),
-            RawValues::Text(cells) => {
-                let info = &file.columns()[plan.column];
-                date_times(&*file, path, info, &cells, time_format.as_deref())?
-                    .into_iter()
-                    .map(|t| t + plan.offset)
-                    .collect()
-            }
-        };
-        n = v.len();
-        table.push(plan.name, v, path, file.format())?;
-    }
-    if let Some(rate) = time_rate {
-        table
-            .columns
-            .insert(0, (TIME_COLUMN, (0..n).map(|k| k as f64 / rate).collect()));
-    }
-    if let Some((start_s, increment_s)) = waveform {
-        table.columns.insert(
-            0,
-            (
-                TIME_COLUMN,
-                (0..n).map(|k| start_s + k as f64 * increment_s).collect(),
-            ),
-        );
-    }
-    // Frequency 0 labels a record that is not a sine.
-    let mut kept_lines: Option<Vec<u64>> = None;
-    match &map.records {
-        RecordMaking::Steps => {}
-        RecordMaking::Whole => {
-            if map.step.is_none() {
-                table.columns.push((STEP_COLUMN, vec![0.0; n]));
-                table.columns.push((FREQUENCY_COLUMN, vec![0.0; n]));
-            }
-        }
-        RecordMaking::Rows(records) => {
-            let kept = rows_of_records(&*file, path, &map.file, records, n)?;
-            for (_, values) in &mut table.columns {
-                *values = kept.iter().map(|&(k, _)| values[k]).collect();
-            }
-            let steps = kept.iter().map(|&(_, r)| r as f64).collect();
-            table.columns.push((STEP_COLUMN, steps));
-            table
-                .columns
-                .push((FREQUENCY_COLUMN, vec![0.0; kept.len()]));
-            kept_lines = file
-                .row_lines()
-                .map(|lines| kept.iter().map(|&(k, _)| lines[k]).collect());
-        }
-    }
-    let places = match kept_lines.as_deref().or(file.row_lines()) {
-        Some(lines) => RowPlaces::Lines(lines),
-        None => RowPlaces::Samples,
-    };
-    let mut import = table.into_import(path, file.format(), places, keep)?;
-    if map.records.by_map() {
-        // The step label is the map's, not the file's: checking it against the drive says
-        // nothing (a sine test read as one record is not mislabelled).
-        import
-            .warnings
-            .retain(|w| !(w.contains(" is labelled ") || w.contains("inside labelled step")));
-    }
-    let mut notices = file.notices();
-    notices.push(format!(
-        "{}: read through the map {}: {}",
-        path.display(),
-        map.file,
-        described.join(", ")
-    ));
-    notices.append(&mut import.notices);
-    import.notices = notices;
-    Ok(import)
 }

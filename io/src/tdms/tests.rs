@@ -1,5 +1,6 @@
 //! The TDMS reader on hand-made segments: chunks, carried-over objects, interleaving, byte
 //! order, lengths past the data.
+use super::segments::*;
 use super::*;
 
 #[test]
@@ -55,8 +56,27 @@ fn segment(toc: u32, objects: &[(&str, Option<(u32, u64)>)], raw: &[u8]) -> Vec<
     out
 }
 
-fn data(file: &TdmsFile, path: &str) -> Vec<f64> {
-    file.objects[path].data.clone()
+fn parsed(bytes: &[u8]) -> Result<TdmsFile, String> {
+    parse(&mut Bytes::Memory(bytes.into())).map_err(|f| match f {
+        Fault::Format(m) => m,
+        Fault::Io(e) => e.to_string(),
+    })
+}
+
+/// An object's values, read block by block as the reader does, with the count its metadata
+/// gave.
+fn data(bytes: &[u8], file: &TdmsFile, path: &str) -> Vec<f64> {
+    let mut reader = TdmsBlocks::new(
+        Bytes::Memory(bytes.into()),
+        file.segments.clone().into(),
+        vec![path.to_string()],
+    );
+    let mut values = Vec::new();
+    while let Some(mut block) = reader.next_block().unwrap() {
+        values.append(&mut block[0]);
+    }
+    assert_eq!(values.len() as u64, file.objects[path].values, "{path}");
+    values
 }
 
 #[test]
@@ -94,9 +114,15 @@ fn chunks_segments_interleaving_and_byte_order() {
     raw3.truncate(raw3.len() - 4);
     let be = le | TOC_INTERLEAVED | TOC_BIG_ENDIAN;
     bytes.extend(segment(be, &[(A, Some((10, 3))), (B, Some((5, 3)))], &raw3));
-    let file = parse(&bytes).unwrap();
-    assert_eq!(data(&file, A), [0.5, 1.5, 2.5, 3.5, 9.5, 8.5, 100.0, 101.0]);
-    assert_eq!(data(&file, B), [0.0, -1.0, -2.0, -3.0, 7.0, 6.0, 0.0, 1.0]);
+    let file = parsed(&bytes).unwrap();
+    assert_eq!(
+        data(&bytes, &file, A),
+        [0.5, 1.5, 2.5, 3.5, 9.5, 8.5, 100.0, 101.0]
+    );
+    assert_eq!(
+        data(&bytes, &file, B),
+        [0.0, -1.0, -2.0, -3.0, 7.0, 6.0, 0.0, 1.0]
+    );
 }
 
 #[test]
@@ -105,7 +131,7 @@ fn lengths_past_the_data_are_errors_not_allocations() {
     let mut bytes = segment(le, &[("/'g'/'a'", Some((10, 1)))], &1f64.to_le_bytes());
     // The path's length prefix claims 4 GiB.
     bytes[32..36].copy_from_slice(&u32::MAX.to_le_bytes());
-    let e = parse(&bytes).unwrap_err();
+    let e = parsed(&bytes).unwrap_err();
     assert!(
         e.contains("segment 0 (byte 0)") && e.contains("bytes needed"),
         "{e}"
@@ -119,4 +145,77 @@ fn not_tdms_is_refused() {
         e.to_string().contains("x.tdms: TDMS: not a TDMS file"),
         "{e}"
     );
+}
+
+/// Segments larger than a block: a large contiguous chunk (each channel's values read a
+/// block at a time from its part), many small chunks (read a group at a time), interleaved
+/// rows past a block; each with a last chunk or row cut short.
+#[test]
+fn segments_larger_than_a_block_read_block_by_block() {
+    const A: &str = "/'g'/'a'";
+    const B: &str = "/'g'/'b'";
+    let le = TOC_META_DATA | TOC_NEW_OBJ_LIST | TOC_RAW_DATA;
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    let mut bytes = Vec::new();
+    // One chunk of 400 000 f64 of a, then 400 000 i32 of b (4.8 MB), and a second chunk cut
+    // within a's part: a's first 1000 values are there, b has none of it.
+    let n = 400_000u64;
+    let mut raw = Vec::new();
+    for k in 0..n + 1000 {
+        raw.extend((k as f64 * 0.5).to_le_bytes());
+        a.push(k as f64 * 0.5);
+        if k + 1 == n {
+            for j in 0..n {
+                raw.extend((-(j as i32)).to_le_bytes());
+                b.push(-(j as f64));
+            }
+        }
+    }
+    bytes.extend(segment(le, &[(A, Some((10, n))), (B, Some((3, n)))], &raw));
+    // Small chunks (3 a, 3 b) repeated 300 000 times: 10.8 MB, the last chunk cut in b.
+    let mut raw = Vec::new();
+    for c in 0..300_000u32 {
+        for k in 0..3 {
+            raw.extend(f64::from(c * 3 + k).to_le_bytes());
+            a.push(f64::from(c * 3 + k));
+        }
+        for k in 0..3 {
+            if c == 299_999 && k == 2 {
+                break;
+            }
+            raw.extend((c as i32 + k).to_le_bytes());
+            b.push(f64::from(c as i32 + k));
+        }
+    }
+    bytes.extend(segment(le, &[(A, Some((10, 3))), (B, Some((3, 3)))], &raw));
+    // Interleaved rows (a f64, b i32), 200 000 and a row cut short.
+    let mut raw = Vec::new();
+    for k in 0..200_000u32 {
+        raw.extend((f64::from(k) + 0.25).to_le_bytes());
+        raw.extend((k as i32).to_le_bytes());
+        a.push(f64::from(k) + 0.25);
+        b.push(f64::from(k));
+    }
+    raw.extend(1e9f64.to_le_bytes());
+    let il = le | TOC_INTERLEAVED;
+    bytes.extend(segment(il, &[(A, Some((10, 1))), (B, Some((3, 1)))], &raw));
+    let file = parsed(&bytes).unwrap();
+    assert_eq!(data(&bytes, &file, A), a);
+    assert_eq!(data(&bytes, &file, B), b);
+    // Both at once, in blocks of the same rows while both have them.
+    let mut reader = TdmsBlocks::new(
+        Bytes::Memory(bytes.as_slice().into()),
+        file.segments.clone().into(),
+        vec![A.to_string(), B.to_string()],
+    );
+    let (mut got_a, mut got_b) = (Vec::new(), Vec::new());
+    while let Some(mut block) = reader.next_block().unwrap() {
+        assert_eq!(block[0].len(), block[1].len());
+        assert!(block[0].len() <= 3 * blocks::BLOCK_VALUES);
+        got_a.append(&mut block[0]);
+        got_b.append(&mut block[1]);
+    }
+    let rows = a.len().min(b.len());
+    assert_eq!(got_a, a[..rows]);
+    assert_eq!(got_b, b[..rows]);
 }
