@@ -129,16 +129,7 @@ impl ColumnFile for MdfColumns {
     }
 
     fn read(&mut self, picks: &[(usize, bool)]) -> Result<Vec<RawValues>, TableError> {
-        let ColumnBlocks { blocks, .. } = self.read_blocks(picks)?;
-        let mut values: Vec<Vec<f64>> = vec![Vec::new(); picks.len()];
-        for block in blocks {
-            for (v, b) in values.iter_mut().zip(block?) {
-                if let RawValues::Numbers(b) = b {
-                    v.extend(b);
-                }
-            }
-        }
-        Ok(values.into_iter().map(RawValues::Numbers).collect())
+        self.read_blocks(picks)?.whole()
     }
 
     /// Each picked channel's values decoded and converted a block at a time (the file is in

@@ -88,6 +88,22 @@ pub struct ColumnBlocks<'f> {
     pub blocks: Box<dyn Iterator<Item = Result<Vec<RawValues>, TableError>> + 'f>,
 }
 
+impl ColumnBlocks<'_> {
+    /// The picks' values of every block, one after the other (numbers: a format read block by
+    /// block gives numbers).
+    pub fn whole(self) -> Result<Vec<RawValues>, TableError> {
+        let mut values: Vec<Vec<f64>> = vec![Vec::new(); self.lengths.len()];
+        for block in self.blocks {
+            for (v, b) in values.iter_mut().zip(block?) {
+                if let RawValues::Numbers(b) = b {
+                    v.extend(b);
+                }
+            }
+        }
+        Ok(values.into_iter().map(RawValues::Numbers).collect())
+    }
+}
+
 /// A file of columns: what it holds, and the values of the columns picked from it.
 pub trait ColumnFile {
     fn format(&self) -> &'static str;

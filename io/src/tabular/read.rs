@@ -80,7 +80,7 @@ pub fn read_through(
         }
         Ok(out)
     };
-    let first = match blocks.next() {
+    let mut first = match blocks.next() {
         Some(raw) => scale(raw?)?,
         None => scale(
             reads
@@ -109,7 +109,7 @@ pub fn read_through(
             }
         }
         RecordMaking::Rows(records) => {
-            let mut whole = first.clone();
+            let mut whole = std::mem::take(&mut first);
             for raw in blocks.by_ref() {
                 for (w, b) in whole.iter_mut().zip(scale(raw?)?) {
                     w.extend(b);

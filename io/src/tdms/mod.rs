@@ -145,16 +145,7 @@ impl ColumnFile for TdmsColumns {
     }
 
     fn read(&mut self, picks: &[(usize, bool)]) -> Result<Vec<RawValues>, TableError> {
-        let ColumnBlocks { blocks, .. } = self.read_blocks(picks)?;
-        let mut values: Vec<Vec<f64>> = vec![Vec::new(); picks.len()];
-        for block in blocks {
-            for (v, b) in values.iter_mut().zip(block?) {
-                if let RawValues::Numbers(b) = b {
-                    v.extend(b);
-                }
-            }
-        }
-        Ok(values.into_iter().map(RawValues::Numbers).collect())
+        self.read_blocks(picks)?.whole()
     }
 
     fn read_blocks(&mut self, picks: &[(usize, bool)]) -> Result<ColumnBlocks<'_>, TableError> {
