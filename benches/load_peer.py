@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
-"""How long Python's fastest common CSV loader takes to read a file into columns of floats:
-`polars.read_csv` where polars is installed, else `numpy.loadtxt`. `forcemap bench identify
---python PY` runs it to compare identify's whole run against loading alone; it prints one JSON
+"""How long Python's fastest common loader takes to read a file into columns of numbers: for a
+CSV export `polars.read_csv` where polars is installed, else `numpy.loadtxt`; for an ASAM MDF4
+file asammdf (every channel's samples), for an NI TDMS file npTDMS (every channel's data).
+`forcemap bench identify --python PY` runs it to compare identify's whole run against loading
+alone; it prints one JSON
 object: the loader, the wall and CPU seconds of each repeat, the rows loaded and the peak
 resident memory of the process (VmHWM: the peak of this program's own address space, where
 ru_maxrss may count the memory of the process that started it).
@@ -13,7 +15,25 @@ import json
 import time
 
 
-def loader():
+def loader(path):
+    with open(path, "rb") as f:
+        head = f.read(8)
+    if head in (b"MDF     ", b"UnFinMF "):
+        import asammdf
+
+        def load_mdf(p):
+            with asammdf.MDF(p) as mdf:
+                return max(len(s.samples) for s in mdf.iter_channels())
+
+        return f"asammdf {asammdf.__version__}", load_mdf
+    if head.startswith(b"TDSm"):
+        import nptdms
+
+        def load_tdms(p):
+            f = nptdms.TdmsFile.read(p)
+            return max(len(c[:]) for g in f.groups() for c in g.channels())
+
+        return f"npTDMS {nptdms.__version__}", load_tdms
     try:
         import polars
 
@@ -43,7 +63,7 @@ def main():
     ap.add_argument("file")
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
-    name, load = loader()
+    name, load = loader(args.file)
     load_s, load_cpu_s, rows = [], [], 0
     for _ in range(args.repeats):
         t0, c0 = time.perf_counter(), time.process_time()

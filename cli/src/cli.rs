@@ -113,11 +113,13 @@ pub struct BenchIdentifyArgs {
     #[command(flatten)]
     pub identify: IdentifyArgs,
     /// A python to run the peer with (not run without it): with polars or numpy for the
-    /// load peer, with numpy for the fit peer.
+    /// load peer (asammdf for an MDF4 file, npTDMS for a TDMS file), with numpy for the fit
+    /// peer.
     #[arg(long)]
     pub python: Option<PathBuf>,
-    /// The peer: the time polars (else numpy) needs to load the file (benches/load_peer.py),
-    /// or the numpy script that loads and fits it (benches/numpy_peer.py).
+    /// The peer: the time polars (else numpy; asammdf, npTDMS for MDF4, TDMS) needs to load
+    /// the file (benches/load_peer.py), or the numpy script that loads and fits it
+    /// (benches/numpy_peer.py).
     #[arg(long, value_enum, default_value_t = PeerArg::Load)]
     pub peer: PeerArg,
     /// Repeats of each side (medians reported).

@@ -123,7 +123,7 @@ fn streamed_mdf4_and_tdms_files_identify_as_read_whole_bit_for_bit() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let script =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../io/tests/python/measurement_files.py");
-    let o = std::process::Command::new(python)
+    let o = std::process::Command::new(&python)
         .arg(&script)
         .arg(&csv)
         .arg(dir.path())
@@ -146,5 +146,43 @@ fn streamed_mdf4_and_tdms_files_identify_as_read_whole_bit_for_bit() {
             "36",
         ];
         assert_streamed_as_whole(&args, plots, file);
+    }
+    // `bench identify --python` loads each with the format's own Python reader, the same rows.
+    for (file, loader) in [("run.mf4", "asammdf"), ("run.tdms", "npTDMS")] {
+        let path = dir.path().join(file);
+        let o = forcemap(&[
+            "bench",
+            "identify",
+            path.to_str().unwrap(),
+            "--model",
+            "coulomb",
+            "--mass-kg",
+            "36",
+            "--repeats",
+            "1",
+            "--python",
+            &python,
+        ]);
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(
+            o.status.success(),
+            "{out}{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let rows = |line: &str| {
+            line.split_whitespace()
+                .zip(line.split_whitespace().skip(1))
+                .find(|(_, w)| *w == "rows,")
+                .map(|(n, _)| n.to_string())
+        };
+        let ours = out
+            .lines()
+            .find(|l| l.contains("throughput"))
+            .and_then(rows);
+        let peer = out
+            .lines()
+            .find(|l| l.starts_with(&format!("load peer ({loader}")))
+            .and_then(rows);
+        assert!(ours.is_some() && ours == peer, "{file}: {out}");
     }
 }

@@ -1,9 +1,10 @@
-//! `forcemap bench identify FILE`: how long `identify` takes on a rig CSV export, stage by stage
+//! `forcemap bench identify FILE`: how long `identify` takes on a rig's file, stage by stage
 //! (reading the file, phasors, fit, validation by simulation; a file `identify` streams has its
 //! sine steps analysed in the reading), medians over repeats, its throughput
 //! (MB/s and rows/s of the whole identification) and the peak memory of the process; with
-//! `--python`, a peer on the same file as a ratio: the time polars (or, without it, numpy)
-//! needs to load the file (benches/load_peer.py), or the numpy script a user would write to load
+//! `--python`, a peer on the same file as a ratio: the time polars (or, without it, numpy; for
+//! an MDF4 or TDMS file asammdf or npTDMS) needs to load the file (benches/load_peer.py), or the
+//! numpy script a user would write to load
 //! and fit it (benches/numpy_peer.py: fit the first harmonic of each step, solve the paper's
 //! equations). A benchmark, not a test: figures go in docs/benchmarks.md with the command that
 //! produced them.
@@ -349,7 +350,10 @@ pub fn run(args: &BenchIdentifyArgs) -> anyhow::Result<()> {
         peak_bytes / MIB
     );
     let Some(python) = &args.python else {
-        println!("peer not run: give --python PATH (a python with polars or numpy)");
+        println!(
+            "peer not run: give --python PATH (a python with polars or numpy; asammdf or \
+             npTDMS for an MDF4 or TDMS file)"
+        );
         return Ok(());
     };
     if args.peer == PeerArg::Load {
