@@ -95,10 +95,11 @@ pub(super) struct Read {
 }
 
 /// Reads `files`, each sine step at the frequency its driven channel shows
-/// ([`frequency_from_data`]). A rig's or drive-point bag, CSV export, MDF4 or TDMS file identified by fd or
-/// fd-multi, converged and without plots, is streamed: each sine step is analysed into its
-/// phasors as soon as it is read and dropped, so that memory does not grow with the file (the
-/// other records are kept, for validation); the analyses are returned with it.
+/// ([`frequency_from_data`]). A rig's or drive-point bag, CSV export, MDF4 or TDMS file
+/// identified by fd or fd-multi, converged and without plots, is streamed: each sine step is
+/// analysed into its phasors as soon as it is read and dropped, so that memory does not grow
+/// with the file (the other records are kept, for validation); the analyses are returned with
+/// it.
 pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow::Result<Read> {
     check_frequency_tolerance(args.frequency_tolerance)?;
     let single = match files {
