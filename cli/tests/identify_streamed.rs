@@ -186,3 +186,55 @@ fn streamed_mdf4_and_tdms_files_identify_as_read_whole_bit_for_bit() {
         assert!(ours.is_some() && ours == peer, "{file}: {out}");
     }
 }
+
+/// Band-random records before the first sine step stay in memory, those after it wait on disk
+/// for the validation: an export of random, sine and random records validates on every random
+/// record in file order, as the export read whole does.
+#[test]
+fn random_records_before_and_after_the_sine_steps_validate_in_file_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let plots = dir.path().join("plots");
+    let rig = dir.path().join("rig.csv");
+    let o = forcemap(&["simulate", "--snr-db", "40", "--csv", rig.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The run's steps 0-9 are sine steps, 10 and 11 random: written as 10, 11, 0-9, 10, 11,
+    // numbered 0-13, at 100 Hz from 0 s.
+    let text = std::fs::read_to_string(&rig).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let rows: Vec<(usize, &str)> = lines
+        .map(|l| {
+            let mut cells = l.splitn(3, ',');
+            let _time = cells.next().unwrap();
+            let step = cells.next().unwrap().parse().unwrap();
+            (step, cells.next().unwrap())
+        })
+        .collect();
+    let order = [10, 11, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11];
+    let mut out = format!("{header}\n");
+    let mut i = 0;
+    for (new_step, old_step) in order.iter().enumerate() {
+        for (_, rest) in rows.iter().filter(|(s, _)| s == old_step) {
+            out.push_str(&format!("{:.2},{new_step},{rest}\n", i as f64 / 100.0));
+            i += 1;
+        }
+    }
+    let csv = dir.path().join("random_sine_random.csv");
+    std::fs::write(&csv, out).unwrap();
+    let args = [
+        "identify",
+        csv.to_str().unwrap(),
+        "--model",
+        "coulomb",
+        "--mass-kg",
+        "36",
+    ];
+    assert_streamed_as_whole(&args, plots.to_str().unwrap(), "random, sine, random");
+    let o = forcemap(&args);
+    let validated: Vec<String> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .filter_map(|l| l.strip_prefix("validation on random record "))
+        .map(|l| l.split(':').next().unwrap().to_string())
+        .collect();
+    assert_eq!(validated, ["0", "1", "12", "13"]);
+}

@@ -1,7 +1,8 @@
 //! forcemap_io: the file formats and data plumbing of forcemap, with no ROS runtime and no
 //! async: rosbag2 MCAP bags, test-bench CSV exports, the EMPS MAT import, ROS 2 params files,
-//! the assembly of samples into step records, topic names and atomic writes. The nodes and the
-//! command build on it; it builds on `forcemap_math` and `forcemap_msgs` only.
+//! the assembly of samples into step records, topic names, atomic writes and records kept in a
+//! temporary file. The nodes and the command build on it; it builds on `forcemap_math` and
+//! `forcemap_msgs` only.
 pub mod atomic;
 pub mod axis;
 pub mod bag;
@@ -19,6 +20,7 @@ pub mod rig_bag;
 pub mod rig_constants;
 pub mod rig_messages;
 pub mod ros_msg;
+pub mod spill;
 pub mod stamp_align;
 pub mod steps;
 pub mod table;

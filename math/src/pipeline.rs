@@ -289,6 +289,17 @@ pub struct Validation {
     pub measured_mass_acceleration_mps2: Vec<f64>,
 }
 
+impl Validation {
+    /// The figures without the two traces (all a report without plots reads of it).
+    pub fn without_traces(self) -> Validation {
+        Validation {
+            predicted_mass_acceleration_mps2: Vec::new(),
+            measured_mass_acceleration_mps2: Vec::new(),
+            ..self
+        }
+    }
+}
+
 /// Eq. 27, in percent.
 pub fn nmse_percent(measured: &[f64], predicted: &[f64]) -> f64 {
     let n = measured.len().min(predicted.len());

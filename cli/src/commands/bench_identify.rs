@@ -110,6 +110,7 @@ fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Th
     let read = super::identify::load(a, &[path.to_path_buf()])?;
     let (csv_s, csv_cpu_s) = t0.elapsed();
     let (import, rows, streamed) = (read.import, read.samples_read, read.streamed.is_some());
+    let spilled = read.spilled;
     let recipe = super::identify::recipe(a, import.kind, &import.parameters, &file)?;
     let setup = recipe.setup.setup()?;
     let model = recipe.model.build()?;
@@ -135,8 +136,7 @@ fn identify_once(args: &BenchIdentifyArgs) -> anyhow::Result<(Stages, Stages, Th
     let t3 = Clocks::start();
     if let Setup::BaseExcited { mass_kg } = setup {
         let fitted = IdentifiedModel::new(model.clone(), id.theta());
-        pipeline::validate_rig_on_random_records(&fitted, mass_kg, &import.records)
-            .with_context(|| format!("{file}: validating on the random records"))?;
+        super::random_records::validate_rig(&fitted, mass_kg, &import.records, spilled, &file)?;
     }
     let (validation_s, validation_cpu_s) = t3.elapsed();
     let theta = id

@@ -14,9 +14,10 @@ use forcemap_math::record::{Excitation, Record};
 use forcemap_math::sim::ElementDrive;
 use serde_json::json;
 
-use super::{element_outputs, identify_plots};
+use super::{element_outputs, identify_plots, random_records};
 use crate::cli::IdentifyArgs;
 use forcemap_io::params::{Params, read_params};
+use forcemap_io::spill::SpilledRecords;
 use forcemap_io::steps::unlabelled::{frequencies_from_data, frequency_from_data};
 
 /// The method asked for: `--method`, with `--td-points` (a number or `all`) for td.
@@ -92,14 +93,17 @@ pub(super) struct Read {
     pub frequency_warnings: Vec<String>,
     /// Samples of every record read, the analysed ones too.
     pub samples_read: usize,
+    /// The band-random records read after a sine step of a streamed file, on disk
+    /// ([`random_records`]).
+    pub spilled: Option<SpilledRecords>,
 }
 
 /// Reads `files`, each sine step at the frequency its driven channel shows
 /// ([`frequency_from_data`]). A rig's or drive-point bag, CSV export, MDF4 or TDMS file
 /// identified by fd or fd-multi, converged and without plots, is streamed: each sine step is
 /// analysed into its phasors as soon as it is read and dropped, so that memory does not grow
-/// with the file (the other records are kept, for validation); the analyses are returned with
-/// it.
+/// with the file; the analyses are returned with it. The band-random records after a sine step
+/// wait on disk for the validation ([`random_records`]); the other records are kept.
 pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow::Result<Read> {
     check_frequency_tolerance(args.frequency_tolerance)?;
     let single = match files {
@@ -125,6 +129,7 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
             streamed: None,
             frequency_warnings,
             samples_read,
+            spilled: None,
         });
     }
     let mut sines = pipeline::SineStepStream::new(phasor_options(args));
@@ -137,6 +142,9 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
     // writes to stderr while it shows).
     let pb = indicatif::ProgressBar::new_spinner();
     let mut records_read = 0;
+    let mut spilled = SpilledRecords::new()?;
+    let mut spill_failed = None;
+    let mut sine_read = false;
     let loaded = forcemap_io::input::load_reduced(file, |kind, mut r| {
         samples_read += r.len();
         records_read += 1;
@@ -151,20 +159,33 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
             kind.driven_channel(),
             args.frequency_tolerance,
         ));
+        if !element && random_records::spills(&r, sine_read) {
+            if spill_failed.is_none()
+                && let Err(e) = spilled.push(r)
+            {
+                spill_failed = Some(e);
+            }
+            return None;
+        }
         if element || !matches!(r.excitation, Excitation::Sine { .. }) {
             return Some(r);
         }
+        sine_read = true;
         sines.push(r);
         None
     });
     pb.finish_and_clear();
     let (import, said) = loaded?;
+    if let Some(e) = spill_failed {
+        return Err(e.into());
+    }
     forcemap_io::input::print_said(&said);
     Ok(Read {
         import,
         streamed: (!element).then(|| sines.finish()),
         frequency_warnings,
         samples_read,
+        spilled: (!spilled.is_empty()).then_some(spilled),
     })
 }
 
@@ -357,6 +378,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
         import,
         mut streamed,
         frequency_warnings,
+        spilled,
         ..
     } = load(args, &files)?;
     if !import.ignored_columns.is_empty() {
@@ -430,8 +452,7 @@ pub fn run(args: &IdentifyArgs) -> anyhow::Result<()> {
     let validations = match setup {
         Setup::BaseExcited { mass_kg } => {
             let fitted = IdentifiedModel::new(model.clone(), id.theta());
-            pipeline::validate_rig_on_random_records(&fitted, mass_kg, &import.records)
-                .with_context(|| format!("{file}: validating on the random records"))?
+            random_records::validate_rig(&fitted, mass_kg, &import.records, spilled, &file)?
         }
         _ => Vec::new(),
     };

@@ -14,6 +14,7 @@ mod identify_plots;
 pub mod import;
 pub mod info;
 pub mod manual;
+mod random_records;
 pub mod reproduce;
 pub mod simulate;
 
