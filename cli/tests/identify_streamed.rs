@@ -238,3 +238,56 @@ fn random_records_before_and_after_the_sine_steps_validate_in_file_order() {
         .collect();
     assert_eq!(validated, ["0", "1", "12", "13"]);
 }
+
+/// A lab's text file read through a channel map streams too: a preamble, semicolons, decimal
+/// commas, a units row, displacements in mm and a comment line inside the data identify as the
+/// file read whole does.
+#[test]
+fn a_text_file_through_a_channel_map_identifies_as_read_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let plots = dir.path().join("plots");
+    let rig = dir.path().join("rig.csv");
+    let o = forcemap(&["simulate", "--snr-db", "40", "--csv", rig.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&rig).unwrap();
+    let mut out = String::from(
+        "Pruefstand 2\r\nexported 2026-12-07\r\nZeit;Schritt;Frequenz;Weg Basis;Weg rel;Beschl\r\n\
+         s;;Hz;mm;mm;m/s^2\r\n",
+    );
+    for (i, line) in text.lines().skip(1).enumerate() {
+        let c: Vec<&str> = line.split(',').collect();
+        let mm = |v: &str| format!("{:e}", v.parse::<f64>().unwrap() * 1e3);
+        let row = [c[0].into(), c[1].into(), c[2].into(), mm(c[3]), mm(c[4]), c[5].into()];
+        out.push_str(&row.join(";").replace('.', ","));
+        out.push_str("\r\n");
+        if i == 5000 {
+            out.push_str("# operator: paused the log\r\n");
+        }
+    }
+    let file = dir.path().join("pruefstand.txt");
+    std::fs::write(&file, out).unwrap();
+    let map = dir.path().join("map.yaml");
+    std::fs::write(
+        &map,
+        "table: {skip_lines: 2}\nchannels:\n  time_s: {channel: Zeit}\n  step: {channel: Schritt}\n  \
+         frequency_hz: {channel: Frequenz}\n  base_displacement_m: {channel: Weg Basis}\n  \
+         relative_displacement_m: {channel: Weg rel}\n  mass_acceleration_mps2: {channel: Beschl}\n",
+    )
+    .unwrap();
+    let args = [
+        "identify",
+        file.to_str().unwrap(),
+        "--channels",
+        map.to_str().unwrap(),
+        "--model",
+        "coulomb",
+        "--mass-kg",
+        "36",
+    ];
+    assert_streamed_as_whole(&args, plots.to_str().unwrap(), "a lab's text file");
+    let o = forcemap(&args);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("decimal commas"), "{stderr}");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("validation on random record 11"), "{stdout}");
+}

@@ -170,25 +170,36 @@ fn import_said(path: &Path, csv: CsvImport) -> (Loaded, Said) {
     (loaded, said)
 }
 
-/// Whether [`load_reduced`] streams `path`: a bag, or a file that is a CSV export, an MDF4 or a
-/// TDMS file.
-pub fn streams(path: &Path) -> bool {
-    is_bag(path)
-        || (path.is_file()
-            && matches!(
-                FileFormat::of(path),
-                FileFormat::Csv | FileFormat::Mdf | FileFormat::Tdms
-            ))
+/// Whether [`load_reduced`] streams `path` read through the channel map `channels`, if any:
+/// without a map a bag, or a file that is a CSV export, an MDF4 or a TDMS file; with one, a
+/// file of columns (not a bag, not a selection of the map's records) and a map of its columns.
+pub fn streams(path: &Path, channels: Option<&Path>) -> bool {
+    match channels {
+        None => {
+            is_bag(path)
+                || (path.is_file()
+                    && matches!(
+                        FileFormat::of(path),
+                        FileFormat::Csv | FileFormat::Mdf | FileFormat::Tdms
+                    ))
+        }
+        Some(map) => {
+            path.is_file() && !is_bag(path) && matches!(MapFile::read(map), Ok(MapFile::Columns(_)))
+        }
+    }
 }
 
-/// [`load`] of a rig bag, a CSV export, an MDF4 or a TDMS file ([`streams`]) with each record
-/// handed to `keep(kind, record)` as soon as it is read ([`RigBagReader::records_reduced`],
-/// [`read_csv_reduced`], [`crate::tabular::read_by_contract_names_reduced`]): what `keep`
-/// returns is kept in the records. The kind is that of the
-/// first record. For an analysis that streams a long recording: memory follows what `keep`
-/// keeps, not the file. What [`load`] prints is returned, for the caller to print.
+/// [`load_mapped`] of a rig bag, a CSV export, an MDF4 or a TDMS file, or a file of columns
+/// through a map of its columns (`channels`; [`streams`]), with each record handed to
+/// `keep(kind, record)` as soon as it is read ([`RigBagReader::records_reduced`],
+/// [`read_csv_reduced`], [`crate::tabular::read_by_contract_names_reduced`],
+/// [`crate::tabular::read_mapped_reduced`]): what `keep` returns is kept in the records. The
+/// kind is that of the first record. For an analysis that streams a long recording: memory
+/// follows what `keep` keeps and what the format holds while it reads (a text file is held
+/// whole), not the records. What [`load_mapped`] prints is returned, for the caller to print.
 pub fn load_reduced(
     path: &Path,
+    channels: Option<&Path>,
     mut keep: impl FnMut(SetupKind, Record) -> Option<Record>,
 ) -> anyhow::Result<(Loaded, Said)> {
     let source = path.display().to_string();
@@ -198,12 +209,25 @@ pub fn load_reduced(
             Ok(k) => keep(*k, r),
             Err(_) => Some(r),
         };
+    if let Some(map_path) = channels {
+        let MapFile::Columns(map) = MapFile::read(map_path)? else {
+            anyhow::bail!(
+                "{source}: only a file of columns through a map of its columns is read record by \
+                 record"
+            );
+        };
+        let csv = crate::tabular::read_mapped_reduced(path, &map, &mut keep_of_kind)?;
+        if let Some(Err(e)) = kind {
+            return Err(e);
+        }
+        return Ok(import_said(path, csv));
+    }
     if is_bag(path) {
         let bag = RigBagReader::open(path)?.records_reduced(&mut keep_of_kind)?;
         let kind = kind.unwrap_or_else(|| kind_of(&bag.records, &source))?;
         return Ok(bag_said(path, bag, kind));
     }
-    if !streams(path) {
+    if !streams(path, None) {
         anyhow::bail!(
             "{source}: only a bag, a CSV export, an MDF4 or a TDMS file is read record by record"
         );

@@ -106,11 +106,10 @@ pub(super) struct Read {
 /// wait on disk for the validation ([`random_records`]); the other records are kept.
 pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow::Result<Read> {
     check_frequency_tolerance(args.frequency_tolerance)?;
-    let single = match files {
-        [f] => forcemap_io::input::streams(f).then_some(f),
+    let file = match files {
+        [f] => forcemap_io::input::streams(f, args.channels.as_deref()).then_some(f),
         _ => None,
     };
-    let file = single.filter(|_| args.channels.is_none());
     let streams = file.is_some()
         && args.plot.is_none()
         && matches!(method(args)?, Method::Fd | Method::FdMulti)
@@ -145,7 +144,7 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
     let mut spilled = SpilledRecords::new()?;
     let mut spill_failed = None;
     let mut sine_read = false;
-    let loaded = forcemap_io::input::load_reduced(file, |kind, mut r| {
+    let loaded = forcemap_io::input::load_reduced(file, args.channels.as_deref(), |kind, mut r| {
         samples_read += r.len();
         records_read += 1;
         pb.set_message(format!(

@@ -184,8 +184,19 @@ pub fn open(path: &Path, map: Option<&TableMap>) -> Result<Box<dyn ColumnFile>, 
 
 /// The records of the file at `path`, its columns picked by `map`.
 pub fn read_mapped(path: &Path, map: &TableMap) -> Result<CsvImport, TableError> {
+    read_mapped_reduced(path, map, Some)
+}
+
+/// [`read_mapped`] with each record handed to `keep` as it is read
+/// ([`read_csv_reduced`](crate::csv_export::read_csv_reduced)): the import's records are those
+/// `keep` returns.
+pub fn read_mapped_reduced(
+    path: &Path,
+    map: &TableMap,
+    keep: impl FnMut(Record) -> Option<Record>,
+) -> Result<CsvImport, TableError> {
     let mut file = open(path, Some(map))?;
-    read::read_through(file.as_mut(), path, map, Some)
+    read::read_through(file.as_mut(), path, map, keep)
 }
 
 /// The records of an MDF4 or TDMS file whose channels are named as forcemap names them (no
