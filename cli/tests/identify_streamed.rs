@@ -257,7 +257,14 @@ fn a_text_file_through_a_channel_map_identifies_as_read_whole() {
     for (i, line) in text.lines().skip(1).enumerate() {
         let c: Vec<&str> = line.split(',').collect();
         let mm = |v: &str| format!("{:e}", v.parse::<f64>().unwrap() * 1e3);
-        let row = [c[0].into(), c[1].into(), c[2].into(), mm(c[3]), mm(c[4]), c[5].into()];
+        let row = [
+            c[0].into(),
+            c[1].into(),
+            c[2].into(),
+            mm(c[3]),
+            mm(c[4]),
+            c[5].into(),
+        ];
         out.push_str(&row.join(";").replace('.', ","));
         out.push_str("\r\n");
         if i == 5000 {
@@ -289,5 +296,8 @@ fn a_text_file_through_a_channel_map_identifies_as_read_whole() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(stderr.contains("decimal commas"), "{stderr}");
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("validation on random record 11"), "{stdout}");
+    assert!(
+        stdout.contains("validation on random record 11"),
+        "{stdout}"
+    );
 }

@@ -53,11 +53,76 @@ pub enum TableError {
     },
 }
 
+/// The file's line (1-based) of each row of a table, kept as runs of consecutive lines: a text
+/// file's rows follow one another but where a comment or blank line comes between, so a long
+/// file's lines take a few entries, not one a row.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RowLines {
+    /// Each run's first row and its line, rows ascending.
+    runs: Vec<(usize, u64)>,
+    rows: usize,
+}
+
+impl RowLines {
+    /// The next row is on `line`.
+    pub fn push(&mut self, line: u64) {
+        let continues = self
+            .runs
+            .last()
+            .is_some_and(|&(row, first)| first + (self.rows - row) as u64 == line);
+        if !continues {
+            self.runs.push((self.rows, line));
+        }
+        self.rows += 1;
+    }
+
+    /// The line of `row`, if the table has it.
+    pub fn get(&self, row: usize) -> Option<u64> {
+        if row >= self.rows {
+            return None;
+        }
+        let (first_row, line) = self.runs[self.runs.partition_point(|&(r, _)| r <= row) - 1];
+        Some(line + (row - first_row) as u64)
+    }
+
+    pub fn len(&self) -> usize {
+        self.rows
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.rows == 0
+    }
+
+    /// The lines of rows `from..to` (clamped to the rows held).
+    pub fn range(&self, from: usize, to: usize) -> RowLines {
+        let mut out = RowLines::default();
+        for row in from..to.min(self.rows) {
+            out.push(self.get(row).expect("a row held"));
+        }
+        out
+    }
+
+    /// Every row's line, in order.
+    pub fn iter(&self) -> impl Iterator<Item = u64> + '_ {
+        (0..self.rows).map(|r| self.get(r).expect("a row held"))
+    }
+}
+
+impl FromIterator<u64> for RowLines {
+    fn from_iter<I: IntoIterator<Item = u64>>(lines: I) -> RowLines {
+        let mut out = RowLines::default();
+        for l in lines {
+            out.push(l);
+        }
+        out
+    }
+}
+
 /// Where a table's rows are in its file: the file's line of each sample, or none (binary
 /// formats, whose rows are named as samples).
 #[derive(Debug, Clone, Copy)]
 pub enum RowPlaces<'a> {
-    Lines(&'a [u64]),
+    Lines(&'a RowLines),
     Samples,
 }
 
@@ -69,7 +134,7 @@ impl RowPlaces<'_> {
             let sample = n.checked_sub(2)?;
             Some(match self {
                 RowPlaces::Lines(lines) => match lines.get(sample as usize) {
-                    Some(l) => ("line".into(), *l),
+                    Some(l) => ("line".into(), l),
                     None => ("sample".into(), sample),
                 },
                 RowPlaces::Samples => ("sample".into(), sample),
@@ -200,8 +265,27 @@ mod tests {
     }
 
     #[test]
+    fn row_lines_are_kept_as_runs() {
+        let lines = [3, 4, 5, 7, 8, 20, 21, 22, 23, 30];
+        let kept: RowLines = lines.into_iter().collect();
+        assert_eq!(kept.runs.len(), 4);
+        assert_eq!(kept.len(), lines.len());
+        assert_eq!(kept.iter().collect::<Vec<_>>(), lines);
+        for (row, &line) in lines.iter().enumerate() {
+            assert_eq!(kept.get(row), Some(line));
+        }
+        assert_eq!(kept.get(lines.len()), None);
+        assert_eq!(
+            kept.range(2, 7).iter().collect::<Vec<_>>(),
+            [5, 7, 8, 20, 21]
+        );
+        assert_eq!(kept.range(8, 99).iter().collect::<Vec<_>>(), [23, 30]);
+        assert!(RowLines::default().get(0).is_none());
+    }
+
+    #[test]
     fn rows_are_named_by_their_place_in_the_file() {
-        let lines = [7, 8, 10];
+        let lines: RowLines = [7, 8, 10].into_iter().collect();
         let text = RowPlaces::Lines(&lines).rename(
             "f.txt: line 4, column 'time_s': time 1 s does not increase (line 3 has 2 s); line 1",
         );

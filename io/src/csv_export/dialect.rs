@@ -245,23 +245,8 @@ pub fn prepare<'a>(bytes: &'a [u8], path: &Path) -> Result<Prepared<'a>, CsvErro
     })
 }
 
-/// Byte ranges of the lines of `body`, each with its line end.
-pub(crate) fn line_spans(body: &[u8]) -> Vec<std::ops::Range<usize>> {
-    let mut spans = Vec::new();
-    let mut start = 0;
-    for (i, &b) in body.iter().enumerate() {
-        if b == b'\n' {
-            spans.push(start..i + 1);
-            start = i + 1;
-        }
-    }
-    if start < body.len() {
-        spans.push(start..body.len());
-    }
-    spans
-}
-
-/// Byte ranges of the first `count` lines of `body`, as [`line_spans`] gives them.
+/// Byte ranges of the first `count` lines of `body`, each with its line end (`\n`; the last
+/// line may have none).
 fn first_line_spans(body: &[u8], count: usize) -> Vec<std::ops::Range<usize>> {
     let mut spans = Vec::with_capacity(count);
     let mut start = 0;
@@ -278,7 +263,7 @@ fn first_line_spans(body: &[u8], count: usize) -> Vec<std::ops::Range<usize>> {
     spans
 }
 
-/// The lines of `body` that start at or after byte `from`, last first, as [`line_spans`]
+/// The lines of `body` that start at or after byte `from`, last first, as [`first_line_spans`]
 /// gives them.
 #[derive(Clone)]
 pub(crate) struct LinesFromEnd<'a> {

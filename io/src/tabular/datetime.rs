@@ -54,15 +54,9 @@ fn nanos_of(d: NaiveDateTime) -> i128 {
     i128::from(u.timestamp()) * 1_000_000_000 + i128::from(u.timestamp_subsec_nanos())
 }
 
-/// Seconds of each instant since the first.
-pub fn seconds_since_first(instants: &[Instant]) -> Vec<f64> {
-    let Some(first) = instants.first() else {
-        return Vec::new();
-    };
-    instants
-        .iter()
-        .map(|i| (i.nanos - first.nanos) as f64 * 1e-9)
-        .collect()
+/// Seconds from `first` to `instant`.
+pub fn seconds_since(first: Instant, instant: Instant) -> f64 {
+    (instant.nanos - first.nanos) as f64 * 1e-9
 }
 
 #[cfg(test)]
@@ -74,7 +68,7 @@ mod tests {
             .iter()
             .map(|c| parse_instant(c, format).unwrap())
             .collect();
-        seconds_since_first(&i)
+        i.iter().map(|&x| seconds_since(i[0], x)).collect()
     }
 
     #[test]

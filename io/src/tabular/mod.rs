@@ -20,7 +20,7 @@ use forcemap_math::record::Record;
 
 use crate::csv_export::CsvImport;
 use crate::input::FileFormat;
-use crate::table::TableError;
+use crate::table::{RowLines, TableError};
 use crate::table_map::TableMap;
 
 pub use default_map::default_map;
@@ -89,18 +89,30 @@ pub struct ColumnBlocks<'f> {
 }
 
 impl ColumnBlocks<'_> {
-    /// The picks' values of every block, one after the other (numbers: a format read block by
-    /// block gives numbers).
+    /// The picks' values of every block, one after the other (a pick is text in every block
+    /// or in none).
     pub fn whole(self) -> Result<Vec<RawValues>, TableError> {
-        let mut values: Vec<Vec<f64>> = vec![Vec::new(); self.lengths.len()];
+        let mut values: Option<Vec<RawValues>> = None;
         for block in self.blocks {
-            for (v, b) in values.iter_mut().zip(block?) {
-                if let RawValues::Numbers(b) = b {
-                    v.extend(b);
+            let block = block?;
+            let Some(values) = &mut values else {
+                values = Some(block);
+                continue;
+            };
+            for (v, b) in values.iter_mut().zip(block) {
+                match (v, b) {
+                    (RawValues::Numbers(v), RawValues::Numbers(b)) => v.extend(b),
+                    (RawValues::Text(v), RawValues::Text(b)) => v.extend(b),
+                    _ => unreachable!("a pick is text in every block or in none"),
                 }
             }
         }
-        Ok(values.into_iter().map(RawValues::Numbers).collect())
+        Ok(values.unwrap_or_else(|| {
+            self.lengths
+                .iter()
+                .map(|_| RawValues::Numbers(Vec::new()))
+                .collect()
+        }))
     }
 }
 
@@ -129,7 +141,7 @@ pub trait ColumnFile {
         })
     }
     /// The file's line of each row, where the format has lines (text).
-    fn row_lines(&self) -> Option<&[u64]> {
+    fn row_lines(&self) -> Option<&RowLines> {
         None
     }
     /// What the reader found of the file's layout (dialect, skipped lines).

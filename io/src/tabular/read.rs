@@ -10,7 +10,7 @@ use forcemap_math::record::Record;
 use super::resolve::{Picks, date_times, pick};
 use super::{ColumnBlocks, ColumnFile, ColumnInfo, RawValues};
 use crate::csv_export::{CsvImport, FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN};
-use crate::table::{RowPlaces, TableError, check_columns, read_table_rows};
+use crate::table::{RowLines, RowPlaces, TableError, check_columns, read_table_rows};
 use crate::table_map::{NamedRows, RecordMaking, TableMap};
 
 /// Reads the picked columns of `file` into the CSV contract's rows and through its reader,
@@ -41,7 +41,7 @@ pub fn read_through(
 
     // What is said of the file, before its columns are read.
     let format = file.format();
-    let row_lines: Option<Vec<u64>> = file.row_lines().map(<[u64]>::to_vec);
+    let row_lines: Option<RowLines> = file.row_lines().cloned();
     let infos: Vec<ColumnInfo> = plans.iter().map(|p| columns[p.column].clone()).collect();
     let mut notices = file.notices();
     let reads: Vec<(usize, bool)> = plans.iter().map(|p| (p.column, p.text_ok)).collect();
@@ -50,9 +50,12 @@ pub fn read_through(
         mut blocks,
     } = file.read_blocks(&reads)?;
     // A block's values scaled (a column named twice is refused with the first block, before
-    // any row is read).
-    let scale = |raw: Vec<RawValues>| -> Result<Vec<Vec<f64>>, TableError> {
+    // any row is read); a column of date-times counts from its first, in the first block.
+    let mut block_row = 0;
+    let mut first_instants = vec![None; plans.len()];
+    let mut scale = |raw: Vec<RawValues>| -> Result<Vec<Vec<f64>>, TableError> {
         let mut out = Vec::with_capacity(plans.len());
+        let mut block_len = 0;
         for (k, ((plan, info), raw)) in plans.iter().zip(&infos).zip(raw).enumerate() {
             out.push(match raw {
                 RawValues::Numbers(v) => v
@@ -60,16 +63,18 @@ pub fn read_through(
                     .map(|x| x * plan.factor + plan.offset)
                     .collect(),
                 RawValues::Text(cells) => date_times(
-                    (format, row_lines.as_deref()),
+                    (format, row_lines.as_ref()),
                     path,
                     info,
-                    &cells,
+                    (&cells, block_row),
                     time_format.as_deref(),
+                    &mut first_instants[k],
                 )?
                 .into_iter()
                 .map(|t| t + plan.offset)
-                .collect(),
+                .collect::<Vec<f64>>(),
             });
+            block_len = block_len.max(out[k].len());
             if plans[..k].iter().any(|p| p.name == plan.name) {
                 return Err(TableError::Format {
                     path: path.to_path_buf(),
@@ -78,6 +83,7 @@ pub fn read_through(
                 });
             }
         }
+        block_row += block_len;
         Ok(out)
     };
     let mut first = match blocks.next() {
@@ -97,7 +103,7 @@ pub fn read_through(
         lengths.insert(0, n);
     }
     // The records the map names: their rows of the whole columns, each labelled by its index.
-    let mut kept_lines: Option<Vec<u64>> = None;
+    let mut kept_lines: Option<RowLines> = None;
     let mut named: Option<NamedValues> = None;
     let mut zero_labels = false;
     let mut labels_len = n;
@@ -117,9 +123,11 @@ pub fn read_through(
             }
             let kept = rows_of_records(format, path, &map.file, records, n)?;
             check_columns(&names, &lengths, path, format)?;
-            kept_lines = row_lines
-                .as_ref()
-                .map(|lines| kept.iter().map(|&(k, _)| lines[k]).collect());
+            kept_lines = row_lines.as_ref().map(|lines| {
+                kept.iter()
+                    .map(|&(k, _)| lines.get(k).expect("a row of the file"))
+                    .collect()
+            });
             let (rows, record): (Vec<usize>, Vec<usize>) = kept.into_iter().unzip();
             let picked = whole
                 .iter()
@@ -141,7 +149,7 @@ pub fn read_through(
         lengths.extend([labels_len; 2]);
     }
     check_columns(&names, &lengths, path, format)?;
-    let places = match kept_lines.as_deref().or(row_lines.as_deref()) {
+    let places = match kept_lines.as_ref().or(row_lines.as_ref()) {
         Some(lines) => RowPlaces::Lines(lines),
         None => RowPlaces::Samples,
     };

@@ -3,12 +3,12 @@
 
 use std::path::Path;
 
-use super::datetime::{Instant, parse_instant, seconds_since_first};
+use super::datetime::{Instant, parse_instant, seconds_since};
 use super::{ColumnFile, ColumnInfo, TimeBase};
 use crate::channel_map::{FREQUENCY_LABEL, STEP_LABEL, TIME_LABEL};
 
 use crate::csv_export::{FREQUENCY_COLUMN, STEP_COLUMN, TIME_COLUMN};
-use crate::table::TableError;
+use crate::table::{RowLines, TableError};
 use crate::table_map::{ColumnRef, ColumnSource, TableMap, TimeSource};
 use crate::units::{Quantity, parse_unit, unit_in_name};
 
@@ -190,24 +190,28 @@ fn factor(
     Ok((parsed.to_si, how))
 }
 
-/// Times of a column of date-times, in seconds since the first; `lines` names the bad cell.
+/// Times of date-times of a column, in seconds since the column's first (`first`, set by the
+/// column's first cells): the cells of rows `first_row..` of the file, a bad one named by its
+/// line (`row_lines`) or sample.
 pub(super) fn date_times(
-    (file_format, row_lines): (&'static str, Option<&[u64]>),
+    (file_format, row_lines): (&'static str, Option<&RowLines>),
     path: &Path,
     info: &ColumnInfo,
-    cells: &[String],
+    (cells, first_row): (&[String], usize),
     format: Option<&str>,
+    first: &mut Option<Instant>,
 ) -> Result<Vec<f64>, TableError> {
     let error = |message| TableError::Format {
         path: path.to_path_buf(),
         format: file_format,
         message,
     };
-    let mut instants: Vec<Instant> = Vec::with_capacity(cells.len());
+    let mut seconds = Vec::with_capacity(cells.len());
     for (k, cell) in cells.iter().enumerate() {
-        let at = || match row_lines.and_then(|l| l.get(k)) {
+        let row = first_row + k;
+        let at = || match row_lines.and_then(|l| l.get(row)) {
             Some(line) => format!("line {line}"),
-            None => format!("sample {k}"),
+            None => format!("sample {row}"),
         };
         let i = parse_instant(cell, format).ok_or_else(|| {
             error(format!(
@@ -219,18 +223,17 @@ pub(super) fn date_times(
                 })
             ))
         })?;
-        if let Some(first) = instants.first()
-            && first.zoned != i.zoned
-        {
+        let first = *first.get_or_insert(i);
+        if first.zoned != i.zoned {
             return Err(error(format!(
                 "{}, {} (time_s): '{cell}' mixes date-times with and without a zone",
                 at(),
                 info.label()
             )));
         }
-        instants.push(i);
+        seconds.push(seconds_since(first, i));
     }
-    Ok(seconds_since_first(&instants))
+    Ok(seconds)
 }
 
 /// What each entry reads, before reading: the column, whether it may be text, its factor.

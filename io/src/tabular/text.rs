@@ -4,31 +4,121 @@
 //! line ends, and a last line cut short by an interrupted recording. The layout is detected
 //! from the first lines unless the map's `table:` block states it.
 
-use std::ops::Range;
-use std::path::Path;
+use std::io::{BufRead, BufReader, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
 
 use super::datetime::parse_instant;
-use super::{ColumnFile, ColumnInfo, RawValues};
-use crate::csv_export::dialect::{cells, line_spans};
-use crate::table::TableError;
+use super::{ColumnBlocks, ColumnFile, ColumnInfo, RawValues};
+use crate::csv_export::dialect::cells;
+use crate::table::{RowLines, TableError};
 use crate::table_map::{Separator, TextOptions};
 use crate::units::unit_in_name;
 
 const FORMAT: &str = "text";
 /// Lines looked at to detect the layout.
 const SAMPLE_LINES: usize = 32;
+/// Rows read into one block of values.
+const BLOCK_ROWS: usize = 1 << 17;
+const BOM: &[u8] = b"\xEF\xBB\xBF";
 
-/// A text file's layout and its rows.
+/// A text file's layout and where its rows are. The file is read twice, neither time whole:
+/// once to find its table lines (the layout from the first, a cut-short last line from the
+/// last), once for the values of the columns picked, a block of rows at a time.
 pub struct TextColumns {
-    path: std::path::PathBuf,
-    bytes: Vec<u8>,
+    path: PathBuf,
+    source: Source,
+    skip_lines: usize,
     separator: Separator,
     decimal_comma: bool,
     columns: Vec<ColumnInfo>,
-    /// The byte range and 1-based line of each data row.
-    rows: Vec<(Range<usize>, u64)>,
-    lines: Vec<u64>,
+    /// Table lines (not blank, not comments, after the preamble) before the first data row:
+    /// the header and the units row.
+    data_from: usize,
+    /// The 1-based line of each data row.
+    lines: RowLines,
     notices: Vec<String>,
+    /// Rows a block holds ([`BLOCK_ROWS`]; fewer in tests, to cross blocks).
+    block_rows: usize,
+}
+
+/// Where the file's bytes are read from.
+enum Source {
+    File,
+    Bytes(Vec<u8>),
+}
+
+/// The lines of a text in order, each without its line end (`\n` or `\r\n`), the first
+/// without a byte-order mark, with the byte offset it starts at.
+struct Lines<R> {
+    reader: R,
+    line: Vec<u8>,
+    index: usize,
+    offset: u64,
+}
+
+impl<R: BufRead> Lines<R> {
+    fn new(reader: R) -> Lines<R> {
+        Lines {
+            reader,
+            line: Vec::new(),
+            index: 0,
+            offset: 0,
+        }
+    }
+
+    /// The next line: its 0-based index, its byte offset and its text.
+    fn next_line(&mut self) -> std::io::Result<Option<(usize, u64, &[u8])>> {
+        self.line.clear();
+        let n = self.reader.read_until(b'\n', &mut self.line)?;
+        if n == 0 {
+            return Ok(None);
+        }
+        let (index, offset) = (self.index, self.offset);
+        self.index += 1;
+        self.offset += n as u64;
+        let mut l = &self.line[..];
+        if index == 0 {
+            l = l.strip_prefix(BOM).unwrap_or(l);
+        }
+        let l = l
+            .strip_suffix(b"\n")
+            .map(|l| l.strip_suffix(b"\r").unwrap_or(l))
+            .unwrap_or(l);
+        Ok(Some((index, offset, l)))
+    }
+}
+
+/// Whether line `index` is one of the table's: after the preamble, not blank, not a comment.
+fn is_table_line(index: usize, line: &[u8], skip_lines: usize) -> bool {
+    index >= skip_lines && !line.iter().all(u8::is_ascii_whitespace) && !is_comment(line)
+}
+
+/// What the first reading finds: the first table lines (for the layout), the last one's place,
+/// and every table line's number.
+struct Scan {
+    head: Vec<(usize, Vec<u8>)>,
+    last: Option<(usize, u64)>,
+    lines: RowLines,
+}
+
+fn scan(reader: impl BufRead, skip_lines: usize) -> std::io::Result<Scan> {
+    let mut lines = Lines::new(reader);
+    let mut out = Scan {
+        head: Vec::new(),
+        last: None,
+        lines: RowLines::default(),
+    };
+    while let Some((index, offset, line)) = lines.next_line()? {
+        if !is_table_line(index, line, skip_lines) {
+            continue;
+        }
+        if out.head.len() <= SAMPLE_LINES {
+            out.head.push((index, line.to_vec()));
+        }
+        out.last = Some((index, offset));
+        out.lines.push(index as u64 + 1);
+    }
+    Ok(out)
 }
 
 fn separator_byte(s: Separator) -> Option<u8> {
@@ -52,24 +142,30 @@ fn split(line: &[u8], separator: Separator) -> Vec<String> {
     }
 }
 
-/// The cells of a data row as [`split`] gives them, found in place (no allocation) for a row
-/// that is UTF-8 without quotes or carriage returns; `false` (and `out` unspecified) for any
-/// other row, which [`split`] reads.
-fn split_in_place<'a>(line: &'a [u8], separator: Separator, out: &mut Vec<&'a str>) -> bool {
+/// The cells of a data row as [`split`] gives them, found in place (their byte ranges in the
+/// line, no allocation) for a row that is UTF-8 without quotes or carriage returns: the row's
+/// text; `None` (and `out` unspecified) for any other row, which [`split`] reads.
+fn split_in_place<'a>(
+    line: &'a [u8],
+    separator: Separator,
+    out: &mut Vec<std::ops::Range<usize>>,
+) -> Option<&'a str> {
     out.clear();
-    let Ok(text) = std::str::from_utf8(line) else {
-        return false;
+    let text = std::str::from_utf8(line).ok()?;
+    let range = |cell: &str| {
+        let start = cell.as_ptr() as usize - text.as_ptr() as usize;
+        start..start + cell.len()
     };
     match separator_byte(separator) {
         Some(b) => {
             if line.is_empty() || memchr::memchr3(b'"', b'\r', b'\n', line).is_some() {
-                return false;
+                return None;
             }
-            out.extend(text.split(char::from(b)).map(str::trim_ascii));
+            out.extend(text.split(char::from(b)).map(str::trim_ascii).map(range));
         }
-        None => out.extend(text.split_ascii_whitespace()),
+        None => out.extend(text.split_ascii_whitespace().map(range)),
     }
-    true
+    Some(text)
 }
 
 fn is_number(cell: &str, decimal_comma: bool) -> bool {
@@ -88,16 +184,49 @@ fn is_comment(line: &[u8]) -> bool {
 
 impl TextColumns {
     pub fn open(path: &Path, options: &TextOptions) -> Result<TextColumns, TableError> {
-        let bytes = std::fs::read(path).map_err(|source| TableError::Io {
-            path: path.to_path_buf(),
-            action: "cannot read",
-            source,
-        })?;
-        TextColumns::from_bytes(bytes, path, options)
+        let file = std::fs::File::open(path).map_err(|source| io_error(path, source))?;
+        let scanned = scan(BufReader::with_capacity(1 << 20, file), options.skip_lines)
+            .map_err(|source| io_error(path, source))?;
+        TextColumns::from_scan(Source::File, scanned, path, options)
     }
 
     pub fn from_bytes(
         bytes: Vec<u8>,
+        path: &Path,
+        options: &TextOptions,
+    ) -> Result<TextColumns, TableError> {
+        let scanned =
+            scan(&bytes[..], options.skip_lines).map_err(|source| io_error(path, source))?;
+        TextColumns::from_scan(Source::Bytes(bytes), scanned, path, options)
+    }
+
+    /// The file's lines from the one with index `index` at byte `offset`.
+    fn lines_from(
+        &self,
+        index: usize,
+        offset: u64,
+    ) -> Result<Lines<Box<dyn BufRead + '_>>, TableError> {
+        let reader: Box<dyn BufRead + '_> = match &self.source {
+            Source::File => {
+                let mut file = std::fs::File::open(&self.path)
+                    .map_err(|source| io_error(&self.path, source))?;
+                file.seek(SeekFrom::Start(offset))
+                    .map_err(|source| io_error(&self.path, source))?;
+                Box::new(BufReader::with_capacity(1 << 20, file))
+            }
+            Source::Bytes(bytes) => {
+                let from = usize::try_from(offset).map_or(bytes.len(), |o| o.min(bytes.len()));
+                Box::new(&bytes[from..])
+            }
+        };
+        let mut lines = Lines::new(reader);
+        (lines.index, lines.offset) = (index, offset);
+        Ok(lines)
+    }
+
+    fn from_scan(
+        source: Source,
+        scanned: Scan,
         path: &Path,
         options: &TextOptions,
     ) -> Result<TextColumns, TableError> {
@@ -106,33 +235,12 @@ impl TextColumns {
             format: FORMAT,
             message,
         };
-        let bom = if bytes.starts_with(b"\xEF\xBB\xBF") {
-            3
-        } else {
-            0
-        };
-        let spans: Vec<Range<usize>> = line_spans(&bytes[bom..])
-            .into_iter()
-            .map(|r| r.start + bom..r.end + bom)
-            .collect();
-        let text_of = |r: &Range<usize>| {
-            let l = &bytes[r.clone()];
-            l.strip_suffix(b"\n")
-                .map(|l| l.strip_suffix(b"\r").unwrap_or(l))
-                .unwrap_or(l)
-        };
-        // The table's lines: after the preamble, without blank and comment lines.
-        let table: Vec<(usize, Range<usize>)> = spans
-            .iter()
-            .enumerate()
-            .skip(options.skip_lines)
-            .filter(|(_, r)| {
-                let l = text_of(r);
-                !l.iter().all(u8::is_ascii_whitespace) && !is_comment(l)
-            })
-            .map(|(i, r)| (i, r.clone()))
-            .collect();
-        let Some((first_index, first)) = table.first().cloned() else {
+        let Scan {
+            head: table,
+            last,
+            lines: table_lines,
+        } = scanned;
+        let Some((first_index, first)) = table.first() else {
             return Err(fail(format!(
                 "no table: the file has no line{} that is not blank or a comment",
                 if options.skip_lines > 0 {
@@ -146,11 +254,11 @@ impl TextColumns {
             .iter()
             .skip(1)
             .take(SAMPLE_LINES)
-            .map(|(_, r)| text_of(r))
+            .map(|(_, r)| r.as_slice())
             .collect();
         let separator = match options.separator {
             Some(s) => s,
-            None => detect_separator(text_of(&first), &sample).ok_or_else(|| {
+            None => detect_separator(first, &sample).ok_or_else(|| {
                 fail(format!(
                     "line {}: cannot tell how cells are separated (tried comma, semicolon, tab \
                      and whitespace); give table: {{separator: ...}} in the map",
@@ -158,7 +266,7 @@ impl TextColumns {
                 ))
             })?,
         };
-        let first_cells = split(text_of(&first), separator);
+        let first_cells = split(first, separator);
         let decimal_comma = options.decimal_comma.unwrap_or_else(|| {
             separator != Separator::Comma
                 && sample
@@ -175,8 +283,8 @@ impl TextColumns {
         // A units row: text where the data below hold numbers.
         let mut units: Option<Vec<String>> = None;
         if header && let (Some((_, second)), Some((_, third))) = (table.get(1), table.get(2)) {
-            let u = split(text_of(second), separator);
-            let d = split(text_of(third), separator);
+            let u = split(second, separator);
+            let d = split(third, separator);
             let numbers_below = d.iter().filter(|c| is_number(c, decimal_comma)).count();
             if u.len() == first_cells.len()
                 && numbers_below > 0
@@ -214,11 +322,7 @@ impl TextColumns {
                 }
             })
             .collect();
-        let mut rows: Vec<(Range<usize>, u64)> = table
-            .iter()
-            .skip(data_from)
-            .map(|(i, r)| (r.clone(), *i as u64 + 1))
-            .collect();
+        let mut lines = table_lines.range(data_from, table_lines.len());
         let mut notices = Vec::new();
         let mut layout = vec![
             match separator {
@@ -244,33 +348,44 @@ impl TextColumns {
             layout.push(format!("{} preamble lines skipped", options.skip_lines));
         }
         notices.push(format!("{}: read as {}", path.display(), layout.join(", ")));
-        // A last line cut short by an interrupted recording.
-        if let Some((r, line)) = rows.last().cloned()
-            && rows.len() > 1
-            && split(text_of(&r), separator).len() < width
-        {
-            rows.pop();
-            notices.push(format!(
-                "{}: line {line}: skipped a truncated last line ({} of {width} fields; the \
-                 recording was likely interrupted)",
-                path.display(),
-                split(text_of(&r), separator).len()
-            ));
-        }
-        if rows.is_empty() {
-            return Err(fail("no data rows".into()));
-        }
-        let lines = rows.iter().map(|(_, l)| *l).collect();
-        Ok(TextColumns {
+        let mut columns_file = TextColumns {
             path: path.to_path_buf(),
-            bytes,
+            source,
+            skip_lines: options.skip_lines,
             separator,
             decimal_comma,
             columns,
-            rows,
-            lines,
-            notices,
-        })
+            data_from,
+            lines: RowLines::default(),
+            notices: Vec::new(),
+            block_rows: BLOCK_ROWS,
+        };
+        // A last line cut short by an interrupted recording.
+        if lines.len() > 1
+            && let Some((index, offset)) = last
+        {
+            let mut at = columns_file.lines_from(index, offset)?;
+            let cut = match at.next_line() {
+                Ok(Some((_, _, l))) => Some(split(l, separator).len()).filter(|&n| n < width),
+                Ok(None) => None,
+                Err(source) => return Err(io_error(path, source)),
+            };
+            if let Some(fields) = cut {
+                lines = lines.range(0, lines.len() - 1);
+                notices.push(format!(
+                    "{}: line {}: skipped a truncated last line ({fields} of {width} fields; the \
+                     recording was likely interrupted)",
+                    path.display(),
+                    index + 1
+                ));
+            }
+        }
+        if lines.is_empty() {
+            return Err(fail("no data rows".into()));
+        }
+        columns_file.lines = lines;
+        columns_file.notices = notices;
+        Ok(columns_file)
     }
 }
 
@@ -295,6 +410,14 @@ fn detect_separator(first: &[u8], sample: &[&[u8]]) -> Option<Separator> {
     best.map(|(s, _)| s)
 }
 
+fn io_error(path: &Path, source: std::io::Error) -> TableError {
+    TableError::Io {
+        path: path.to_path_buf(),
+        action: "cannot read",
+        source,
+    }
+}
+
 impl ColumnFile for TextColumns {
     fn format(&self) -> &'static str {
         FORMAT
@@ -304,7 +427,7 @@ impl ColumnFile for TextColumns {
         &self.columns
     }
 
-    fn row_lines(&self) -> Option<&[u64]> {
+    fn row_lines(&self) -> Option<&RowLines> {
         Some(&self.lines)
     }
 
@@ -313,82 +436,158 @@ impl ColumnFile for TextColumns {
     }
 
     fn read(&mut self, picks: &[(usize, bool)]) -> Result<Vec<RawValues>, TableError> {
-        let width = self.columns.len();
-        let mut numbers: Vec<Vec<f64>> = picks
-            .iter()
-            .map(|_| Vec::with_capacity(self.rows.len()))
-            .collect();
-        let mut texts: Vec<Option<Vec<String>>> = picks.iter().map(|_| None).collect();
+        self.read_blocks(picks)?.whole()
+    }
+
+    fn read_blocks(&mut self, picks: &[(usize, bool)]) -> Result<ColumnBlocks<'_>, TableError> {
+        let lines = self.lines_from(0, 0)?;
+        Ok(ColumnBlocks {
+            lengths: vec![self.lines.len(); picks.len()],
+            blocks: Box::new(TextBlocks {
+                file: self,
+                lines,
+                picks: picks.to_vec(),
+                table_seen: 0,
+                row: 0,
+                text: vec![false; picks.len()],
+                ranges: Vec::new(),
+                done: false,
+            }),
+        })
+    }
+}
+
+/// The picked columns' values of a text file's data rows, a block of rows at a time.
+struct TextBlocks<'f> {
+    file: &'f TextColumns,
+    lines: Lines<Box<dyn BufRead + 'f>>,
+    picks: Vec<(usize, bool)>,
+    /// Table lines passed (the header and units rows are not data).
+    table_seen: usize,
+    /// Data rows read.
+    row: usize,
+    /// Which picks are text (a time column of date-times, as its first row shows).
+    text: Vec<bool>,
+    /// The cells of the row being read, in place.
+    ranges: Vec<std::ops::Range<usize>>,
+    done: bool,
+}
+
+impl Iterator for TextBlocks<'_> {
+    type Item = Result<Vec<RawValues>, TableError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done || self.row >= self.file.lines.len() {
+            return None;
+        }
+        let block = self.read_block();
+        self.done = block.is_err();
+        Some(block)
+    }
+}
+
+impl TextBlocks<'_> {
+    fn read_block(&mut self) -> Result<Vec<RawValues>, TableError> {
+        let file = self.file;
+        let width = file.columns.len();
+        let rows = file.lines.len();
         let fail = |line: u64, message: String| TableError::Format {
-            path: self.path.clone(),
+            path: file.path.clone(),
             format: FORMAT,
             message: format!("line {line}: {message}"),
         };
-        // A row's cells, borrowed from the file's bytes where they can be (`split_in_place`).
-        let mut in_place: Vec<&str> = Vec::with_capacity(width);
-        for (r, line) in &self.rows {
-            let raw = &self.bytes[r.clone()];
-            let raw = raw.strip_suffix(b"\n").unwrap_or(raw);
-            let raw = raw.strip_suffix(b"\r").unwrap_or(raw);
+        let block_rows = file.block_rows.min(rows - self.row);
+        let mut numbers: Vec<Vec<f64>> = (0..self.picks.len())
+            .map(|k| Vec::with_capacity(if self.text[k] { 0 } else { block_rows }))
+            .collect();
+        let mut texts: Vec<Option<Vec<String>>> = self
+            .text
+            .iter()
+            .map(|&t| t.then(|| Vec::with_capacity(block_rows)))
+            .collect();
+        let end = self.row + block_rows;
+        while self.row < end {
+            let Some((index, _, raw)) = self
+                .lines
+                .next_line()
+                .map_err(|source| io_error(&file.path, source))?
+            else {
+                return Err(TableError::Format {
+                    path: file.path.clone(),
+                    format: FORMAT,
+                    message: format!(
+                        "the file ended before its {rows} rows were read again (it changed while \
+                         it was read)"
+                    ),
+                });
+            };
+            if !is_table_line(index, raw, file.skip_lines) {
+                continue;
+            }
+            if self.table_seen < file.data_from {
+                self.table_seen += 1;
+                continue;
+            }
+            let line = index as u64 + 1;
+            // A row's cells, borrowed from the line where they can be (`split_in_place`).
             let owned: Vec<String>;
             let borrowed: Vec<&str>;
-            let cells: &[&str] = if split_in_place(raw, self.separator, &mut in_place) {
-                &in_place
-            } else {
-                owned = split(raw, self.separator);
-                borrowed = owned.iter().map(String::as_str).collect();
-                &borrowed
+            let cells: &[&str] = match split_in_place(raw, file.separator, &mut self.ranges) {
+                Some(text) => {
+                    borrowed = self.ranges.iter().map(|r| &text[r.clone()]).collect();
+                    &borrowed
+                }
+                None => {
+                    owned = split(raw, file.separator);
+                    borrowed = owned.iter().map(String::as_str).collect();
+                    &borrowed
+                }
             };
             if cells.len() != width {
                 return Err(fail(
-                    *line,
+                    line,
                     format!("{} fields where the table has {width}", cells.len()),
                 ));
             }
-            for (k, &(col, text_ok)) in picks.iter().enumerate() {
+            for (k, &(col, text_ok)) in self.picks.iter().enumerate() {
                 let cell = cells[col].trim();
                 if let Some(t) = &mut texts[k] {
                     t.push(cell.to_string());
                     continue;
                 }
-                let parsed = if self.decimal_comma && cell.contains(',') {
+                let parsed = if file.decimal_comma && cell.contains(',') {
                     cell.replace(',', ".").parse::<f64>().ok()
                 } else {
                     fast_float2::parse::<f64, _>(cell.as_bytes())
                         .ok()
                         .or_else(|| cell.parse::<f64>().ok())
                 };
+                let label = || file.columns[col].label();
                 match parsed {
                     Some(v) if v.is_finite() => numbers[k].push(v),
                     Some(_) => {
                         return Err(fail(
-                            *line,
-                            format!(
-                                "{}: '{cell}' is not finite (NaN or infinite)",
-                                self.columns[col].label()
-                            ),
+                            line,
+                            format!("{}: '{cell}' is not finite (NaN or infinite)", label()),
                         ));
                     }
-                    None if text_ok && numbers[k].is_empty() => {
+                    // The first row decides: a column of date-times is text from there on.
+                    None if text_ok && self.row == 0 => {
                         texts[k] = Some(vec![cell.to_string()]);
+                        self.text[k] = true;
                     }
                     None if cell.is_empty() => {
                         return Err(fail(
-                            *line,
-                            format!(
-                                "{}: empty cell (a number is required)",
-                                self.columns[col].label()
-                            ),
+                            line,
+                            format!("{}: empty cell (a number is required)", label()),
                         ));
                     }
                     None => {
-                        return Err(fail(
-                            *line,
-                            format!("{}: '{cell}' is not a number", self.columns[col].label()),
-                        ));
+                        return Err(fail(line, format!("{}: '{cell}' is not a number", label())));
                     }
                 }
             }
+            self.row += 1;
         }
         Ok(numbers
             .into_iter()
@@ -438,7 +637,7 @@ mod tests {
         assert_eq!(t.columns[0].unit, None);
         let v = t.read(&[(0, true), (2, false)]).unwrap();
         assert!(matches!(&v[0], RawValues::Text(c) if c.len() == 2));
-        assert_eq!(t.lines, [2, 3]);
+        assert_eq!(t.lines.iter().collect::<Vec<_>>(), [2, 3]);
     }
 
     #[test]
@@ -456,7 +655,7 @@ mod tests {
         assert_eq!(t.separator, Separator::Semicolon);
         assert!(t.decimal_comma);
         assert_eq!(t.columns[2].unit.as_deref(), Some("kN"));
-        assert_eq!(t.lines, [6, 8]);
+        assert_eq!(t.lines.iter().collect::<Vec<_>>(), [6, 8]);
         let v = t.read(&[(2, false)]).unwrap();
         assert_eq!(v[0], RawValues::Numbers(vec![2.0, 2.5]));
         assert!(
@@ -493,8 +692,9 @@ mod tests {
             ][..]),
         ) {
             let mut out = Vec::new();
-            if split_in_place(&line, separator, &mut out) {
-                let cells: Vec<String> = out.iter().map(|c| c.trim().to_string()).collect();
+            if let Some(text) = split_in_place(&line, separator, &mut out) {
+                let cells: Vec<String> =
+                    out.iter().map(|r| text[r.clone()].trim().to_string()).collect();
                 let reference: Vec<String> =
                     split(&line, separator).iter().map(|c| c.trim().to_string()).collect();
                 proptest::prop_assert_eq!(cells, reference);
@@ -502,10 +702,104 @@ mod tests {
         }
     }
 
+    /// A lab's file read a block of rows at a time, the blocks crossing comment and blank
+    /// lines, read back as the rows of the file: the values, the lines that name them, and the
+    /// date-times counted from the column's first, in the first block.
+    #[test]
+    fn blocks_of_any_size_read_the_rows_of_the_file() {
+        let mut text = String::from("\u{feff}Pruefstand 2\r\nZeit;Weg;Kraft\r\ns;mm;kN\r\n");
+        let mut expected = Vec::new();
+        for i in 0..40 {
+            if i % 7 == 3 {
+                text.push_str("# pause\r\n\r\n");
+            }
+            let line = text.lines().count() + 1;
+            text.push_str(&format!(
+                "2024-03-01 12:00:{:02}.{:03};{},5;-{i}\r\n",
+                i / 4,
+                (i % 4) * 250,
+                i
+            ));
+            expected.push((line as u64, i as f64 + 0.5, -f64::from(i)));
+        }
+        text.push_str("2024-03-01 12:00:10.000;7\r\n");
+        let options = TextOptions {
+            skip_lines: 1,
+            ..TextOptions::default()
+        };
+        let map = |records: &str| {
+            let text = format!(
+                "table: {{records: {records}}}\nchannels:\n  time_s: {{channel: Zeit}}\n  \
+                 relative_displacement_m: {{channel: Weg}}\n  force_n: {{channel: Kraft}}\n"
+            );
+            match crate::channel_map::MapFile::from_yaml_str(&text, "map.yaml").unwrap() {
+                crate::channel_map::MapFile::Columns(map) => map,
+                crate::channel_map::MapFile::Topics(_) => panic!("a map of columns"),
+            }
+        };
+        let whole = map("whole");
+        let named = map("[{name: a, rows: [3, 10]}, {name: b, rows: [20, 40]}]");
+        let mut reference: Vec<Option<String>> = vec![None, None];
+        for block_rows in [1, 2, 3, 7, 39, 40, BLOCK_ROWS] {
+            let open = || {
+                let mut t = TextColumns::from_bytes(
+                    text.clone().into_bytes(),
+                    Path::new("t.txt"),
+                    &options,
+                )
+                .unwrap();
+                t.block_rows = block_rows;
+                t
+            };
+            let mut t = open();
+            assert_eq!(
+                t.lines.iter().collect::<Vec<_>>(),
+                expected.iter().map(|e| e.0).collect::<Vec<_>>()
+            );
+            let v = t.read(&[(0, true), (1, false), (2, false)]).unwrap();
+            assert!(matches!(&v[0], RawValues::Text(c) if c.len() == 40));
+            assert_eq!(
+                v[1],
+                RawValues::Numbers(expected.iter().map(|e| e.1).collect())
+            );
+            assert_eq!(
+                v[2],
+                RawValues::Numbers(expected.iter().map(|e| e.2).collect())
+            );
+            for (k, map) in [&whole, &named].into_iter().enumerate() {
+                let import =
+                    super::super::read::read_through(&mut open(), Path::new("t.txt"), map, Some)
+                        .unwrap();
+                let last = import.records.last().unwrap();
+                let end_s = last.start_time_s + (last.len() - 1) as f64 / last.sample_rate_hz;
+                assert!((end_s - 9.75).abs() < 1e-9, "{block_rows}: {end_s}");
+                let seen = format!(
+                    "{:?} {:?} {:?}",
+                    import.records, import.warnings, import.notices
+                );
+                match &reference[k] {
+                    None => reference[k] = Some(seen),
+                    Some(r) => assert_eq!(r, &seen, "{block_rows}"),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_bad_cell_in_a_later_block_is_named_with_its_line() {
+        let mut t = open("a b\n1 2\n3 4\n% note\n5 6\n7 x\n9 10\n");
+        t.block_rows = 2;
+        let e = t.read(&[(1, false)]).unwrap_err().to_string();
+        assert!(
+            e.contains("t.txt: text: line 6: 'b': 'x' is not a number"),
+            "{e}"
+        );
+    }
+
     #[test]
     fn a_truncated_last_line_is_skipped_with_its_line() {
         let t = open("1 2 3\n4 5 6\n7 8\n");
-        assert_eq!(t.lines, [1, 2]);
+        assert_eq!(t.lines.iter().collect::<Vec<_>>(), [1, 2]);
         assert!(t.notices[1].contains("line 3: skipped a truncated last line"));
     }
 }
