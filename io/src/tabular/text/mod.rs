@@ -13,6 +13,11 @@ use crate::csv_export::dialect::cells;
 use crate::table::{RowLines, TableError};
 use crate::table_map::{Separator, TextOptions};
 use crate::units::unit_in_name;
+use blocks::TextBlocks;
+use lines::{Lines, Scan, scan};
+
+mod blocks;
+mod lines;
 
 const FORMAT: &str = "text";
 /// Lines looked at to detect the layout.
@@ -45,80 +50,6 @@ pub struct TextColumns {
 enum Source {
     File,
     Bytes(Vec<u8>),
-}
-
-/// The lines of a text in order, each without its line end (`\n` or `\r\n`), the first
-/// without a byte-order mark, with the byte offset it starts at.
-struct Lines<R> {
-    reader: R,
-    line: Vec<u8>,
-    index: usize,
-    offset: u64,
-}
-
-impl<R: BufRead> Lines<R> {
-    fn new(reader: R) -> Lines<R> {
-        Lines {
-            reader,
-            line: Vec::new(),
-            index: 0,
-            offset: 0,
-        }
-    }
-
-    /// The next line: its 0-based index, its byte offset and its text.
-    fn next_line(&mut self) -> std::io::Result<Option<(usize, u64, &[u8])>> {
-        self.line.clear();
-        let n = self.reader.read_until(b'\n', &mut self.line)?;
-        if n == 0 {
-            return Ok(None);
-        }
-        let (index, offset) = (self.index, self.offset);
-        self.index += 1;
-        self.offset += n as u64;
-        let mut l = &self.line[..];
-        if index == 0 {
-            l = l.strip_prefix(BOM).unwrap_or(l);
-        }
-        let l = l
-            .strip_suffix(b"\n")
-            .map(|l| l.strip_suffix(b"\r").unwrap_or(l))
-            .unwrap_or(l);
-        Ok(Some((index, offset, l)))
-    }
-}
-
-/// Whether line `index` is one of the table's: after the preamble, not blank, not a comment.
-fn is_table_line(index: usize, line: &[u8], skip_lines: usize) -> bool {
-    index >= skip_lines && !line.iter().all(u8::is_ascii_whitespace) && !is_comment(line)
-}
-
-/// What the first reading finds: the first table lines (for the layout), the last one's place,
-/// and every table line's number.
-struct Scan {
-    head: Vec<(usize, Vec<u8>)>,
-    last: Option<(usize, u64)>,
-    lines: RowLines,
-}
-
-fn scan(reader: impl BufRead, skip_lines: usize) -> std::io::Result<Scan> {
-    let mut lines = Lines::new(reader);
-    let mut out = Scan {
-        head: Vec::new(),
-        last: None,
-        lines: RowLines::default(),
-    };
-    while let Some((index, offset, line)) = lines.next_line()? {
-        if !is_table_line(index, line, skip_lines) {
-            continue;
-        }
-        if out.head.len() <= SAMPLE_LINES {
-            out.head.push((index, line.to_vec()));
-        }
-        out.last = Some((index, offset));
-        out.lines.push(index as u64 + 1);
-    }
-    Ok(out)
 }
 
 fn separator_byte(s: Separator) -> Option<u8> {
@@ -443,160 +374,8 @@ impl ColumnFile for TextColumns {
         let lines = self.lines_from(0, 0)?;
         Ok(ColumnBlocks {
             lengths: vec![self.lines.len(); picks.len()],
-            blocks: Box::new(TextBlocks {
-                file: self,
-                lines,
-                picks: picks.to_vec(),
-                table_seen: 0,
-                row: 0,
-                text: vec![false; picks.len()],
-                ranges: Vec::new(),
-                done: false,
-            }),
+            blocks: Box::new(TextBlocks::new(self, lines, picks)),
         })
-    }
-}
-
-/// The picked columns' values of a text file's data rows, a block of rows at a time.
-struct TextBlocks<'f> {
-    file: &'f TextColumns,
-    lines: Lines<Box<dyn BufRead + 'f>>,
-    picks: Vec<(usize, bool)>,
-    /// Table lines passed (the header and units rows are not data).
-    table_seen: usize,
-    /// Data rows read.
-    row: usize,
-    /// Which picks are text (a time column of date-times, as its first row shows).
-    text: Vec<bool>,
-    /// The cells of the row being read, in place.
-    ranges: Vec<std::ops::Range<usize>>,
-    done: bool,
-}
-
-impl Iterator for TextBlocks<'_> {
-    type Item = Result<Vec<RawValues>, TableError>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        if self.done || self.row >= self.file.lines.len() {
-            return None;
-        }
-        let block = self.read_block();
-        self.done = block.is_err();
-        Some(block)
-    }
-}
-
-impl TextBlocks<'_> {
-    fn read_block(&mut self) -> Result<Vec<RawValues>, TableError> {
-        let file = self.file;
-        let width = file.columns.len();
-        let rows = file.lines.len();
-        let fail = |line: u64, message: String| TableError::Format {
-            path: file.path.clone(),
-            format: FORMAT,
-            message: format!("line {line}: {message}"),
-        };
-        let block_rows = file.block_rows.min(rows - self.row);
-        let mut numbers: Vec<Vec<f64>> = (0..self.picks.len())
-            .map(|k| Vec::with_capacity(if self.text[k] { 0 } else { block_rows }))
-            .collect();
-        let mut texts: Vec<Option<Vec<String>>> = self
-            .text
-            .iter()
-            .map(|&t| t.then(|| Vec::with_capacity(block_rows)))
-            .collect();
-        let end = self.row + block_rows;
-        while self.row < end {
-            let Some((index, _, raw)) = self
-                .lines
-                .next_line()
-                .map_err(|source| io_error(&file.path, source))?
-            else {
-                return Err(TableError::Format {
-                    path: file.path.clone(),
-                    format: FORMAT,
-                    message: format!(
-                        "the file ended before its {rows} rows were read again (it changed while \
-                         it was read)"
-                    ),
-                });
-            };
-            if !is_table_line(index, raw, file.skip_lines) {
-                continue;
-            }
-            if self.table_seen < file.data_from {
-                self.table_seen += 1;
-                continue;
-            }
-            let line = index as u64 + 1;
-            // A row's cells, borrowed from the line where they can be (`split_in_place`).
-            let owned: Vec<String>;
-            let borrowed: Vec<&str>;
-            let cells: &[&str] = match split_in_place(raw, file.separator, &mut self.ranges) {
-                Some(text) => {
-                    borrowed = self.ranges.iter().map(|r| &text[r.clone()]).collect();
-                    &borrowed
-                }
-                None => {
-                    owned = split(raw, file.separator);
-                    borrowed = owned.iter().map(String::as_str).collect();
-                    &borrowed
-                }
-            };
-            if cells.len() != width {
-                return Err(fail(
-                    line,
-                    format!("{} fields where the table has {width}", cells.len()),
-                ));
-            }
-            for (k, &(col, text_ok)) in self.picks.iter().enumerate() {
-                let cell = cells[col].trim();
-                if let Some(t) = &mut texts[k] {
-                    t.push(cell.to_string());
-                    continue;
-                }
-                let parsed = if file.decimal_comma && cell.contains(',') {
-                    cell.replace(',', ".").parse::<f64>().ok()
-                } else {
-                    fast_float2::parse::<f64, _>(cell.as_bytes())
-                        .ok()
-                        .or_else(|| cell.parse::<f64>().ok())
-                };
-                let label = || file.columns[col].label();
-                match parsed {
-                    Some(v) if v.is_finite() => numbers[k].push(v),
-                    Some(_) => {
-                        return Err(fail(
-                            line,
-                            format!("{}: '{cell}' is not finite (NaN or infinite)", label()),
-                        ));
-                    }
-                    // The first row decides: a column of date-times is text from there on.
-                    None if text_ok && self.row == 0 => {
-                        texts[k] = Some(vec![cell.to_string()]);
-                        self.text[k] = true;
-                    }
-                    None if cell.is_empty() => {
-                        return Err(fail(
-                            line,
-                            format!("{}: empty cell (a number is required)", label()),
-                        ));
-                    }
-                    None => {
-                        return Err(fail(line, format!("{}: '{cell}' is not a number", label())));
-                    }
-                }
-            }
-            self.row += 1;
-        }
-        Ok(numbers
-            .into_iter()
-            .zip(texts)
-            .map(|(n, t)| match t {
-                Some(t) => RawValues::Text(t),
-                None => RawValues::Numbers(n),
-            })
-            .collect())
     }
 }
 
