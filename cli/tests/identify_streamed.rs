@@ -13,6 +13,14 @@ use std::process::Output;
 
 use common::forcemap;
 
+/// The rig's simulated run (40 dB) as a CSV export in `dir`.
+fn rig_export(dir: &Path) -> std::path::PathBuf {
+    let rig = dir.join("rig.csv");
+    let o = forcemap(&["simulate", "--snr-db", "40", "--csv", rig.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    rig
+}
+
 fn identify_json(args: &[&str]) -> String {
     let o = forcemap(args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -118,9 +126,7 @@ fn streamed_mdf4_and_tdms_files_identify_as_read_whole_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
     let plots = dir.path().join("plots");
     let plots = plots.to_str().unwrap();
-    let csv = dir.path().join("rig.csv");
-    let o = forcemap(&["simulate", "--snr-db", "40", "--csv", csv.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = rig_export(dir.path());
     let script =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../io/tests/python/measurement_files.py");
     let o = std::process::Command::new(&python)
@@ -194,9 +200,7 @@ fn streamed_mdf4_and_tdms_files_identify_as_read_whole_bit_for_bit() {
 fn random_records_before_and_after_the_sine_steps_validate_in_file_order() {
     let dir = tempfile::tempdir().unwrap();
     let plots = dir.path().join("plots");
-    let rig = dir.path().join("rig.csv");
-    let o = forcemap(&["simulate", "--snr-db", "40", "--csv", rig.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rig = rig_export(dir.path());
     // The run's steps 0-9 are sine steps, 10 and 11 random: written as 10, 11, 0-9, 10, 11,
     // numbered 0-13, at 100 Hz from 0 s.
     let text = std::fs::read_to_string(&rig).unwrap();
@@ -246,9 +250,7 @@ fn random_records_before_and_after_the_sine_steps_validate_in_file_order() {
 fn a_text_file_through_a_channel_map_identifies_as_read_whole() {
     let dir = tempfile::tempdir().unwrap();
     let plots = dir.path().join("plots");
-    let rig = dir.path().join("rig.csv");
-    let o = forcemap(&["simulate", "--snr-db", "40", "--csv", rig.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rig = rig_export(dir.path());
     let text = std::fs::read_to_string(&rig).unwrap();
     let mut out = String::from(
         "Pruefstand 2\r\nexported 2026-12-07\r\nZeit;Schritt;Frequenz;Weg Basis;Weg rel;Beschl\r\n\
