@@ -195,8 +195,9 @@ pub fn streams(path: &Path, channels: Option<&Path>) -> bool {
 /// [`read_csv_reduced`], [`crate::tabular::read_by_contract_names_reduced`],
 /// [`crate::tabular::read_mapped_reduced`]): what `keep` returns is kept in the records. The
 /// kind is that of the first record. For an analysis that streams a long recording: memory
-/// follows what `keep` keeps and what the format holds while it reads (a text file is held
-/// whole), not the records. What [`load_mapped`] prints is returned, for the caller to print.
+/// follows what `keep` keeps and what the format holds while it reads (mdf4-rs holds an MDF4
+/// file whole), not the records. What [`load_mapped`] prints is returned, for the caller to
+/// print.
 pub fn load_reduced(
     path: &Path,
     channels: Option<&Path>,

@@ -93,11 +93,17 @@ impl RowLines {
         self.rows == 0
     }
 
-    /// The lines of rows `from..to` (clamped to the rows held).
+    /// The lines of rows `from..to` (clamped to the rows held), run by run.
     pub fn range(&self, from: usize, to: usize) -> RowLines {
+        let to = to.min(self.rows);
         let mut out = RowLines::default();
-        for row in from..to.min(self.rows) {
-            out.push(self.get(row).expect("a row held"));
+        for (i, &(start, line)) in self.runs.iter().enumerate() {
+            let end = self.runs.get(i + 1).map_or(self.rows, |r| r.0);
+            let (a, b) = (start.max(from), end.min(to));
+            if a < b {
+                out.runs.push((a - from, line + (a - start) as u64));
+                out.rows += b - a;
+            }
         }
         out
     }
@@ -280,6 +286,13 @@ mod tests {
             [5, 7, 8, 20, 21]
         );
         assert_eq!(kept.range(8, 99).iter().collect::<Vec<_>>(), [23, 30]);
+        for from in 0..=lines.len() {
+            for to in from..=lines.len() + 1 {
+                let part = kept.range(from, to);
+                let direct: RowLines = lines[from..to.min(lines.len())].iter().copied().collect();
+                assert_eq!(part, direct, "{from}..{to}");
+            }
+        }
         assert!(RowLines::default().get(0).is_none());
     }
 
