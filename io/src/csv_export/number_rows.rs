@@ -13,7 +13,9 @@ use forcemap_math::record::Record;
 use super::contract::{CsvImport, Layout, TIME_COLUMN};
 use super::error::CsvError;
 use super::import::Import;
-use super::row_cells::{RowHead, decimal_resolution, parse_frequency, parse_number, parse_step};
+use super::row_cells::{
+    RowHead, decimal_resolution, parse_frequency, parse_number, parse_step, resolution_of,
+};
 use super::row_parts::PartRule;
 use super::row_steps::RowSteps;
 use super::write::write_f64;
@@ -86,11 +88,18 @@ fn row_head(
     row: &[f64],
     cell: &mut String,
 ) -> Result<RowHead, CsvError> {
-    // The time's text is needed for its rounding; parsing it back refuses what the text
-    // refuses.
-    let time_text = write_cell(cell, row[layout.time_col]);
-    let time_s = parse_number(path, line, TIME_COLUMN, time_text)?;
-    let time_resolution_s = decimal_resolution(time_text);
+    // A finite time is its cell's value (the shortest round-trip form reads back as itself),
+    // with its cell's rounding; any other is its cell, refused as the cell is.
+    let v = row[layout.time_col];
+    let (time_s, time_resolution_s) = if v.is_finite() {
+        (v, resolution_of(v))
+    } else {
+        let time_text = write_cell(cell, v);
+        (
+            parse_number(path, line, TIME_COLUMN, time_text)?,
+            decimal_resolution(time_text),
+        )
+    };
     let step = match layout.step_col {
         Some(col) => {
             let v = row[col];

@@ -190,6 +190,42 @@ pub(super) fn parse_step(path: &Path, line: u64, cell: &[u8]) -> Result<usize, C
     }
 }
 
+/// The decimal resolution of the cell an export writes for the finite `v`
+/// ([`write_f64`](super::write::write_f64)), `decimal_resolution` of that cell, from the shortest
+/// digits of `v` (ryu) without writing the cell: the power of ten of its last significant
+/// digit, and no coarser than 1 where the cell has no exponent (`130` -> 1, `1.3e22` -> 1e21).
+pub(super) fn resolution_of(v: f64) -> f64 {
+    if v == 0.0 {
+        return 1.0;
+    }
+    let mut buffer = ryu::Buffer::new();
+    let text = buffer.format_finite(v).as_bytes();
+    let (mantissa, exponent) = match text.iter().position(|&b| b == b'e' || b == b'E') {
+        Some(i) => (
+            &text[..i],
+            self::text(&text[i + 1..]).parse::<i32>().unwrap_or(0),
+        ),
+        None => (text, 0),
+    };
+    let (whole, fraction) = match mantissa.iter().position(|&b| b == b'.') {
+        Some(i) => (&mantissa[..i], &mantissa[i + 1..]),
+        None => (mantissa, &b""[..]),
+    };
+    let trailing_zeros = |digits: &[u8]| digits.iter().rev().take_while(|&&b| b == b'0').count();
+    let fraction = &fraction[..fraction.len() - trailing_zeros(fraction)];
+    let last_digit = if fraction.is_empty() {
+        exponent + trailing_zeros(whole) as i32
+    } else {
+        exponent - fraction.len() as i32
+    };
+    let a = v.abs();
+    10f64.powi(if (1e-5..1e16).contains(&a) {
+        last_digit.min(0)
+    } else {
+        last_digit
+    })
+}
+
 /// The decimal resolution a number was written with: `0.000100` -> 1e-6, `1.5e-3` -> 1e-4.
 pub(super) fn decimal_resolution(text: &[u8]) -> f64 {
     let (mantissa, exponent) = match text.iter().position(|&b| b == b'e' || b == b'E') {
@@ -206,4 +242,71 @@ pub(super) fn decimal_resolution(text: &[u8]) -> f64 {
             .count()
     });
     10f64.powi(exponent - decimals as i32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `decimal_resolution` of the cell an export writes for `v`.
+    fn of_the_cell(v: f64) -> f64 {
+        let mut cell = String::new();
+        super::super::write::write_f64(&mut cell, v);
+        decimal_resolution(cell.as_bytes())
+    }
+
+    #[test]
+    fn the_resolution_of_a_number_is_that_of_its_cell() {
+        let mut values = vec![
+            0.0, -0.0, 1.0, 130.0, -130.0, 0.5, 1.25, 1e-5, 9.99e-6, 1e16,
+        ];
+        values.extend([
+            1.3e22,
+            3e20,
+            1e15,
+            9.999999999999998e15,
+            1.5e-7,
+            f64::MIN_POSITIVE,
+        ]);
+        values.extend([
+            f64::MAX,
+            f64::MIN,
+            5e-324,
+            123_456_789.0,
+            0.1 + 0.2,
+            1e21,
+            100.0,
+        ]);
+        // Times as a clock writes them: steps of 0.01 s, 1 us, 1/3 s over long runs.
+        for k in 0..20_000_i32 {
+            let k = f64::from(k);
+            values.extend([k * 0.01, k * 1e-6, k / 3.0, k * 1e3, 1e7 + k * 1e-4]);
+        }
+        for v in values {
+            assert_eq!(
+                resolution_of(v).to_bits(),
+                of_the_cell(v).to_bits(),
+                "{v:e}"
+            );
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn any_finite_number_has_the_resolution_of_its_cell(bits in proptest::num::u64::ANY) {
+            let v = f64::from_bits(bits);
+            if v.is_finite() {
+                proptest::prop_assert_eq!(resolution_of(v).to_bits(), of_the_cell(v).to_bits());
+            }
+        }
+
+        #[test]
+        fn a_decimal_number_has_the_resolution_of_its_cell(
+            m in -10_000_000_i64..10_000_000,
+            e in -30_i32..30,
+        ) {
+            let v = m as f64 * 10f64.powi(e);
+            proptest::prop_assert_eq!(resolution_of(v).to_bits(), of_the_cell(v).to_bits());
+        }
+    }
 }
