@@ -243,6 +243,48 @@ fn random_records_before_and_after_the_sine_steps_validate_in_file_order() {
     assert_eq!(validated, ["0", "1", "12", "13"]);
 }
 
+/// Where the random records cannot wait on disk (no temporary directory), the identification
+/// stops with an error naming the file and the directory, and a file with no random record
+/// after its sine steps needs no temporary file.
+#[test]
+fn random_records_that_cannot_wait_on_disk_stop_with_an_error_naming_the_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = rig_export(dir.path());
+    let missing = dir.path().join("no_such_dir");
+    let run = |file: &Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_forcemap"))
+            .args(["identify", file.to_str().unwrap(), "--model", "coulomb"])
+            .args(["--mass-kg", "36"])
+            .env("TMPDIR", &missing)
+            .output()
+            .unwrap()
+    };
+    let o = run(&rig);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        o.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    assert!(
+        stderr.contains("rig.csv: keeping its band-random records for the validation")
+            && stderr.contains(&format!("a temporary file in {}", missing.display())),
+        "{stderr}"
+    );
+    // Steps 0-9 only: sine steps.
+    let text = std::fs::read_to_string(&rig).unwrap();
+    let sines: String = text
+        .lines()
+        .take(13_001)
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let sines_csv = dir.path().join("sines.csv");
+    std::fs::write(&sines_csv, sines).unwrap();
+    let o = run(&sines_csv);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 /// A lab's text file read through a channel map streams too: a preamble, semicolons, decimal
 /// commas, a units row, displacements in mm and a comment line inside the data identify as the
 /// file read whole does.

@@ -15,16 +15,17 @@ use forcemap_math::record::Record;
 
 /// A failure to write or read back spilled samples, naming the temporary directory.
 #[derive(Debug, thiserror::Error)]
-#[error("the records kept for after the fit, in a temporary file in {dir}: {source}")]
+#[error("a temporary file in {}: {source}", dir.display())]
 pub struct SpillError {
     pub dir: PathBuf,
     #[source]
     pub source: std::io::Error,
 }
 
-/// Records in their order, their samples in a temporary file.
+/// Records in their order, their samples in a temporary file (created by the first record).
+#[derive(Default)]
 pub struct SpilledRecords {
-    file: BufWriter<File>,
+    file: Option<BufWriter<File>>,
     /// Each record with its channels named and emptied, and its length.
     records: Vec<(Record, usize)>,
     samples: usize,
@@ -33,22 +34,24 @@ pub struct SpilledRecords {
 const F64_BYTES: usize = std::mem::size_of::<f64>();
 
 impl SpilledRecords {
-    /// An empty store and its temporary file.
-    pub fn new() -> Result<SpilledRecords, SpillError> {
-        let file = tempfile::tempfile().map_err(spill_error)?;
-        Ok(SpilledRecords {
-            file: BufWriter::with_capacity(1 << 20, file),
-            records: Vec::new(),
-            samples: 0,
-        })
+    /// An empty store, with no file yet.
+    pub fn new() -> SpilledRecords {
+        SpilledRecords::default()
     }
 
     /// Writes `record`'s samples to the file and keeps the rest.
     pub fn push(&mut self, mut record: Record) -> Result<(), SpillError> {
+        let file = match &mut self.file {
+            Some(f) => f,
+            None => self.file.insert(BufWriter::with_capacity(
+                1 << 20,
+                tempfile::tempfile().map_err(spill_error)?,
+            )),
+        };
         let len = record.len();
         for (_, values) in &mut record.channels {
             for v in values.iter() {
-                self.file.write_all(&v.to_le_bytes()).map_err(spill_error)?;
+                file.write_all(&v.to_le_bytes()).map_err(spill_error)?;
             }
             *values = Vec::new();
         }
@@ -74,13 +77,16 @@ impl SpilledRecords {
     /// The records read back in their order, in parts of at least one record and, past the
     /// first, of at most `part_samples` samples (of one channel) each.
     pub fn into_parts(self, part_samples: usize) -> Result<SpilledParts, SpillError> {
-        let mut file = self
-            .file
-            .into_inner()
-            .map_err(|e| spill_error(e.into_error()))?;
-        file.seek(SeekFrom::Start(0)).map_err(spill_error)?;
+        let file = match self.file {
+            Some(f) => {
+                let mut file = f.into_inner().map_err(|e| spill_error(e.into_error()))?;
+                file.seek(SeekFrom::Start(0)).map_err(spill_error)?;
+                Some(BufReader::with_capacity(1 << 20, file))
+            }
+            None => None,
+        };
         Ok(SpilledParts {
-            file: BufReader::with_capacity(1 << 20, file),
+            file,
             records: self.records.into_iter(),
             part_samples: part_samples.max(1),
             bytes: Vec::new(),
@@ -99,7 +105,8 @@ impl SpilledRecords {
 
 /// The spilled records read back a part at a time ([`SpilledRecords::into_parts`]).
 pub struct SpilledParts {
-    file: BufReader<File>,
+    /// None when no record was spilled.
+    file: Option<BufReader<File>>,
     records: std::vec::IntoIter<(Record, usize)>,
     part_samples: usize,
     bytes: Vec<u8>,
@@ -108,8 +115,12 @@ pub struct SpilledParts {
 impl SpilledParts {
     fn read_record(&mut self, mut record: Record, len: usize) -> Result<Record, SpillError> {
         self.bytes.resize(len * F64_BYTES, 0);
+        let file = self
+            .file
+            .as_mut()
+            .expect("a record spilled, so a file written");
         for (_, values) in &mut record.channels {
-            self.file.read_exact(&mut self.bytes).map_err(spill_error)?;
+            file.read_exact(&mut self.bytes).map_err(spill_error)?;
             *values = self
                 .bytes
                 .chunks_exact(F64_BYTES)
@@ -225,7 +236,7 @@ mod tests {
             .map(|(s, &n)| record(s, n, if s == 3 { &rig[..1] } else { &rig }))
             .collect();
         for part_samples in [1, 64, 128, 129, 1000, usize::MAX] {
-            let mut spill = SpilledRecords::new().unwrap();
+            let mut spill = SpilledRecords::new();
             for r in &records {
                 spill.push(r.clone()).unwrap();
             }
@@ -244,7 +255,7 @@ mod tests {
             let back: Vec<Record> = parts.into_iter().flatten().collect();
             assert_eq!(bits(&back), bits(&records), "parts of {part_samples}");
         }
-        let mut spill = SpilledRecords::new().unwrap();
+        let mut spill = SpilledRecords::new();
         for r in &records {
             spill.push(r.clone()).unwrap();
         }
@@ -253,7 +264,7 @@ mod tests {
 
     #[test]
     fn an_empty_store_reads_back_nothing() {
-        let spill = SpilledRecords::new().unwrap();
+        let spill = SpilledRecords::new();
         assert!(spill.is_empty());
         assert_eq!(spill.into_parts(10).unwrap().count(), 0);
     }

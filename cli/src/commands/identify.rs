@@ -141,7 +141,7 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
     // writes to stderr while it shows).
     let pb = indicatif::ProgressBar::new_spinner();
     let mut records_read = 0;
-    let mut spilled = SpilledRecords::new()?;
+    let mut spilled = SpilledRecords::new();
     let mut spill_failed = None;
     let mut sine_read = false;
     let loaded = forcemap_io::input::load_reduced(file, args.channels.as_deref(), |kind, mut r| {
@@ -176,7 +176,10 @@ pub(super) fn load(args: &IdentifyArgs, files: &[std::path::PathBuf]) -> anyhow:
     pb.finish_and_clear();
     let (import, said) = loaded?;
     if let Some(e) = spill_failed {
-        return Err(e.into());
+        return Err(anyhow::Error::new(e).context(format!(
+            "{}: keeping its band-random records for the validation",
+            file.display()
+        )));
     }
     forcemap_io::input::print_said(&said);
     Ok(Read {
