@@ -28,7 +28,6 @@ pub struct SpilledRecords {
     file: Option<BufWriter<File>>,
     /// Each record with its channels named and emptied, and its length.
     records: Vec<(Record, usize)>,
-    samples: usize,
 }
 
 const F64_BYTES: usize = std::mem::size_of::<f64>();
@@ -55,7 +54,6 @@ impl SpilledRecords {
             }
             *values = Vec::new();
         }
-        self.samples += len;
         self.records.push((record, len));
         Ok(())
     }
@@ -67,11 +65,6 @@ impl SpilledRecords {
 
     pub fn is_empty(&self) -> bool {
         self.records.is_empty()
-    }
-
-    /// Samples (of one channel) over all records held.
-    pub fn samples(&self) -> usize {
-        self.samples
     }
 
     /// The records read back in their order, in parts of at least one record and, past the
@@ -91,15 +84,6 @@ impl SpilledRecords {
             part_samples: part_samples.max(1),
             bytes: Vec::new(),
         })
-    }
-
-    /// Every record read back, in their order.
-    pub fn into_records(self) -> Result<Vec<Record>, SpillError> {
-        let mut records = Vec::with_capacity(self.len());
-        for part in self.into_parts(usize::MAX)? {
-            records.extend(part?);
-        }
-        Ok(records)
     }
 }
 
@@ -241,7 +225,6 @@ mod tests {
                 spill.push(r.clone()).unwrap();
             }
             assert_eq!(spill.len(), records.len());
-            assert_eq!(spill.samples(), lens.iter().sum::<usize>());
             let parts: Vec<Vec<Record>> = spill
                 .into_parts(part_samples)
                 .unwrap()
@@ -255,11 +238,6 @@ mod tests {
             let back: Vec<Record> = parts.into_iter().flatten().collect();
             assert_eq!(bits(&back), bits(&records), "parts of {part_samples}");
         }
-        let mut spill = SpilledRecords::new();
-        for r in &records {
-            spill.push(r.clone()).unwrap();
-        }
-        assert_eq!(bits(&spill.into_records().unwrap()), bits(&records));
     }
 
     #[test]
