@@ -36,9 +36,8 @@ use forcemap_math::sim::ElementDrive;
 use serde_json::json;
 
 use super::diagnose::{Data, ElementFit, Fitted, PeriodicFit, fit_element_steps};
-use super::identify::{
-    check_frequency_tolerance, data_name, held_out_records, no_better_than_zero,
-};
+use super::identify::{check_frequency_tolerance, data_name};
+use super::identify_held_out::{held_out_records, no_better_than_zero};
 use super::identify_hysteresis_records::{Refinement, predict_forced, refined_parameters};
 use super::identify_plots::{LoopRecord, write_loop_plots};
 use crate::cli::IdentifyArgs;

@@ -8,7 +8,7 @@ use forcemap_math::model::Model;
 use forcemap_math::pipeline::Validation;
 use forcemap_math::recipe::Setup;
 
-use super::identify::HeldOut;
+use super::identify_held_out::HeldOut;
 use crate::plot::{self, ForceStateStep};
 
 /// Force-state map of the fit (the element force of `setup`, whose identified extra

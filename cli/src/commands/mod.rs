@@ -8,6 +8,7 @@ pub mod diagnose;
 pub mod diagnose_eval;
 pub mod element_outputs;
 pub mod identify;
+pub mod identify_held_out;
 pub mod identify_hysteresis;
 pub mod identify_hysteresis_records;
 mod identify_plots;
